@@ -1,0 +1,37 @@
+#pragma once
+/// @file
+/// Atomic output: a file is written under a temporary name beside its final
+/// path and renamed into place only once complete, so an interrupted run
+/// never leaves a partial file at the output path.
+
+#include <filesystem>
+
+namespace palpate {
+
+/// The temporary twin of an output file. Destroying it without commit()
+/// removes the temporary; SIGINT/SIGTERM/SIGHUP remove it too (see
+/// install_interrupt_cleanup()).
+class AtomicOutput {
+ public:
+  explicit AtomicOutput(std::filesystem::path final_path);
+  ~AtomicOutput();
+  AtomicOutput(const AtomicOutput&) = delete;
+  AtomicOutput& operator=(const AtomicOutput&) = delete;
+
+  /// Where to write: ".<name>.tmp-<pid>" in the same directory.
+  const std::filesystem::path& temp_path() const { return temp_; }
+  /// Flushes the temporary to disk and renames it to the final path.
+  /// @throws SystemError if the file system refuses.
+  void commit();
+
+ private:
+  std::filesystem::path final_;
+  std::filesystem::path temp_;
+  bool committed_ = false;
+};
+
+/// Installs handlers for SIGINT, SIGTERM and SIGHUP that remove the current
+/// AtomicOutput's temporary file and then end the process as the signal would.
+void install_interrupt_cleanup();
+
+}  // namespace palpate

@@ -1,0 +1,63 @@
+#pragma once
+/// @file
+/// The compliance file: one self-describing HDF5 file per organ, written by
+/// palpate-precompute and read by palpated. The layout is the contract
+/// documented in docs/compliance-file.md; change both together.
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "palpate/eigen.hpp"
+
+namespace palpate {
+
+inline constexpr const char* kComplianceFormatName = "palpate-compliance";
+inline constexpr int kComplianceFormatMajor = 1;
+inline constexpr int kComplianceFormatMinor = 0;
+
+/// One material region (a Gmsh physical volume, or the default).
+struct MaterialRecord {
+  std::string name;
+  double young_modulus_pa = 0;
+  double poisson_ratio = 0;
+};
+
+/// Storage type of /compliance/G.
+enum class Precision { kFloat64, kFloat32 };
+
+/// Everything in a compliance file except G itself.
+struct ComplianceModel {
+  Eigen::MatrixX3d vertices_m;          ///< #V × 3, metres (/mesh/vertices)
+  Eigen::MatrixX4i tetrahedra;          ///< #T × 4, 0-based (/mesh/tetrahedra)
+  Eigen::VectorXi tet_material;         ///< #T index into materials (/mesh/tetrahedron_material)
+  std::vector<MaterialRecord> materials;
+  Eigen::MatrixX3i surface_triangles;   ///< #F × 3, outward (/mesh/surface_triangles)
+  Eigen::VectorXi fixed_vertices;       ///< sorted (/mesh/fixed_vertex_ids)
+  Eigen::VectorXi source_vertex_ids;    ///< #V node index in the input file (/mesh/source_vertex_ids)
+  Eigen::VectorXi compliance_vertices;  ///< n, compliance order (/compliance/vertex_ids)
+  Precision precision = Precision::kFloat64;
+  // Root attributes.
+  std::string method;            ///< "solves", "condensation" or "both"
+  std::string producer;          ///< e.g. "palpate-precompute 0.1.0"
+  std::string created_utc;       ///< ISO 8601
+  std::string input_hash;        ///< "sha256:<hex>" of the problem (hash.hpp)
+  std::string material_summary;  ///< human-readable
+  std::string job_toml;          ///< the effective job, enough to reproduce the file
+  std::string report_json;       ///< the precompute report
+};
+
+/// Writes the file atomically (AtomicOutput): nothing appears at @p path
+/// unless the whole file was written.
+/// @param G 3n × 3n compliance, m/N, in compliance order
+/// @throws SystemError on I/O failure.
+void write_compliance_file(const std::filesystem::path& path, const ComplianceModel& model,
+                           CRef<Eigen::MatrixXd> G);
+
+/// Reads and checks a compliance file: format name and major version, shapes,
+/// index ranges, finite values.
+/// @param G receives the 3n × 3n compliance (converted to double)
+/// @throws InputError naming the file and the dataset at fault.
+ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::MatrixXd* G);
+
+}  // namespace palpate

@@ -1,0 +1,26 @@
+#pragma once
+/// @file
+/// Facts about the running process and machine, for reports and limits.
+
+#include <string>
+
+namespace palpate {
+
+/// Peak resident memory (bytes) since start or since the last reset_peak_rss().
+double peak_rss_bytes();
+/// Resets the kernel's peak-RSS mark (Linux: /proc/self/clear_refs), so that
+/// peak_rss_bytes() measures one phase. Returns false if not supported.
+bool reset_peak_rss();
+/// Current resident memory (bytes).
+double current_rss_bytes();
+/// Memory the kernel says is available for a new allocation (MemAvailable).
+double available_memory_bytes();
+/// The BLAS library actually loaded in this process (resolved path), with
+/// OpenBLAS's own configuration and thread count when it is OpenBLAS.
+std::string blas_description();
+/// "2026-11-21T18:00:00Z".
+std::string utc_timestamp();
+/// Bytes as "1.23 GB" (powers of 1000).
+std::string format_bytes(double bytes);
+
+}  // namespace palpate

@@ -1,0 +1,74 @@
+#include "palpate/atomic_file.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <cstring>
+#include <fmt/format.h>
+
+#include "palpate/error.hpp"
+
+namespace palpate {
+
+namespace {
+
+// The temporary path the signal handler removes; async-signal-safe storage.
+char g_pending_temp[4096];
+volatile sig_atomic_t g_has_pending = 0;
+
+void on_signal(int sig) {
+  if (g_has_pending) ::unlink(g_pending_temp);
+  std::signal(sig, SIG_DFL);
+  ::raise(sig);
+}
+
+void fsync_path(const std::filesystem::path& p, int flags) {
+  const int fd = ::open(p.c_str(), flags);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
+}  // namespace
+
+AtomicOutput::AtomicOutput(std::filesystem::path final_path) : final_(std::move(final_path)) {
+  if (final_.filename().empty())
+    throw InputError(fmt::format("output path '{}' names no file", final_.string()));
+  const auto dir = final_.has_parent_path() ? final_.parent_path() : std::filesystem::path(".");
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec))
+    throw InputError(fmt::format("output path '{}': directory '{}' does not exist",
+                                 final_.string(), dir.string()));
+  temp_ = dir / fmt::format(".{}.tmp-{}", final_.filename().string(), ::getpid());
+  if (temp_.string().size() < sizeof(g_pending_temp)) {
+    std::strcpy(g_pending_temp, temp_.c_str());
+    g_has_pending = 1;
+  }
+}
+
+AtomicOutput::~AtomicOutput() {
+  g_has_pending = 0;
+  if (!committed_) {
+    std::error_code ec;
+    std::filesystem::remove(temp_, ec);
+  }
+}
+
+void AtomicOutput::commit() {
+  fsync_path(temp_, O_RDONLY);
+  std::error_code ec;
+  std::filesystem::rename(temp_, final_, ec);
+  if (ec)
+    throw SystemError(fmt::format("cannot move '{}' to '{}': {}", temp_.string(), final_.string(),
+                                  ec.message()));
+  committed_ = true;
+  g_has_pending = 0;
+  fsync_path(final_.has_parent_path() ? final_.parent_path() : ".", O_RDONLY | O_DIRECTORY);
+}
+
+void install_interrupt_cleanup() {
+  for (int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, on_signal);
+}
+
+}  // namespace palpate

@@ -1,0 +1,164 @@
+#include "palpate/compliance.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <numeric>
+
+#include "palpate/dense.hpp"
+#include "palpate/error.hpp"
+
+namespace palpate {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Columns to check, spread evenly over [0, m), always including both ends.
+std::vector<int> sample_columns(int m, int count) {
+  std::vector<int> cols;
+  if (m == 0 || count <= 0) return cols;
+  count = std::min(count, m);
+  for (int i = 0; i < count; ++i)
+    cols.push_back(count == 1 ? 0 : static_cast<int>((static_cast<long>(m - 1) * i) / (count - 1)));
+  cols.erase(std::unique(cols.begin(), cols.end()), cols.end());
+  return cols;
+}
+
+// Re-solves the sampled columns with `factor` and measures the residual of
+// the full system and the agreement with the stored columns of G.
+void check_columns(const SparseMatrixd& K_upper, SparseCholesky& factor, CRef<Eigen::MatrixXd> G,
+                   int count, ComplianceStats* stats) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const int n = static_cast<int>(K_upper.rows());
+  const int m = static_cast<int>(G.rows());
+  const std::vector<int> cols = sample_columns(m, count);
+  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(n, static_cast<Eigen::Index>(cols.size()));
+  for (size_t i = 0; i < cols.size(); ++i) E(cols[i], static_cast<Eigen::Index>(i)) = 1;
+  Eigen::MatrixXd U(n, E.cols());
+  factor.solve(E, U);
+  const Eigen::MatrixXd R = K_upper.selfadjointView<Eigen::Upper>() * U - E;
+  for (size_t i = 0; i < cols.size(); ++i) {
+    const auto c = static_cast<Eigen::Index>(i);
+    stats->max_residual = std::max(stats->max_residual, R.col(c).norm());  // ‖e_j‖ = 1
+    const double g = G.col(cols[i]).norm();
+    stats->max_column_mismatch = std::max(
+        stats->max_column_mismatch, (U.col(c).head(m) - G.col(cols[i])).norm() / g);
+  }
+  stats->checked_columns = cols;
+  stats->check_seconds = seconds_since(t0);
+}
+
+}  // namespace
+
+Eigen::MatrixXd compliance_by_solves(const SparseMatrixd& K_upper, int m,
+                                     const ComplianceOptions& options, ComplianceStats* stats) {
+  Eigen::MatrixXd G(m, m);
+  compliance_by_solves(K_upper, m, options, G, stats);
+  return G;
+}
+
+void compliance_by_solves(const SparseMatrixd& K_upper, int m, const ComplianceOptions& options,
+                          Eigen::Ref<Eigen::MatrixXd> G, ComplianceStats* stats) {
+  PALPATE_DEMAND(m > 0 && m <= K_upper.rows() && options.block_columns > 0);
+  PALPATE_DEMAND(G.rows() == m && G.cols() == m);
+  ComplianceStats local;
+  if (!stats) stats = &local;
+  const int n = static_cast<int>(K_upper.rows());
+  SparseCholesky factor(K_upper);
+  stats->factor = factor.info();
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const int block = std::min(options.block_columns, m);
+  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(n, block);
+  Eigen::MatrixXd U(n, block);
+  for (int c0 = 0; c0 < m; c0 += block) {
+    const int width = std::min(block, m - c0);
+    // Column (k, d) of the block is the unit force e_(k,d).
+    E.setZero();
+    for (int i = 0; i < width; ++i) E(c0 + i, i) = 1;
+    factor.solve(E.leftCols(width), U.leftCols(width));
+    if (options.on_block) options.on_block(c0, U.topLeftCorner(m, width));
+    G.middleCols(c0, width) = U.topLeftCorner(m, width);
+    if (options.progress) options.progress(c0 + width, m);
+  }
+  stats->dense_seconds = seconds_since(t0);
+  // Forward and backward substitution: 2 flops per nonzero of L each, per column.
+  stats->dense_flops = 4.0 * stats->factor.nnz_L * m;
+  check_columns(K_upper, factor, G, options.check_columns, stats);
+}
+
+Eigen::MatrixXd compliance_by_condensation(const SparseMatrixd& K_upper, int m,
+                                           const ComplianceOptions& options,
+                                           ComplianceStats* stats) {
+  PALPATE_DEMAND(m > 0 && m <= K_upper.rows());
+  ComplianceStats local;
+  if (!stats) stats = &local;
+  SparseCholesky factor(K_upper, condensation_ordering(K_upper, m));
+  stats->factor = factor.info();
+  if (options.progress) options.progress(1, 3);
+
+  const auto t0 = std::chrono::steady_clock::now();
+  Eigen::MatrixXd G(m, m);
+  factor.trailing_factor_block(G);  // L_S, S = L_S L_Sᵀ
+  if (options.progress) options.progress(2, 3);
+  invert_from_cholesky(G);          // G_SS = S⁻¹ = L_S⁻ᵀ L_S⁻¹
+  stats->dense_seconds = seconds_since(t0);
+  stats->dense_flops = 2.0 * m * static_cast<double>(m) * m / 3.0;
+  if (options.progress) options.progress(3, 3);
+  check_columns(K_upper, factor, G, options.check_columns, stats);
+  return G;
+}
+
+std::vector<int> condensation_ordering(const SparseMatrixd& K_upper, int m) {
+  const int n = static_cast<int>(K_upper.rows());
+  // Interior first in CHOLMOD's fill-reducing order of K_II, surface last in
+  // compliance order: then the trailing block of L factors S exactly.
+  std::vector<int> perm;
+  perm.reserve(n);
+  if (n > m) {
+    const SparseMatrixd K_II = K_upper.bottomRightCorner(n - m, n - m);
+    for (int p : SparseCholesky::fill_reducing_ordering(K_II)) perm.push_back(m + p);
+  }
+  for (int i = 0; i < m; ++i) perm.push_back(i);
+  return perm;
+}
+
+double max_relative_difference(CRef<Eigen::MatrixXd> a, CRef<Eigen::MatrixXd> b) {
+  PALPATE_DEMAND(a.rows() == b.rows() && a.cols() == b.cols());
+  const double scale = a.cwiseAbs().maxCoeff();
+  return scale > 0 ? (a - b).cwiseAbs().maxCoeff() / scale : (a - b).cwiseAbs().maxCoeff();
+}
+
+double symmetry_error(CRef<Eigen::MatrixXd> G) {
+  PALPATE_DEMAND(G.rows() == G.cols());
+  const double scale = G.cwiseAbs().maxCoeff();
+  double worst = 0;
+  // Column blocks keep the transposed access cache-friendly on large G.
+  const Eigen::Index n = G.rows(), b = 256;
+  for (Eigen::Index j = 0; j < n; j += b)
+    for (Eigen::Index i = 0; i <= j; i += b) {
+      const Eigen::Index h = std::min(b, n - i), w = std::min(b, n - j);
+      worst = std::max(worst, (G.block(i, j, h, w) - G.block(j, i, w, h).transpose()).cwiseAbs().maxCoeff());
+    }
+  return scale > 0 ? worst / scale : worst;
+}
+
+double min_diagonal_block_eigenvalue(CRef<Eigen::MatrixXd> G, int* vertex) {
+  double lowest = INFINITY;
+  for (Eigen::Index k = 0; 3 * k < G.rows(); ++k) {
+    const Eigen::Matrix3d B = G.block<3, 3>(3 * k, 3 * k);
+    // Symmetrized: the eigenvalues of the symmetric part decide definiteness.
+    const Eigen::Matrix3d S = 0.5 * (B + B.transpose());
+    const double e = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(S, Eigen::EigenvaluesOnly).eigenvalues()[0];
+    if (e < lowest) {
+      lowest = e;
+      if (vertex) *vertex = static_cast<int>(k);
+    }
+  }
+  return lowest;
+}
+
+}  // namespace palpate

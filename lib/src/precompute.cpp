@@ -1,0 +1,634 @@
+#include "palpate/precompute.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fmt/format.h>
+#include <map>
+#include <set>
+#include <sstream>
+#include <toml++/toml.h>
+
+#include "palpate/error.hpp"
+#include "palpate/fem.hpp"
+#include "palpate/hash.hpp"
+#include "palpate/system_info.hpp"
+
+#ifndef PALPATE_VERSION
+#define PALPATE_VERSION "0.0.0"
+#endif
+
+namespace palpate {
+
+using nlohmann::json;
+
+Method parse_method(const std::string& name) {
+  if (name == "solves") return Method::kSolves;
+  if (name == "condensation") return Method::kCondensation;
+  if (name == "both") return Method::kBoth;
+  throw InputError(fmt::format("method '{}' is not accepted: use solves, condensation or both", name));
+}
+
+std::string to_string(Method method) {
+  switch (method) {
+    case Method::kSolves: return "solves";
+    case Method::kCondensation: return "condensation";
+    case Method::kBoth: return "both";
+  }
+  return "?";
+}
+
+Precision parse_precision(const std::string& name) {
+  if (name == "float64") return Precision::kFloat64;
+  if (name == "float32") return Precision::kFloat32;
+  throw InputError(fmt::format("precision '{}' is not accepted: use float64 or float32", name));
+}
+
+std::string to_string(Precision precision) {
+  return precision == Precision::kFloat32 ? "float32" : "float64";
+}
+
+// ---- job file ----------------------------------------------------------------
+
+namespace {
+
+class TomlReader {
+ public:
+  explicit TomlReader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const toml::node* node, const std::string& key, const std::string& what) const {
+    const auto line = node ? node->source().begin.line : 0;
+    throw InputError(line ? fmt::format("{}:{}: {}: {}", file_, line, key, what)
+                          : fmt::format("{}: {}: {}", file_, key, what));
+  }
+
+  void only_keys(const toml::table& table, const std::string& where,
+                 std::initializer_list<std::string_view> allowed) const {
+    for (const auto& [key, node] : table) {
+      if (std::find(allowed.begin(), allowed.end(), key.str()) == allowed.end()) {
+        std::string list;
+        for (auto a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+        fail(&node, where.empty() ? std::string(key.str()) : where + "." + std::string(key.str()),
+             fmt::format("unknown key (accepted here: {})", list));
+      }
+    }
+  }
+
+  double number(const toml::node& node, const std::string& key) const {
+    if (auto v = node.value<double>()) return *v;
+    fail(&node, key, "expected a number");
+  }
+  std::string string(const toml::node& node, const std::string& key) const {
+    if (auto v = node.value<std::string>()) return *v;
+    fail(&node, key, "expected a string");
+  }
+  Eigen::Vector3d vec3(const toml::node& node, const std::string& key) const {
+    const auto* arr = node.as_array();
+    if (!arr || arr->size() != 3) fail(&node, key, "expected an array of 3 numbers [x, y, z]");
+    Eigen::Vector3d v;
+    for (int i = 0; i < 3; ++i) v[i] = number((*arr)[static_cast<size_t>(i)], key);
+    return v;
+  }
+  const toml::table& table(const toml::node& node, const std::string& key) const {
+    if (const auto* t = node.as_table()) return *t;
+    fail(&node, key, "expected a table");
+  }
+  template <typename F>
+  void each_table(const toml::node& node, const std::string& key, F f) const {
+    const auto* arr = node.as_array();
+    if (!arr) fail(&node, key, "expected an array of tables");
+    for (const auto& item : *arr) f(table(item, key));
+  }
+
+ private:
+  std::string file_;
+};
+
+std::filesystem::path relative_to(const std::filesystem::path& base, const std::string& p) {
+  std::filesystem::path path(p);
+  return path.is_absolute() ? path : base / path;
+}
+
+}  // namespace
+
+PrecomputeJob read_job_file(const std::filesystem::path& file) {
+  toml::table root;
+  try {
+    root = toml::parse_file(file.string());
+  } catch (const toml::parse_error& e) {
+    if (!std::filesystem::exists(file)) throw InputError(fmt::format("{}: no such job file", file.string()));
+    throw InputError(fmt::format("{}:{}:{}: not valid TOML: {}", file.string(),
+                                 e.source().begin.line, e.source().begin.column, e.description()));
+  }
+  const TomlReader r(file.string());
+  const auto base = std::filesystem::absolute(file).parent_path();
+  PrecomputeJob job;
+  r.only_keys(root, "", {"mesh", "material", "attachment", "compute", "output"});
+
+  double unit = 1.0;
+  if (const auto* mesh = root.get("mesh")) {
+    const auto& t = r.table(*mesh, "mesh");
+    r.only_keys(t, "mesh", {"file", "unit", "fill_size"});
+    if (const auto* n = t.get("file")) job.mesh_file = relative_to(base, r.string(*n, "mesh.file"));
+    if (const auto* n = t.get("unit")) {
+      job.mesh_unit = r.string(*n, "mesh.unit");
+      try {
+        unit = parse_length_unit(job.mesh_unit).to_metres;
+      } catch (const InputError& e) {
+        r.fail(n, "mesh.unit", e.what());
+      }
+    }
+    if (const auto* n = t.get("fill_size")) job.fill_size = r.number(*n, "mesh.fill_size");
+  }
+  if (const auto* material = root.get("material")) {
+    const auto& t = r.table(*material, "material");
+    r.only_keys(t, "material", {"young_modulus_pa", "poisson_ratio", "group"});
+    if (const auto* n = t.get("young_modulus_pa")) job.young_modulus_pa = r.number(*n, "material.young_modulus_pa");
+    if (const auto* n = t.get("poisson_ratio")) job.poisson_ratio = r.number(*n, "material.poisson_ratio");
+    if (const auto* groups = t.get("group"))
+      r.each_table(*groups, "material.group", [&](const toml::table& g) {
+        r.only_keys(g, "material.group", {"name", "young_modulus_pa", "poisson_ratio"});
+        GroupMaterial gm;
+        const auto* name = g.get("name");
+        const auto* E = g.get("young_modulus_pa");
+        const auto* nu = g.get("poisson_ratio");
+        if (!name || !E || !nu)
+          r.fail(&g, "material.group", "needs name, young_modulus_pa and poisson_ratio");
+        gm.group = r.string(*name, "material.group.name");
+        gm.young_modulus_pa = r.number(*E, "material.group.young_modulus_pa");
+        gm.poisson_ratio = r.number(*nu, "material.group.poisson_ratio");
+        job.group_materials.push_back(gm);
+      });
+  }
+  if (const auto* attachment = root.get("attachment")) {
+    const auto& t = r.table(*attachment, "attachment");
+    r.only_keys(t, "attachment", {"groups", "ids_file", "boxes", "spheres", "half_spaces"});
+    auto& a = job.attachment;
+    if (const auto* n = t.get("groups")) {
+      const auto* arr = n->as_array();
+      if (!arr) r.fail(n, "attachment.groups", "expected an array of group names");
+      for (const auto& g : *arr) a.groups.push_back(r.string(g, "attachment.groups"));
+    }
+    if (const auto* n = t.get("ids_file")) a.ids_file = relative_to(base, r.string(*n, "attachment.ids_file"));
+    if (const auto* n = t.get("boxes"))
+      r.each_table(*n, "attachment.boxes", [&](const toml::table& b) {
+        r.only_keys(b, "attachment.boxes", {"min", "max"});
+        if (!b.get("min") || !b.get("max")) r.fail(&b, "attachment.boxes", "needs min and max");
+        a.boxes.push_back({unit * r.vec3(*b.get("min"), "attachment.boxes.min"),
+                           unit * r.vec3(*b.get("max"), "attachment.boxes.max")});
+      });
+    if (const auto* n = t.get("spheres"))
+      r.each_table(*n, "attachment.spheres", [&](const toml::table& s) {
+        r.only_keys(s, "attachment.spheres", {"center", "radius"});
+        if (!s.get("center") || !s.get("radius")) r.fail(&s, "attachment.spheres", "needs center and radius");
+        a.spheres.push_back({unit * r.vec3(*s.get("center"), "attachment.spheres.center"),
+                             unit * r.number(*s.get("radius"), "attachment.spheres.radius")});
+      });
+    if (const auto* n = t.get("half_spaces"))
+      r.each_table(*n, "attachment.half_spaces", [&](const toml::table& h) {
+        r.only_keys(h, "attachment.half_spaces", {"point", "normal"});
+        if (!h.get("point") || !h.get("normal")) r.fail(&h, "attachment.half_spaces", "needs point and normal");
+        a.half_spaces.push_back({unit * r.vec3(*h.get("point"), "attachment.half_spaces.point"),
+                                 r.vec3(*h.get("normal"), "attachment.half_spaces.normal")});
+      });
+  }
+  if (const auto* compute = root.get("compute")) {
+    const auto& t = r.table(*compute, "compute");
+    r.only_keys(t, "compute", {"method", "precision", "block_columns", "tolerance", "memory_limit_gb"});
+    try {
+      if (const auto* n = t.get("method")) job.method = parse_method(r.string(*n, "compute.method"));
+      if (const auto* n = t.get("precision")) job.precision = parse_precision(r.string(*n, "compute.precision"));
+    } catch (const InputError& e) {
+      r.fail(&t, "compute", e.what());
+    }
+    if (const auto* n = t.get("block_columns")) job.block_columns = static_cast<int>(r.number(*n, "compute.block_columns"));
+    if (const auto* n = t.get("tolerance")) job.tolerance = r.number(*n, "compute.tolerance");
+    if (const auto* n = t.get("memory_limit_gb")) job.memory_limit_bytes = 1e9 * r.number(*n, "compute.memory_limit_gb");
+  }
+  if (const auto* output = root.get("output")) {
+    const auto& t = r.table(*output, "output");
+    r.only_keys(t, "output", {"file"});
+    if (const auto* n = t.get("file")) job.output = relative_to(base, r.string(*n, "output.file"));
+  }
+  return job;
+}
+
+std::string to_toml(const PrecomputeJob& job) {
+  const double unit = parse_length_unit(job.mesh_unit).to_metres;
+  auto vec = [&](const Eigen::Vector3d& v, double scale) {
+    return toml::array{v.x() / scale, v.y() / scale, v.z() / scale};
+  };
+  toml::table mesh{{"file", std::filesystem::absolute(job.mesh_file).string()},
+                   {"unit", job.mesh_unit}};
+  if (job.fill_size > 0) mesh.insert("fill_size", job.fill_size);
+  toml::array groups;
+  for (const auto& g : job.group_materials)
+    groups.push_back(toml::table{{"name", g.group},
+                                 {"young_modulus_pa", g.young_modulus_pa},
+                                 {"poisson_ratio", g.poisson_ratio}});
+  toml::table material{{"young_modulus_pa", job.young_modulus_pa}, {"poisson_ratio", job.poisson_ratio}};
+  if (!groups.empty()) material.insert("group", groups);
+  toml::table attachment;
+  const auto& a = job.attachment;
+  if (!a.groups.empty()) {
+    toml::array g;
+    for (const auto& name : a.groups) g.push_back(name);
+    attachment.insert("groups", g);
+  }
+  if (!a.ids_file.empty()) attachment.insert("ids_file", std::filesystem::absolute(a.ids_file).string());
+  toml::array boxes, spheres, half_spaces;
+  for (const auto& b : a.boxes) boxes.push_back(toml::table{{"min", vec(b.min, unit)}, {"max", vec(b.max, unit)}});
+  for (const auto& s : a.spheres) spheres.push_back(toml::table{{"center", vec(s.center, unit)}, {"radius", s.radius / unit}});
+  for (const auto& h : a.half_spaces) half_spaces.push_back(toml::table{{"point", vec(h.point, unit)}, {"normal", vec(h.normal, 1.0)}});
+  if (!boxes.empty()) attachment.insert("boxes", boxes);
+  if (!spheres.empty()) attachment.insert("spheres", spheres);
+  if (!half_spaces.empty()) attachment.insert("half_spaces", half_spaces);
+  toml::table compute{{"method", to_string(job.method)},
+                      {"precision", to_string(job.precision)},
+                      {"block_columns", job.block_columns},
+                      {"tolerance", job.tolerance}};
+  if (job.memory_limit_bytes > 0) compute.insert("memory_limit_gb", job.memory_limit_bytes / 1e9);
+  toml::table root{{"mesh", mesh}, {"material", material}, {"attachment", attachment},
+                   {"compute", compute},
+                   {"output", toml::table{{"file", std::filesystem::absolute(job.output).string()}}}};
+  std::ostringstream out;
+  out << "# palpate-precompute job (written by " << "palpate-precompute " PALPATE_VERSION << ")\n"
+      << root << "\n";
+  return out.str();
+}
+
+// ---- the pipeline --------------------------------------------------------------
+
+namespace {
+
+void validate_job(const PrecomputeJob& job) {
+  if (job.mesh_file.empty()) throw InputError("no mesh given: use --mesh FILE or [mesh] file in the job file");
+  if (job.output.empty()) throw InputError("no output file given: use -o FILE.h5 or [output] file in the job file");
+  if (job.young_modulus_pa == 0)
+    throw InputError("no Young's modulus given: use --young-modulus PA or [material] young_modulus_pa");
+  if (job.poisson_ratio == -2)
+    throw InputError("no Poisson ratio given: use --poisson-ratio NU or [material] poisson_ratio");
+  if (job.attachment.empty())
+    throw InputError("no attachment given: the organ must be held somewhere; use --fix-ids, "
+                     "--fix-group, --fix-box, --fix-sphere, --fix-half-space or [attachment]");
+  if (job.block_columns < 1 || job.block_columns > 100000)
+    throw InputError(fmt::format("block columns {} is not accepted: use 1 to 100000", job.block_columns));
+  if (!(job.tolerance > 0)) throw InputError(fmt::format("tolerance {} is not accepted: use a number > 0", job.tolerance));
+  if (!(job.memory_limit_bytes >= 0)) throw InputError("memory limit must be ≥ 0 (0: available memory)");
+  parse_length_unit(job.mesh_unit);
+}
+
+// Times a phase and measures its peak resident memory.
+class Phases {
+ public:
+  explicit Phases(json* out) : out_(out) {}
+  void begin(const std::string& name) {
+    name_ = name;
+    reset_peak_rss();
+    t0_ = std::chrono::steady_clock::now();
+  }
+  json& end() {
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+    out_->push_back({{"name", name_}, {"seconds", s}, {"peak_rss_bytes", peak_rss_bytes()}});
+    peak_ = std::max(peak_, peak_rss_bytes());
+    return out_->back();
+  }
+  double peak() const { return peak_; }
+
+ private:
+  json* out_;
+  std::string name_;
+  std::chrono::steady_clock::time_point t0_;
+  double peak_ = 0;
+};
+
+json factor_json(const ComplianceStats& s) {
+  const auto& f = s.factor;
+  return {{"ordering", f.ordering},
+          {"nnz_L", f.nnz_L},
+          {"supernodes", f.supernodes},
+          {"bytes", f.bytes},
+          {"analyze_seconds", f.analyze_seconds},
+          {"factor_seconds", f.factor_seconds},
+          {"factor_gflops", f.flops / 1e9},
+          {"factor_gflop_per_s", f.factor_seconds > 0 ? f.flops / f.factor_seconds / 1e9 : 0.0},
+          {"dense_seconds", s.dense_seconds},
+          {"dense_gflops", s.dense_flops / 1e9},
+          {"dense_gflop_per_s", s.dense_seconds > 0 ? s.dense_flops / s.dense_seconds / 1e9 : 0.0},
+          {"max_residual", s.max_residual},
+          {"max_column_mismatch", s.max_column_mismatch},
+          {"checked_columns", s.checked_columns}};
+}
+
+std::string input_hash(const TetMesh& mesh, const std::vector<MaterialRecord>& materials,
+                       const Eigen::VectorXi& tet_material, const std::vector<int>& fixed) {
+  Sha256 h;
+  h.update(fmt::format("{} {}.{}\n", kComplianceFormatName, kComplianceFormatMajor, kComplianceFormatMinor));
+  const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> X = mesh.vertices;
+  const Eigen::Matrix<int, Eigen::Dynamic, 4, Eigen::RowMajor> T = mesh.tetrahedra;
+  h.update(fmt::format("vertices {}\n", X.rows()));
+  h.update(X.data(), sizeof(double) * static_cast<size_t>(X.size()));
+  h.update(fmt::format("tetrahedra {}\n", T.rows()));
+  h.update(T.data(), sizeof(int) * static_cast<size_t>(T.size()));
+  h.update(tet_material.data(), sizeof(int) * static_cast<size_t>(tet_material.size()));
+  for (const auto& m : materials) h.update(fmt::format("material {:.17g} {:.17g}\n", m.young_modulus_pa, m.poisson_ratio));
+  h.update(fmt::format("fixed {}\n", fixed.size()));
+  h.update(fixed.data(), sizeof(int) * fixed.size());
+  return h.hex_digest();
+}
+
+}  // namespace
+
+json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
+  auto warn = [&](const std::string& s) { if (hooks.warn) hooks.warn(s); };
+  auto phase = [&](const std::string& s) { if (hooks.phase) hooks.phase(s); };
+  auto progress = [&](const std::string& label) { return hooks.progress ? hooks.progress(label) : ProgressFn{}; };
+
+  validate_job(job);
+  json report;
+  report["producer"] = "palpate-precompute " PALPATE_VERSION;
+  report["created_utc"] = utc_timestamp();
+  report["blas"] = blas_description();
+  report["method"] = to_string(job.method);
+  report["phases"] = json::array();
+  Phases phases(&report["phases"]);
+
+  // Materials first: a bad modulus is reported before any long work.
+  std::vector<MaterialRecord> materials{{"organ", job.young_modulus_pa, job.poisson_ratio}};
+  std::vector<Lame> lame{lame_parameters(job.young_modulus_pa, job.poisson_ratio)};
+  for (const auto& g : job.group_materials) {
+    try {
+      lame.push_back(lame_parameters(g.young_modulus_pa, g.poisson_ratio));
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("material of group '{}': {}", g.group, e.what()));
+    }
+    materials.push_back({g.group, g.young_modulus_pa, g.poisson_ratio});
+  }
+
+  phase("read mesh");
+  phases.begin("read mesh");
+  MeshReadOptions read_options{parse_length_unit(job.mesh_unit), job.fill_size};
+  TetMesh mesh = read_mesh(job.mesh_file, read_options);
+  const MeshCheck check = validate_and_compact(mesh);
+  if (!check.dropped_vertices.empty()) {
+    std::string first;
+    for (size_t i = 0; i < std::min<size_t>(5, check.dropped_vertices.size()); ++i)
+      first += fmt::format("{}{}", i ? " " : "", check.dropped_vertices[i]);
+    warn(fmt::format("{}: {} vertices belong to no tetrahedron and were dropped (first: {})",
+                     mesh.source, check.dropped_vertices.size(), first));
+  }
+  const double diagonal = (check.bbox_max - check.bbox_min).norm();
+  if (diagonal > 3.0)
+    warn(fmt::format("{}: the organ is {:.3g} m across; if the file is in millimetres, use --mesh-unit mm",
+                     mesh.source, diagonal));
+  if (diagonal < 0.005)
+    warn(fmt::format("{}: the organ is {:.3g} m across; check --mesh-unit", mesh.source, diagonal));
+  const Boundary boundary = extract_boundary(mesh);
+  phases.end();
+
+  // Per-tetrahedron material: the organ's, or its physical group's.
+  Eigen::VectorXi tet_material = Eigen::VectorXi::Zero(mesh.tetrahedra.rows());
+  for (size_t g = 0; g < job.group_materials.size(); ++g) {
+    const auto& name = job.group_materials[g].group;
+    int tag = 0;
+    for (const auto& [t, n] : mesh.group_names)
+      if (n == name || fmt::format("#{}", t) == name) tag = t;
+    if (tag == 0) {
+      std::string known;
+      for (const auto& [t, n] : mesh.group_names) known += (known.empty() ? "" : ", ") + n;
+      throw InputError(fmt::format("{}: material group '{}' is not a physical volume of the mesh "
+                                   "(its physical volumes: {})",
+                                   mesh.source, name, known.empty() ? "none" : known));
+    }
+    for (Eigen::Index t = 0; t < mesh.tetrahedra.rows(); ++t)
+      if (mesh.tet_group[t] == tag) tet_material[t] = static_cast<int>(g + 1);
+  }
+
+  const std::vector<int> fixed = select_fixed_vertices(mesh, job.attachment);
+  check_attachment_stops_rigid_motion(mesh, fixed);
+  const DofMap dofs = make_dof_map(boundary.on_surface, fixed);
+  const int m = dofs.surface_dofs();
+  const int n = dofs.dofs();
+  if (m == 0) throw InputError(fmt::format("{}: every surface vertex is fixed: nothing left to touch", mesh.source));
+
+  const int n_surface = static_cast<int>(std::count(boundary.on_surface.begin(), boundary.on_surface.end(), true));
+  report["mesh"] = {{"file", job.mesh_file.string()},
+                    {"unit", job.mesh_unit},
+                    {"vertices", mesh.vertices.rows()},
+                    {"tetrahedra", mesh.tetrahedra.rows()},
+                    {"dropped_vertices", check.dropped_vertices.size()},
+                    {"surface_triangles", boundary.triangles.rows()},
+                    {"surface_vertices", n_surface},
+                    {"fixed_vertices", fixed.size()},
+                    {"compliance_vertices", dofs.compliance_vertices.size()},
+                    {"bbox_min_m", {check.bbox_min.x(), check.bbox_min.y(), check.bbox_min.z()}},
+                    {"bbox_max_m", {check.bbox_max.x(), check.bbox_max.y(), check.bbox_max.z()}},
+                    {"min_tet_volume_m3", check.min_volume_m3}};
+  report["dofs"] = {{"total", n}, {"surface", m}};
+  report["materials"] = json::array();
+  for (const auto& mat : materials)
+    report["materials"].push_back({{"name", mat.name}, {"young_modulus_pa", mat.young_modulus_pa}, {"poisson_ratio", mat.poisson_ratio}});
+
+  // Memory: refuse before the long work, with the numbers.
+  const double g_bytes = 8.0 * m * static_cast<double>(m);
+  const double limit = job.memory_limit_bytes > 0 ? job.memory_limit_bytes : available_memory_bytes();
+  auto refuse_if_too_big = [&](double need, const std::string& detail) {
+    if (need > limit)
+      throw ResourceError(fmt::format(
+          "the job needs about {} ({}) but {} {}: use a coarser mesh (fewer surface vertices), "
+          "or a machine with more memory",
+          format_bytes(need), detail, format_bytes(limit),
+          job.memory_limit_bytes > 0 ? "is the memory limit set" : "is available on this machine"));
+  };
+  refuse_if_too_big(g_bytes, fmt::format("G alone is {} × {} doubles", m, m));
+
+  phase("assemble K");
+  phases.begin("assemble K");
+  const SparseMatrixd K = assemble_stiffness(mesh.vertices, mesh.tetrahedra, tet_material, lame, dofs);
+  phases.end()["nnz_upper"] = K.nonZeros();
+
+  const bool do_solves = job.method != Method::kCondensation;
+  const bool do_condensation = job.method != Method::kSolves;
+  {
+    // G, plus each method's factor and work arrays (they run one at a time).
+    const double k_bytes = 12.0 * static_cast<double>(K.nonZeros());
+    double need = 0;
+    if (do_solves)
+      need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K) +
+                                3.0 * 8.0 * n * std::min(job.block_columns, m));
+    if (do_condensation)
+      need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K, condensation_ordering(K, m)));
+    need += k_bytes;
+    report["memory"] = {{"G_bytes", g_bytes}, {"estimate_bytes", need}, {"limit_bytes", limit}};
+    refuse_if_too_big(need, fmt::format("G is {}; the rest is the sparse factor", format_bytes(g_bytes)));
+  }
+
+  ComplianceOptions options;
+  options.block_columns = job.block_columns;
+  auto not_pd = [&](const NotPositiveDefinite& e) {
+    const int v = dofs.vertex_of_dof(e.column());
+    return NumericalError(fmt::format(
+        "{}: the stiffness matrix is not positive definite (Cholesky failed at vertex {}, axis {}): "
+        "check that the attachment holds every part of the organ and that no element is degenerate",
+        mesh.source, mesh.source_ids[v], "xyz"[e.column() % 3]));
+  };
+
+  Eigen::MatrixXd G;
+  json methods;
+  if (do_condensation) {
+    phase("condensation");
+    phases.begin("condensation");
+    options.progress = progress("condensation");
+    ComplianceStats stats;
+    try {
+      G = compliance_by_condensation(K, m, options, &stats);
+    } catch (const NotPositiveDefinite& e) {
+      throw not_pd(e);
+    }
+    auto& p = phases.end();
+    p["gflop_per_s"] = stats.dense_seconds > 0 ? stats.dense_flops / stats.dense_seconds / 1e9 : 0.0;
+    methods["condensation"] = factor_json(stats);
+  }
+  double max_difference = -1;
+  if (do_solves) {
+    phase("solves");
+    phases.begin("solves");
+    options.progress = progress(fmt::format("{} solves", m));
+    ComplianceStats stats;
+    if (do_condensation) {
+      // Compare block by block with the condensation result, then overwrite it.
+      const double scale = G.cwiseAbs().maxCoeff();
+      double worst = 0;
+      options.on_block = [&](int first, CRef<Eigen::MatrixXd> block) {
+        worst = std::max(worst, (block - G.middleCols(first, block.cols())).cwiseAbs().maxCoeff());
+      };
+      try {
+        compliance_by_solves(K, m, options, G, &stats);
+      } catch (const NotPositiveDefinite& e) {
+        throw not_pd(e);
+      }
+      max_difference = worst / scale;
+    } else {
+      try {
+        G = compliance_by_solves(K, m, options, &stats);
+      } catch (const NotPositiveDefinite& e) {
+        throw not_pd(e);
+      }
+    }
+    auto& p = phases.end();
+    p["gflop_per_s"] = stats.dense_seconds > 0 ? stats.dense_flops / stats.dense_seconds / 1e9 : 0.0;
+    methods["solves"] = factor_json(stats);
+  }
+  report["methods"] = methods;
+
+  phase("checks");
+  phases.begin("checks");
+  json checks;
+  double residual = 0, mismatch = 0;
+  for (const auto& [name, s] : methods.items()) {
+    residual = std::max(residual, s["max_residual"].get<double>());
+    mismatch = std::max(mismatch, s["max_column_mismatch"].get<double>());
+  }
+  int weakest = 0;
+  const double min_eig = min_diagonal_block_eigenvalue(G, &weakest);
+  checks["max_residual"] = residual;
+  checks["max_column_mismatch"] = mismatch;
+  checks["symmetry_error"] = symmetry_error(G);
+  checks["min_diagonal_block_eigenvalue_m_per_n"] = min_eig;
+  checks["min_diagonal_block_vertex"] = mesh.source_ids[dofs.compliance_vertices[weakest]];
+  if (max_difference >= 0) {
+    checks["max_relative_difference"] = max_difference;
+    checks["tolerance"] = job.tolerance;
+  }
+  report["checks"] = checks;
+  phases.end();
+  if (max_difference > job.tolerance || !(max_difference == max_difference))
+    throw NumericalError(fmt::format(
+        "the two methods disagree: largest relative difference {:.3g} > tolerance {:.3g}; "
+        "no file written (the stiffness may be too ill-conditioned: check ν < 0.5 and the mesh quality)",
+        max_difference, job.tolerance));
+  if (!(min_eig > 0))
+    throw NumericalError(fmt::format("G has a diagonal block that is not positive definite (vertex {}, "
+                                     "eigenvalue {:.3g} m/N); no file written",
+                                     mesh.source_ids[dofs.compliance_vertices[weakest]], min_eig));
+
+  ComplianceModel model;
+  model.vertices_m = mesh.vertices;
+  model.tetrahedra = mesh.tetrahedra;
+  model.tet_material = tet_material;
+  model.materials = materials;
+  model.surface_triangles = boundary.triangles;
+  model.fixed_vertices = Eigen::Map<const Eigen::VectorXi>(fixed.data(), static_cast<Eigen::Index>(fixed.size()));
+  model.source_vertex_ids = mesh.source_ids;
+  model.compliance_vertices = Eigen::Map<const Eigen::VectorXi>(
+      dofs.compliance_vertices.data(), static_cast<Eigen::Index>(dofs.compliance_vertices.size()));
+  model.precision = job.precision;
+  model.method = to_string(job.method);
+  model.producer = report["producer"];
+  model.created_utc = report["created_utc"];
+  model.input_hash = input_hash(mesh, materials, tet_material, fixed);
+  report["input_hash"] = model.input_hash;
+  std::string summary;
+  for (const auto& mat : materials)
+    summary += fmt::format("{}{}: E = {:.6g} Pa, nu = {:.6g}", summary.empty() ? "" : "; ", mat.name,
+                           mat.young_modulus_pa, mat.poisson_ratio);
+  model.material_summary = summary;
+  model.job_toml = to_toml(job);
+  report["output"] = {{"file", job.output.string()}, {"precision", to_string(job.precision)}};
+  model.report_json = report.dump();
+
+  phase("write file");
+  phases.begin("write file");
+  write_compliance_file(job.output, model, G);
+  phases.end();
+  report["output"]["bytes"] = std::filesystem::file_size(job.output);
+  report["peak_rss_bytes"] = phases.peak();
+  return report;
+}
+
+std::string format_report(const json& r) {
+  std::string s;
+  const auto& mesh = r["mesh"];
+  s += fmt::format("palpate-precompute report ({})\n", r["producer"].get<std::string>());
+  s += fmt::format("  mesh       {}: {} vertices, {} tetrahedra, {} surface triangles\n",
+                   mesh["file"].get<std::string>(), mesh["vertices"].get<long>(),
+                   mesh["tetrahedra"].get<long>(), mesh["surface_triangles"].get<long>());
+  s += fmt::format("             {} surface vertices, {} fixed, {} in the compliance; {} DOFs\n",
+                   mesh["surface_vertices"].get<long>(), mesh["fixed_vertices"].get<long>(),
+                   mesh["compliance_vertices"].get<long>(), r["dofs"]["total"].get<long>());
+  for (const auto& mat : r["materials"])
+    s += fmt::format("  material   {}: E = {:.4g} Pa, nu = {}\n", mat["name"].get<std::string>(),
+                     mat["young_modulus_pa"].get<double>(), mat["poisson_ratio"].get<double>());
+  s += fmt::format("  BLAS       {}\n", r["blas"].get<std::string>());
+  s += "  phases     time        peak RSS    rate\n";
+  for (const auto& p : r["phases"]) {
+    s += fmt::format("    {:<14} {:>8.3f} s  {:>10}", p["name"].get<std::string>(),
+                     p["seconds"].get<double>(), format_bytes(p["peak_rss_bytes"].get<double>()));
+    if (p.contains("gflop_per_s")) s += fmt::format("  {:.1f} GFLOP/s (dense part)", p["gflop_per_s"].get<double>());
+    s += "\n";
+  }
+  for (const auto& [name, m] : r["methods"].items())
+    s += fmt::format("  {:<12} factor: {} ordering, nnz(L) = {:.3g}, {:.2f} s ({:.1f} GFLOP/s); dense: {:.2f} s ({:.1f} GFLOP/s)\n",
+                     name, m["ordering"].get<std::string>(), m["nnz_L"].get<double>(),
+                     m["factor_seconds"].get<double>(), m["factor_gflop_per_s"].get<double>(),
+                     m["dense_seconds"].get<double>(), m["dense_gflop_per_s"].get<double>());
+  const auto& c = r["checks"];
+  s += fmt::format("  checks     residual ‖Ku−e‖/‖e‖ ≤ {:.2e} on sampled columns; column mismatch ≤ {:.2e}\n",
+                   c["max_residual"].get<double>(), c["max_column_mismatch"].get<double>());
+  s += fmt::format("             symmetry error {:.2e}; smallest eigenvalue of a diagonal block {:.4g} m/N\n",
+                   c["symmetry_error"].get<double>(), c["min_diagonal_block_eigenvalue_m_per_n"].get<double>());
+  if (c.contains("max_relative_difference"))
+    s += fmt::format("             solves vs condensation: largest relative difference {:.2e} (tolerance {:.0e})\n",
+                     c["max_relative_difference"].get<double>(), c["tolerance"].get<double>());
+  if (r.contains("output"))
+    s += fmt::format("  output     {} ({}, {}), input hash {}\n", r["output"]["file"].get<std::string>(),
+                     r["output"]["precision"].get<std::string>(),
+                     format_bytes(r["output"].value("bytes", 0.0)), r["input_hash"].get<std::string>().substr(0, 23));
+  if (r.contains("peak_rss_bytes"))
+    s += fmt::format("  peak RSS   {} (G is {})\n", format_bytes(r["peak_rss_bytes"].get<double>()),
+                     format_bytes(r["memory"]["G_bytes"].get<double>()));
+  return s;
+}
+
+}  // namespace palpate

@@ -1,0 +1,160 @@
+// palpate-precompute: organ mesh + material + attachment → verified surface
+// compliance file (HDF5). Argument parsing and wiring only; the work is in
+// the palpate library (precompute.hpp).
+
+#include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+
+#include "palpate/atomic_file.hpp"
+#include "palpate/error.hpp"
+#include "palpate/mesh_io.hpp"
+#include "palpate/precompute.hpp"
+#include "progress_bar.hpp"
+
+namespace {
+
+using palpate::ExitCode;
+
+Eigen::Vector3d vec3(const std::vector<double>& v, size_t offset) {
+  return {v[offset], v[offset + 1], v[offset + 2]};
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"palpate-precompute: surface compliance of an elastic organ (Cotin, Delingette & "
+               "Ayache 1999), computed with CHOLMOD by 3N_S solves and by condensation, "
+               "cross-checked, written to one HDF5 file"};
+  app.set_version_flag("--version", "palpate-precompute " PALPATE_VERSION);
+
+  std::string job_file, mesh, mesh_unit, fix_ids, method, precision, output, save_job;
+  std::vector<std::string> fix_groups, materials;
+  std::vector<double> box, sphere, half_space;
+  double young = 0, poisson = 0, fill_size = 0, tolerance = 0, memory_gb = 0;
+  int block_columns = 0;
+  bool json_out = false, quiet = false;
+
+  app.add_option("-j,--job", job_file, "TOML job file (config/*.toml); flags override it")->check(CLI::ExistingFile);
+  app.add_option("--mesh", mesh, "tetrahedral mesh (.msh v2/v4, .mesh, .vtk) or closed surface (.stl)");
+  app.add_option("--mesh-unit", mesh_unit, "unit of the mesh coordinates: m, cm or mm (default m)");
+  app.add_option("--fill-size", fill_size, "STL only: target tetrahedron size, in the mesh unit (default: 1/20 of the diagonal)");
+  app.add_option("-E,--young-modulus", young, "Young's modulus of the organ, Pa");
+  app.add_option("--poisson-ratio,--nu", poisson, "Poisson ratio of the organ, in (-1, 0.5)");
+  app.add_option("--group-material", materials, "material of a physical volume: NAME:E_PA:NU (repeatable)");
+  app.add_option("--fix-ids", fix_ids, "file of 0-based vertex indices to fix, one per line (mesh file node order)");
+  app.add_option("--fix-group", fix_groups, "fix the vertices of a Gmsh physical group (repeatable)");
+  app.add_option("--fix-box", box, "fix vertices in a box: XMIN YMIN ZMIN XMAX YMAX ZMAX (mesh unit)")->expected(6);
+  app.add_option("--fix-sphere", sphere, "fix vertices in a ball: CX CY CZ R (mesh unit)")->expected(4);
+  app.add_option("--fix-half-space", half_space, "fix vertices with (x-p).n >= 0: PX PY PZ NX NY NZ (mesh unit)")->expected(6);
+  app.add_option("--method", method, "solves, condensation or both (default both: computes both and cross-checks)");
+  app.add_option("--precision", precision, "storage of G: float64 (default) or float32");
+  app.add_option("--block-columns", block_columns, "right-hand sides per blocked solve (default 384)");
+  app.add_option("--tolerance", tolerance, "largest accepted relative difference between the methods (default 1e-8)");
+  app.add_option("--memory-limit-gb", memory_gb, "refuse jobs needing more than this (default: available memory)");
+  app.add_option("-o,--output", output, "compliance file to write (HDF5, written atomically)");
+  app.add_option("--save-job", save_job, "write the effective job as TOML (to reproduce the run)");
+  app.add_flag("--json", json_out, "print the report as JSON on stdout");
+  app.add_flag("-q,--quiet", quiet, "no progress or report text on stderr");
+
+  auto* sample = app.add_subcommand("make-sample", "write palpate's sample organ (Gmsh .msh, metres)");
+  std::string sample_out;
+  double sample_size = 0.012;
+  sample->add_option("-o,--output", sample_out, "mesh file to write")->required();
+  sample->add_option("--size", sample_size, "target tetrahedron size, m (default 0.012)");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  auto log = spdlog::stderr_color_mt("palpate");
+  log->set_pattern("palpate-precompute: %l: %v");
+  log->set_level(quiet ? spdlog::level::err : spdlog::level::info);
+
+  if (*sample) {
+    palpate::write_sample_organ(sample_out, sample_size);
+    if (!quiet) log->info("sample organ written to {}", sample_out);
+    return 0;
+  }
+
+  palpate::PrecomputeJob job;
+  if (!job_file.empty()) job = palpate::read_job_file(job_file);
+  if (!mesh.empty()) job.mesh_file = mesh;
+  if (!mesh_unit.empty()) job.mesh_unit = mesh_unit;
+  const double unit = palpate::parse_length_unit(job.mesh_unit).to_metres;
+  if (app.count("--fill-size")) job.fill_size = fill_size;
+  if (app.count("--young-modulus")) job.young_modulus_pa = young;
+  if (app.count("--poisson-ratio")) job.poisson_ratio = poisson;
+  for (const auto& spec : materials) {
+    const auto a = spec.find(':'), b = spec.rfind(':');
+    if (a == std::string::npos || a == b)
+      throw palpate::InputError(fmt::format("--group-material '{}': expected NAME:E_PA:NU", spec));
+    try {
+      job.group_materials.push_back({spec.substr(0, a), std::stod(spec.substr(a + 1, b - a - 1)),
+                                     std::stod(spec.substr(b + 1))});
+    } catch (const std::logic_error&) {
+      throw palpate::InputError(fmt::format("--group-material '{}': expected NAME:E_PA:NU with numbers", spec));
+    }
+  }
+  if (!fix_ids.empty()) job.attachment.ids_file = fix_ids;
+  for (const auto& g : fix_groups) job.attachment.groups.push_back(g);
+  if (!box.empty()) job.attachment.boxes.push_back({unit * vec3(box, 0), unit * vec3(box, 3)});
+  if (!sphere.empty()) job.attachment.spheres.push_back({unit * vec3(sphere, 0), unit * sphere[3]});
+  if (!half_space.empty()) job.attachment.half_spaces.push_back({unit * vec3(half_space, 0), vec3(half_space, 3)});
+  if (!method.empty()) job.method = palpate::parse_method(method);
+  if (!precision.empty()) job.precision = palpate::parse_precision(precision);
+  if (app.count("--block-columns")) job.block_columns = block_columns;
+  if (app.count("--tolerance")) job.tolerance = tolerance;
+  if (app.count("--memory-limit-gb")) job.memory_limit_bytes = 1e9 * memory_gb;
+  if (!output.empty()) job.output = output;
+
+  if (!save_job.empty()) {
+    palpate::AtomicOutput out(save_job);
+    std::ofstream(out.temp_path()) << palpate::to_toml(job);
+    out.commit();
+  }
+
+  palpate::PrecomputeHooks hooks;
+  hooks.warn = [&](const std::string& s) { log->warn("{}", s); };
+  const bool bars = !quiet && palpate::precompute::ProgressBar::wanted();
+  hooks.phase = [&](const std::string& s) { if (!quiet && !bars) log->debug("{}", s); };
+  if (bars)
+    hooks.progress = [](const std::string& label) -> palpate::ProgressFn {
+      return palpate::precompute::ProgressBar(label);
+    };
+  palpate::install_interrupt_cleanup();
+  const auto report = palpate::run_precompute(job, hooks);
+  if (json_out) std::cout << report.dump(2) << std::endl;
+  if (!quiet) std::cerr << palpate::format_report(report);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const palpate::InputError& e) {
+    std::fprintf(stderr, "palpate-precompute: error: %s\n", e.what());
+    return static_cast<int>(ExitCode::kUsage);
+  } catch (const palpate::NumericalError& e) {
+    std::fprintf(stderr, "palpate-precompute: error: %s\n", e.what());
+    return static_cast<int>(ExitCode::kNumerical);
+  } catch (const palpate::ResourceError& e) {
+    std::fprintf(stderr, "palpate-precompute: error: %s\n", e.what());
+    return static_cast<int>(ExitCode::kResource);
+  } catch (const palpate::SystemError& e) {
+    std::fprintf(stderr, "palpate-precompute: error: %s\n", e.what());
+    return static_cast<int>(ExitCode::kSystem);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "palpate-precompute: error: out of memory\n");
+    return static_cast<int>(ExitCode::kResource);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "palpate-precompute: internal error: %s\n", e.what());
+    return static_cast<int>(ExitCode::kInternal);
+  }
+}
