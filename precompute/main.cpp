@@ -14,6 +14,7 @@
 #include "palpate/error.hpp"
 #include "palpate/mesh_io.hpp"
 #include "palpate/precompute.hpp"
+#include "palpate/system_info.hpp"
 #include "progress_bar.hpp"
 
 namespace {
@@ -136,6 +137,7 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  palpate::ensure_optimized_blas(argv);
   try {
     return run(argc, argv);
   } catch (const palpate::InputError& e) {

@@ -2,6 +2,7 @@
 
 #include <dlfcn.h>
 #include <link.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstdlib>
@@ -62,6 +63,27 @@ std::string blas_description() {
     text += "]";
   }
   return text;
+}
+
+void ensure_optimized_blas(char** argv) {
+  using CoreFn = char* (*)();
+  auto corename = reinterpret_cast<CoreFn>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
+  if (!corename || std::getenv("OPENBLAS_CORETYPE") || std::getenv("PALPATE_BLAS_REEXEC")) return;
+  const std::string core = corename();
+  if (core != "Prescott" && core != "Core2" && core != "Nehalem" && core != "Sandybridge") return;
+  const char* better = nullptr;
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+      __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq"))
+    better = "SkylakeX";
+  else if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"))
+    better = "Haswell";
+  if (!better) return;
+  ::setenv("OPENBLAS_CORETYPE", better, 1);
+  ::setenv("PALPATE_BLAS_REEXEC", "1", 1);  // never loop
+  ::execv("/proc/self/exe", argv);
+  // execv failed: go on with the slow kernels rather than not at all.
+  ::unsetenv("OPENBLAS_CORETYPE");
 }
 
 std::string utc_timestamp() {

@@ -18,6 +18,14 @@ double available_memory_bytes();
 /// The BLAS library actually loaded in this process (resolved path), with
 /// OpenBLAS's own configuration and thread count when it is OpenBLAS.
 std::string blas_description();
+/// Debian 12's OpenBLAS 0.3.21 does not know recent CPU models and then runs
+/// its generic "Prescott" kernels, several times slower than the AVX2 or
+/// AVX-512 ones the CPU supports. If that happened and the user has not set
+/// OPENBLAS_CORETYPE, re-executes the program (/proc/self/exe, same argv)
+/// with OPENBLAS_CORETYPE naming the best core the CPU supports. Call first
+/// in main(); returns when no re-execution is needed (or possible).
+void ensure_optimized_blas(char** argv);
+
 /// "2026-11-21T18:00:00Z".
 std::string utc_timestamp();
 /// Bytes as "1.23 GB" (powers of 1000).
