@@ -103,18 +103,14 @@ LengthUnit parse_length_unit(const std::string& name) {
   throw InputError(fmt::format("mesh unit '{}' is not accepted: use m, cm or mm", name));
 }
 
-TetMesh read_mesh(const std::filesystem::path& file, const MeshReadOptions& options) {
-  require_readable(file);
+namespace {
+
+TetMesh read_with_gmsh(const std::filesystem::path& file, const MeshReadOptions& options) {
   const std::string ext = lower_extension(file);
-  GmshSession session;
-  try {
-    if (ext == ".stl") {
-      gmsh::merge(file.string());
-    } else {
-      gmsh::open(file.string());
-    }
-  } catch (const std::exception& e) {
-    throw InputError(fmt::format("{}: Gmsh cannot read it: {}", file.string(), e.what()));
+  if (ext == ".stl") {
+    gmsh::merge(file.string());
+  } else {
+    gmsh::open(file.string());
   }
   if (auto err = GmshSession::take_error(); !err.empty())
     throw InputError(fmt::format("{}: Gmsh cannot read it: {}", file.string(), err));
@@ -210,11 +206,34 @@ TetMesh read_mesh(const std::filesystem::path& file, const MeshReadOptions& opti
   return mesh;
 }
 
-void write_sample_organ(const std::filesystem::path& file, double mesh_size_m) {
-  if (!(mesh_size_m > 0))
-    throw InputError(fmt::format("sample organ mesh size {} m is not accepted: use a length > 0",
-                                 mesh_size_m));
+// Gmsh 4.8 reports some failures by throwing the message as a std::string.
+template <typename Error, typename F>
+auto guarded(const std::string& context, F f) {
+  try {
+    return f();
+  } catch (const InputError&) {
+    throw;
+  } catch (const SystemError&) {
+    throw;
+  } catch (const std::string& message) {
+    throw Error(fmt::format("{}: {}", context, message));
+  } catch (const std::exception& e) {
+    throw Error(fmt::format("{}: {}", context, e.what()));
+  }
+}
+
+}  // namespace
+
+TetMesh read_mesh(const std::filesystem::path& file, const MeshReadOptions& options) {
+  require_readable(file);
   GmshSession session;
+  return guarded<InputError>(fmt::format("{}: Gmsh cannot read it", file.string()),
+                             [&] { return read_with_gmsh(file, options); });
+}
+
+namespace {
+
+void generate_sample_organ(const std::filesystem::path& file, double mesh_size_m) {
   gmsh::model::add("palpate-sample-organ");
   // Liver-sized ellipsoid: a unit sphere scaled to semi-axes 80 × 50 × 40 mm.
   const int body = gmsh::model::occ::addSphere(0, 0, 0, 1);
@@ -234,9 +253,18 @@ void write_sample_organ(const std::filesystem::path& file, double mesh_size_m) {
   gmsh::model::setPhysicalName(3, 1, "parenchyma");
   gmsh::model::addPhysicalGroup(3, tumour_vols, 2);
   gmsh::model::setPhysicalName(3, 2, "tumour");
+  // The tumour is resolved by at least four elements across its radius.
+  const int ball = gmsh::model::mesh::field::add("Ball");
+  gmsh::model::mesh::field::setNumber(ball, "XCenter", 0.030);
+  gmsh::model::mesh::field::setNumber(ball, "YCenter", -0.005);
+  gmsh::model::mesh::field::setNumber(ball, "ZCenter", 0.0);
+  gmsh::model::mesh::field::setNumber(ball, "Radius", 0.018);
+  gmsh::model::mesh::field::setNumber(ball, "VIn", std::min(mesh_size_m, 0.015 / 4));
+  gmsh::model::mesh::field::setNumber(ball, "VOut", mesh_size_m);
+  gmsh::model::mesh::field::setAsBackgroundMesh(ball);
   gmsh::option::setNumber("Mesh.MeshSizeMax", mesh_size_m);
-  gmsh::option::setNumber("Mesh.MeshSizeMin", mesh_size_m / 3);
   gmsh::option::setNumber("Mesh.MeshSizeFromCurvature", 0);
+  gmsh::option::setNumber("Mesh.MeshSizeExtendFromBoundary", 0);
   gmsh::option::setNumber("Mesh.Algorithm3D", 1);
   gmsh::option::setNumber("Mesh.RandomSeed", 1);
   gmsh::model::mesh::generate(3);
@@ -251,15 +279,29 @@ void write_sample_organ(const std::filesystem::path& file, double mesh_size_m) {
     throw SystemError(fmt::format("{}: Gmsh did not write the sample organ", file.string()));
 }
 
+}  // namespace
+
+void write_sample_organ(const std::filesystem::path& file, double mesh_size_m) {
+  if (!(mesh_size_m > 0))
+    throw InputError(fmt::format("sample organ mesh size {} m is not accepted: use a length > 0",
+                                 mesh_size_m));
+  GmshSession session;
+  guarded<SystemError>(fmt::format("{}: Gmsh could not generate the sample organ", file.string()),
+                       [&] { generate_sample_organ(file, mesh_size_m); });
+}
+
+
 void convert_mesh_file(const std::filesystem::path& input, const std::filesystem::path& output,
                        double msh_version) {
   require_readable(input);
   GmshSession session;
-  gmsh::open(input.string());
-  gmsh::option::setNumber("Mesh.MshFileVersion", msh_version);
-  gmsh::option::setNumber("Mesh.Binary", 0);
-  gmsh::option::setNumber("Mesh.SaveAll", 1);
-  gmsh::write(output.string());
+  guarded<SystemError>(fmt::format("{} → {}: Gmsh could not convert", input.string(), output.string()), [&] {
+    gmsh::open(input.string());
+    gmsh::option::setNumber("Mesh.MshFileVersion", msh_version);
+    gmsh::option::setNumber("Mesh.Binary", 0);
+    gmsh::option::setNumber("Mesh.SaveAll", 1);
+    gmsh::write(output.string());
+  });
   if (auto err = GmshSession::take_error(); !err.empty())
     throw SystemError(fmt::format("{} → {}: Gmsh could not convert: {}", input.string(),
                                   output.string(), err));
