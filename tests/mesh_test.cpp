@@ -155,7 +155,7 @@ TEST(Boundary, RejectsNonManifoldMeshes) {
   // A face shared by three tetrahedra: (0, 1, 7) is interior to the cube.
   TetMesh m = box_mesh(1, 1, 1, 1, 1, 1);
   m.vertices.conservativeResize(9, 3);
-  m.vertices.row(8) << -1, -1, -1;
+  m.vertices.row(8) << 2, -1, 0;
   m.tetrahedra.conservativeResize(7, 4);
   m.tetrahedra.row(6) << m.tetrahedra(0, 0), m.tetrahedra(0, 1), m.tetrahedra(0, 3), 8;
   if (signed_volume((Matrix43d() << m.vertices.row(m.tetrahedra(6, 0)), m.vertices.row(m.tetrahedra(6, 1)),
