@@ -60,6 +60,7 @@ int run(int argc, char** argv) {
   app.add_flag("--json", json_out, "print the report as JSON on stdout");
   app.add_flag("-q,--quiet", quiet, "no progress or report text on stderr");
 
+  app.fallthrough();  // -q and friends also after the subcommand
   auto* sample = app.add_subcommand("make-sample", "write palpate's sample organ (Gmsh .msh, metres)");
   std::string sample_out;
   double sample_size = 0.012;
@@ -69,7 +70,8 @@ int run(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version exit 0; every usage error exits 2 (docs/errors.md).
+    return app.exit(e) == 0 ? 0 : static_cast<int>(ExitCode::kUsage);
   }
 
   auto log = spdlog::stderr_color_mt("palpate");
