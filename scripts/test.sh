@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Runs palpate's whole test suite from a clean checkout: installs the Debian
+# packages it needs (scripts/install-deps.sh), configures, builds, and runs
+# CTest. Usage: scripts/test.sh [extra ctest arguments]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/install-deps.sh
+build=${PALPATE_BUILD_DIR:-build}
+cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
+cmake --build "$build" -j2
+# Tests that start DDS participants (later issues) run inside a private
+# network namespace whose only interface is loopback, so no DDS traffic can
+# reach a real network: `unshare --net` then `ip link set lo up`.
+exec unshare --net -- sh -c 'ip link set lo up && exec ctest --test-dir "$0" --output-on-failure -j2 "$@"' "$build" "$@"
