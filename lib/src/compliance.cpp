@@ -4,6 +4,10 @@
 #include <algorithm>
 #include <chrono>
 #include <numeric>
+#include <mutex>
+#include <thread>
+#include <dlfcn.h>
+#include <exception>
 
 #include "palpate/dense.hpp"
 #include "palpate/error.hpp"
@@ -11,6 +15,31 @@
 namespace palpate {
 
 namespace {
+
+// Sets OpenBLAS's thread count for a scope (0: leave it), when OpenBLAS is
+// the BLAS in use.
+class BlasThreads {
+ public:
+  explicit BlasThreads(int count) {
+    using Get = int (*)();
+    auto get = reinterpret_cast<Get>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
+    set_ = reinterpret_cast<Set>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
+    if (count > 0 && get && set_) {
+      previous_ = get();
+      set_(count);
+    }
+  }
+  ~BlasThreads() {
+    if (previous_ > 0) set_(previous_);
+  }
+  BlasThreads(const BlasThreads&) = delete;
+  BlasThreads& operator=(const BlasThreads&) = delete;
+
+ private:
+  using Set = void (*)(int);
+  Set set_ = nullptr;
+  int previous_ = 0;
+};
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -72,18 +101,45 @@ void compliance_by_solves(const SparseMatrixd& K_upper, int m, const ComplianceO
 
   const auto t0 = std::chrono::steady_clock::now();
   const int block = std::min(options.block_columns, m);
-  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(n, block);
-  Eigen::MatrixXd U(n, block);
-  for (int c0 = 0; c0 < m; c0 += block) {
-    const int width = std::min(block, m - c0);
-    // Column (k, d) of the block is the unit force e_(k,d).
-    E.setZero();
-    for (int i = 0; i < width; ++i) E(c0 + i, i) = 1;
-    factor.solve(E.leftCols(width), U.leftCols(width));
-    if (options.on_block) options.on_block(c0, U.topLeftCorner(m, width));
-    G.middleCols(c0, width) = U.topLeftCorner(m, width);
-    if (options.progress) options.progress(c0 + width, m);
+  const int blocks = (m + block - 1) / block;
+  // Blocks of columns are independent: one thread per core, each with its
+  // own workspace and single-threaded BLAS (CHOLMOD's supernodes are too
+  // small for OpenBLAS's own threads to pay off).
+  const int threads = std::max(1, std::min<int>(static_cast<int>(std::thread::hardware_concurrency()), blocks));
+  std::mutex report;  // serializes on_block and progress
+  long done = 0;
+  std::vector<std::exception_ptr> errors(static_cast<size_t>(threads));
+  auto work = [&](int t) {
+    try {
+      auto ws = factor.make_workspace();
+      Eigen::MatrixXd E = Eigen::MatrixXd::Zero(n, block);
+      Eigen::MatrixXd U(n, block);
+      for (int b = t; b < blocks; b += threads) {
+        const int c0 = b * block;
+        const int width = std::min(block, m - c0);
+        // Column (k, d) of the block is the unit force e_(k,d).
+        E.setZero();
+        for (int i = 0; i < width; ++i) E(c0 + i, i) = 1;
+        factor.solve(E.leftCols(width), U.leftCols(width), *ws);
+        std::lock_guard<std::mutex> lock(report);
+        if (options.on_block) options.on_block(c0, U.topLeftCorner(m, width));
+        G.middleCols(c0, width) = U.topLeftCorner(m, width);
+        done += width;
+        if (options.progress) options.progress(done, m);
+      }
+    } catch (...) {
+      errors[static_cast<size_t>(t)] = std::current_exception();
+    }
+  };
+  {
+    BlasThreads single(threads > 1 ? 1 : 0);
+    std::vector<std::thread> pool;
+    for (int t = 1; t < threads; ++t) pool.emplace_back(work, t);
+    work(0);
+    for (auto& th : pool) th.join();
   }
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
   stats->dense_seconds = seconds_since(t0);
   // Forward and backward substitution: 2 flops per nonzero of L each, per column.
   stats->dense_flops = 4.0 * stats->factor.nnz_L * m;

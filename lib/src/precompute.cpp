@@ -8,6 +8,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <thread>
 #include <toml++/toml.h>
 
 #include "palpate/error.hpp"
@@ -456,7 +457,7 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
     double need = 0;
     if (do_solves)
       need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K) +
-                                3.0 * 8.0 * n * std::min(job.block_columns, m));
+                                2.0 * 8.0 * n * std::min(job.block_columns, m) * std::max(1u, std::thread::hardware_concurrency()));
     if (do_condensation)
       need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K, condensation_ordering(K, m)));
     need += k_bytes;

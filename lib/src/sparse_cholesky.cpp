@@ -82,16 +82,26 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 struct SparseCholesky::Impl {
   Common common;
   cholmod_factor* L = nullptr;
-  cholmod_dense* X = nullptr;  // solve2 workspaces, reused across solves
+  FactorInfo info;
+  ~Impl() { cholmod_free_factor(&L, &common.c); }
+};
+
+// cholmod_solve2's result and scratch arrays, reused across solves, with the
+// Common that allocated them (CHOLMOD's Common is not shared across threads).
+class SparseCholesky::Workspace {
+ public:
+  Common common;
+  cholmod_dense* X = nullptr;
   cholmod_dense* Y = nullptr;
   cholmod_dense* E = nullptr;
-  FactorInfo info;
-  ~Impl() {
+  Workspace() = default;
+  ~Workspace() {
     cholmod_free_dense(&X, &common.c);
     cholmod_free_dense(&Y, &common.c);
     cholmod_free_dense(&E, &common.c);
-    cholmod_free_factor(&L, &common.c);
   }
+  Workspace(const Workspace&) = delete;
+  Workspace& operator=(const Workspace&) = delete;
 };
 
 SparseCholesky::SparseCholesky(const SparseMatrixd& upper, std::span<const int> permutation)
@@ -134,12 +144,24 @@ SparseCholesky::SparseCholesky(const SparseMatrixd& upper, std::span<const int> 
 
 SparseCholesky::~SparseCholesky() = default;
 
+SparseCholesky::WorkspacePtr SparseCholesky::make_workspace() const {
+  return WorkspacePtr(new Workspace());
+}
+
+void SparseCholesky::WorkspaceDeleter::operator()(Workspace* w) const { delete w; }
+
 int SparseCholesky::rows() const { return static_cast<int>(impl_->L->n); }
 const FactorInfo& SparseCholesky::info() const { return impl_->info; }
 
 void SparseCholesky::solve(CRef<Eigen::MatrixXd> B, Eigen::Ref<Eigen::MatrixXd> X) {
+  if (!default_workspace_) default_workspace_ = make_workspace();
+  solve(B, X, *default_workspace_);
+}
+
+void SparseCholesky::solve(CRef<Eigen::MatrixXd> B, Eigen::Ref<Eigen::MatrixXd> X,
+                           Workspace& ws) const {
   PALPATE_DEMAND(B.rows() == rows() && X.rows() == B.rows() && X.cols() == B.cols());
-  auto& c = impl_->common.c;
+  auto& c = ws.common.c;
   Eigen::MatrixXd contiguous;
   const double* data = B.data();
   if (B.outerStride() != B.rows()) {
@@ -147,9 +169,9 @@ void SparseCholesky::solve(CRef<Eigen::MatrixXd> B, Eigen::Ref<Eigen::MatrixXd> 
     data = contiguous.data();
   }
   cholmod_dense b = view_dense(data, B.rows(), B.cols());
-  cholmod_solve2(CHOLMOD_A, impl_->L, &b, nullptr, &impl_->X, nullptr, &impl_->Y, &impl_->E, &c);
-  impl_->common.check("cholmod_solve2");
-  X = Eigen::Map<const Eigen::MatrixXd>(static_cast<const double*>(impl_->X->x), B.rows(), B.cols());
+  cholmod_solve2(CHOLMOD_A, impl_->L, &b, nullptr, &ws.X, nullptr, &ws.Y, &ws.E, &c);
+  ws.common.check("cholmod_solve2");
+  X = Eigen::Map<const Eigen::MatrixXd>(static_cast<const double*>(ws.X->x), B.rows(), B.cols());
 }
 
 std::vector<int> SparseCholesky::permutation() const {

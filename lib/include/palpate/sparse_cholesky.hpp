@@ -55,9 +55,20 @@ class SparseCholesky {
   int rows() const;
   const FactorInfo& info() const;
 
+  /// Scratch memory for solves; one per thread solving concurrently.
+  class Workspace;
+  struct WorkspaceDeleter {
+    void operator()(Workspace* w) const;
+  };
+  using WorkspacePtr = std::unique_ptr<Workspace, WorkspaceDeleter>;
+  WorkspacePtr make_workspace() const;
+
   /// X = A⁻¹ B for a dense block of right-hand sides (n × k): one blocked
   /// supernodal solve (BLAS-3), not k vector solves.
   void solve(CRef<Eigen::MatrixXd> B, Eigen::Ref<Eigen::MatrixXd> X);
+  /// The same with the caller's workspace: threads may solve concurrently,
+  /// each with its own workspace (the factor is only read).
+  void solve(CRef<Eigen::MatrixXd> B, Eigen::Ref<Eigen::MatrixXd> X, Workspace& workspace) const;
 
   /// The elimination order: position p of the factor eliminates unknown perm[p].
   std::vector<int> permutation() const;
@@ -80,6 +91,7 @@ class SparseCholesky {
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+  WorkspacePtr default_workspace_;
 };
 
 }  // namespace palpate
