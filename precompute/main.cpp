@@ -38,7 +38,7 @@ int run(int argc, char** argv) {
   int block_columns = 0;
   bool json_out = false, quiet = false;
 
-  app.add_option("-j,--job", job_file, "TOML job file (config/*.toml); flags override it")->check(CLI::ExistingFile);
+  app.add_option("-j,--job", job_file, "TOML job file (config/*.toml); flags override it");
   app.add_option("--mesh", mesh, "tetrahedral mesh (.msh v2/v4, .mesh, .vtk) or closed surface (.stl)");
   app.add_option("--mesh-unit", mesh_unit, "unit of the mesh coordinates: m, cm or mm (default m)");
   app.add_option("--fill-size", fill_size, "STL only: target tetrahedron size, in the mesh unit (default: 1/20 of the diagonal)");
@@ -64,14 +64,16 @@ int run(int argc, char** argv) {
   auto* sample = app.add_subcommand("make-sample", "write palpate's sample organ (Gmsh .msh, metres)");
   std::string sample_out;
   double sample_size = 0.012;
-  sample->add_option("-o,--output", sample_out, "mesh file to write")->required();
+  sample->add_option("-o,--output", sample_out, "mesh file to write (format from the extension: .msh, .mesh, .vtk...)")->required();
   sample->add_option("--size", sample_size, "target tetrahedron size, m (default 0.012)");
 
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    // --help and --version exit 0; every usage error exits 2 (docs/errors.md).
-    return app.exit(e) == 0 ? 0 : static_cast<int>(ExitCode::kUsage);
+    // --help and --version exit 0; every usage error exits 2 with one line.
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::fprintf(stderr, "palpate-precompute: error: %s (see --help)\n", e.what());
+    return static_cast<int>(ExitCode::kUsage);
   }
 
   auto log = spdlog::stderr_color_mt("palpate");
@@ -158,7 +160,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "palpate-precompute: error: out of memory\n");
     return static_cast<int>(ExitCode::kResource);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "palpate-precompute: internal error: %s\n", e.what());
+    std::fprintf(stderr, "palpate-precompute: error: %s (a bug in palpate: please report it)\n", e.what());
     return static_cast<int>(ExitCode::kInternal);
   }
 }

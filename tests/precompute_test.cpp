@@ -59,6 +59,9 @@ TEST(Precompute, WritesAFileThatReadsBackWithTheContract) {
   EXPECT_EQ(model.method, "both");
   EXPECT_EQ(model.input_hash.rfind("sha256:", 0), 0u);
   EXPECT_EQ(model.precision, Precision::kFloat64);
+  ASSERT_EQ(model.materials.size(), 1u);
+  EXPECT_EQ(model.materials[0].name, "organ");
+  EXPECT_EQ(model.materials[0].young_modulus_pa, 85e3);
   EXPECT_LE(symmetry_error(G), 1e-10);
   // No temporary left beside the output.
   for (const auto& entry : std::filesystem::directory_iterator(dir.path()))
@@ -184,6 +187,27 @@ TEST(Precompute, EachBadInputGetsItsErrorAndNoFile) {
     expect_error<InputError>([&] { run(j); }, {"does not exist"});
   }
   EXPECT_FALSE(std::filesystem::exists(good.output));
+}
+
+TEST(Precompute, RefusesPartsJoinedOnlyAtAVertex) {
+  // Two tetrahedra sharing one vertex: the second can turn about it, so
+  // holding the first does not stop the rigid motions of the whole.
+  TempDir dir;
+  TetMesh mesh;
+  mesh.vertices.resize(7, 3);
+  mesh.vertices << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, -1, 0, 0, 0, -1, 0, 0, 0, -1;
+  mesh.tetrahedra.resize(2, 4);
+  mesh.tetrahedra << 0, 1, 2, 3, 0, 4, 6, 5;
+  mesh.tet_group = Eigen::VectorXi::Zero(2);
+  testing::write_msh22(mesh, dir / "hinge.msh");
+  PrecomputeJob job;
+  job.mesh_file = dir / "hinge.msh";
+  job.young_modulus_pa = 1e5;
+  job.poisson_ratio = 0.3;
+  job.attachment.boxes.push_back({{-0.1, -0.1, -0.1}, {1.1, 1.1, 1.1}});  // the first tetrahedron
+  job.output = dir / "hinge.h5";
+  expect_error<InputError>([&] { run_precompute(job, {}); }, {"part 2 of 2", "turn about it", "at least 3"});
+  EXPECT_FALSE(std::filesystem::exists(job.output));
 }
 
 TEST(Precompute, UsesTheIdsFileInTheMeshFilesNodeOrder) {

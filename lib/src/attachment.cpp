@@ -57,7 +57,7 @@ std::vector<int> select_fixed_vertices(const TetMesh& mesh, const AttachmentSpec
   }
 
   if (!spec.ids_file.empty()) {
-    const int max_source = mesh.source_ids.size() ? mesh.source_ids.maxCoeff() : -1;
+    const auto max_source = std::max<Eigen::Index>(mesh.source_vertex_count, nv) - 1;
     std::unordered_map<int, int> index_of_source;
     for (Eigen::Index v = 0; v < nv; ++v) index_of_source[mesh.source_ids[v]] = static_cast<int>(v);
     for (int id : read_vertex_id_file(spec.ids_file)) {
@@ -67,7 +67,7 @@ std::vector<int> select_fixed_vertices(const TetMesh& mesh, const AttachmentSpec
           throw InputError(fmt::format("{}: vertex index {} is out of range: the mesh's nodes "
                                        "are numbered 0..{}",
                                        spec.ids_file.string(), id, max_source));
-        continue;  // an unreferenced vertex, already dropped with a warning
+        continue;  // a node no tetrahedron uses: dropped with a warning, nothing to hold
       }
       fixed[it->second] = true;
     }
@@ -107,17 +107,27 @@ std::vector<int> select_fixed_vertices(const TetMesh& mesh, const AttachmentSpec
 
 void check_attachment_stops_rigid_motion(const TetMesh& mesh, const std::vector<int>& fixed) {
   int parts = 0;
-  const std::vector<int> part = connected_components(mesh, &parts);
-  std::vector<std::vector<int>> fixed_in(parts);
-  for (int v : fixed) fixed_in[part[v]].push_back(v);
+  const std::vector<int> part_of_tet = solid_parts(mesh, &parts);
+  std::vector<bool> is_fixed(static_cast<size_t>(mesh.vertices.rows()), false);
+  for (int v : fixed) is_fixed[static_cast<size_t>(v)] = true;
+  // The fixed vertices of each part (a vertex shared by parts counts for each).
+  std::vector<std::vector<int>> fixed_in(static_cast<size_t>(parts));
+  std::vector<Eigen::Index> first_tet(static_cast<size_t>(parts), -1);
+  for (Eigen::Index t = 0; t < mesh.tetrahedra.rows(); ++t) {
+    const auto p = static_cast<size_t>(part_of_tet[static_cast<size_t>(t)]);
+    if (first_tet[p] < 0) first_tet[p] = t;
+    for (int i = 0; i < 4; ++i)
+      if (is_fixed[static_cast<size_t>(mesh.tetrahedra(t, i))]) fixed_in[p].push_back(mesh.tetrahedra(t, i));
+  }
   for (int p = 0; p < parts; ++p) {
-    const auto& f = fixed_in[p];
+    auto& f = fixed_in[static_cast<size_t>(p)];
+    std::sort(f.begin(), f.end());
+    f.erase(std::unique(f.begin(), f.end()), f.end());
     std::string where;
-    if (parts > 1) {
-      const auto first = std::find(part.begin(), part.end(), p) - part.begin();
-      where = fmt::format(" part {} of {} (the one holding vertex {})", p + 1, parts,
-                          mesh.source_ids[first]);
-    }
+    if (parts > 1)
+      where = fmt::format(" in part {} of {} (the part holding tetrahedron {}; parts touching only at a "
+                          "vertex or an edge can turn about it)",
+                          p + 1, parts, first_tet[static_cast<size_t>(p)]);
     bool spread = false;
     if (f.size() >= 3) {
       Eigen::MatrixX3d X(static_cast<Eigen::Index>(f.size()), 3);
@@ -128,9 +138,9 @@ void check_attachment_stops_rigid_motion(const TetMesh& mesh, const std::vector<
     }
     if (!spread)
       throw InputError(fmt::format(
-          "{}: the attachment fixes {} vertices{} of the mesh{}, which cannot stop its rigid "
-          "motions: fix at least 3 vertices not on one line in every connected part",
-          mesh.source, f.size(), f.size() >= 3 ? ", all on one line," : "", where));
+          "{}: the attachment fixes {} vertices{}{}, which cannot stop the rigid motions: fix at "
+          "least 3 vertices not on one line in every part of the organ",
+          mesh.source, f.size(), f.size() >= 3 ? " all on one line" : "", where));
   }
 }
 

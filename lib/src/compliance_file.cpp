@@ -288,8 +288,20 @@ ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::M
   Eigen::VectorXd nu(static_cast<Eigen::Index>(nu_dims[0]));
   if (nu.size()) r.read("/material/poisson_ratio", H5T_NATIVE_DOUBLE, nu.data());
   if (nu.size() != E.size()) r.fail("/material", "young_modulus_pa and poisson_ratio differ in length");
+  std::vector<std::string> names(static_cast<size_t>(E.size()));
+  if (r.dims("/material/name", 1)[0] != static_cast<hsize_t>(E.size()))
+    r.fail("/material/name", "does not have one name per material");
+  if (E.size() > 0) {
+    Handle type = string_type();
+    std::vector<char*> raw(static_cast<size_t>(E.size()), nullptr);
+    r.read("/material/name", type, raw.data());
+    for (size_t i = 0; i < raw.size(); ++i) names[i] = raw[i] ? raw[i] : "";
+    Handle set(H5Dopen2(file, "/material/name", H5P_DEFAULT), H5Dclose, "open /material/name");
+    Handle space(H5Dget_space(set), H5Sclose, "get a dataspace");
+    H5Dvlen_reclaim(type, space, H5P_DEFAULT, raw.data());
+  }
   for (Eigen::Index i = 0; i < E.size(); ++i)
-    m.materials.push_back({fmt::format("material {}", i), E[i], nu[i]});
+    m.materials.push_back({names[static_cast<size_t>(i)], E[i], nu[i]});
 
   const Eigen::Index nv = m.vertices_m.rows();
   if (!m.vertices_m.allFinite()) r.fail("/mesh/vertices", "holds a non-finite coordinate");
@@ -303,6 +315,11 @@ ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::M
   in_range(m.fixed_vertices, "/mesh/fixed_vertex_ids", nv);
   in_range(m.compliance_vertices, "/compliance/vertex_ids", nv);
   in_range(m.tet_material, "/mesh/tetrahedron_material", static_cast<Eigen::Index>(m.materials.size()));
+  if (m.source_vertex_ids.size() != nv)
+    r.fail("/mesh/source_vertex_ids", "does not have one entry per vertex");
+  for (Eigen::Index i = 1; i < m.compliance_vertices.size(); ++i)
+    if (m.compliance_vertices[i] <= m.compliance_vertices[i - 1])
+      r.fail("/compliance/vertex_ids", fmt::format("entry {} is not above entry {}: ids must be distinct and increasing", i, i - 1));
   if (m.tet_material.size() != m.tetrahedra.rows())
     r.fail("/mesh/tetrahedron_material", "does not have one entry per tetrahedron");
 

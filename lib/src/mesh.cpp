@@ -20,6 +20,7 @@ MeshCheck validate_and_compact(TetMesh& mesh) {
     throw InputError(fmt::format("{}: the mesh has no tetrahedra; palpate needs a volume mesh "
                                  "of linear tetrahedra (or a closed STL surface to fill)",
                                  where));
+  if (mesh.source_vertex_count < nv) mesh.source_vertex_count = nv;
   if (mesh.source_ids.size() != nv) {
     mesh.source_ids.resize(nv);
     std::iota(mesh.source_ids.begin(), mesh.source_ids.end(), 0);
@@ -193,26 +194,34 @@ Boundary extract_boundary(const TetMesh& mesh) {
   return b;
 }
 
-std::vector<int> connected_components(const TetMesh& mesh, int* count) {
-  const int nv = static_cast<int>(mesh.vertices.rows());
-  std::vector<int> parent(nv);
+std::vector<int> solid_parts(const TetMesh& mesh, int* count) {
+  const int nt = static_cast<int>(mesh.tetrahedra.rows());
+  std::vector<int> parent(nt);
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&](int x) {
     while (parent[x] != x) x = parent[x] = parent[parent[x]];
     return x;
   };
-  for (Eigen::Index t = 0; t < mesh.tetrahedra.rows(); ++t)
-    for (int i = 1; i < 4; ++i) {
-      const int a = find(mesh.tetrahedra(t, 0));
-      const int c = find(mesh.tetrahedra(t, i));
-      if (a != c) parent[std::max(a, c)] = std::min(a, c);
+  std::unordered_map<FaceKey, int, FaceHash> first_tet;
+  first_tet.reserve(static_cast<size_t>(nt) * 2);
+  for (int t = 0; t < nt; ++t)
+    for (int skip = 0; skip < 4; ++skip) {
+      FaceKey key{};
+      for (int i = 0, k = 0; i < 4; ++i)
+        if (i != skip) key.v[k++] = mesh.tetrahedra(t, i);
+      std::sort(key.v.begin(), key.v.end());
+      auto [it, inserted] = first_tet.try_emplace(key, t);
+      if (!inserted) {
+        const int a = find(it->second), b = find(t);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
     }
-  std::vector<int> label(nv, -1), id_of_root(nv, -1);
+  std::vector<int> label(nt, -1), id_of_root(nt, -1);
   int n = 0;
-  for (int v = 0; v < nv; ++v) {
-    const int r = find(v);
+  for (int t = 0; t < nt; ++t) {
+    const int r = find(t);
     if (id_of_root[r] < 0) id_of_root[r] = n++;
-    label[v] = id_of_root[r];
+    label[t] = id_of_root[r];
   }
   if (count) *count = n;
   return label;

@@ -157,7 +157,7 @@ TetMesh read_with_gmsh(const std::filesystem::path& file, const MeshReadOptions&
       std::vector<double> local;
       gmsh::model::mesh::getElementProperties(type, name, dim, order_, nodes, local, primary);
       throw InputError(fmt::format("{}: holds {} elements; palpate accepts linear (4-node) "
-                                   "tetrahedra only (re-mesh with Mesh.ElementOrder = 1)",
+                                   "tetrahedra only (re-mesh into first-order tetrahedra)",
                                    file.string(), name));
     }
 
@@ -202,6 +202,8 @@ TetMesh read_with_gmsh(const std::filesystem::path& file, const MeshReadOptions&
       if (auto it = index_of_tag.find(nt); it != index_of_tag.end()) ids.push_back(it->second);
     std::sort(ids.begin(), ids.end());
     ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    // A named group answers to its tag too ("#2").
+    if (name[0] != '#') mesh.group_vertices[fmt::format("#{}", tag)] = ids;
   }
   return mesh;
 }

@@ -197,13 +197,25 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
   if (const auto* compute = root.get("compute")) {
     const auto& t = r.table(*compute, "compute");
     r.only_keys(t, "compute", {"method", "precision", "block_columns", "tolerance", "memory_limit_gb"});
-    try {
-      if (const auto* n = t.get("method")) job.method = parse_method(r.string(*n, "compute.method"));
-      if (const auto* n = t.get("precision")) job.precision = parse_precision(r.string(*n, "compute.precision"));
-    } catch (const InputError& e) {
-      r.fail(&t, "compute", e.what());
+    if (const auto* n = t.get("method")) {
+      try {
+        job.method = parse_method(r.string(*n, "compute.method"));
+      } catch (const InputError& e) {
+        r.fail(n, "compute.method", e.what());
+      }
     }
-    if (const auto* n = t.get("block_columns")) job.block_columns = static_cast<int>(r.number(*n, "compute.block_columns"));
+    if (const auto* n = t.get("precision")) {
+      try {
+        job.precision = parse_precision(r.string(*n, "compute.precision"));
+      } catch (const InputError& e) {
+        r.fail(n, "compute.precision", e.what());
+      }
+    }
+    if (const auto* n = t.get("block_columns")) {
+      const auto v = n->value<int64_t>();
+      if (!v || *v < 1 || *v > 100000) r.fail(n, "compute.block_columns", "expected an integer from 1 to 100000");
+      job.block_columns = static_cast<int>(*v);
+    }
     if (const auto* n = t.get("tolerance")) job.tolerance = r.number(*n, "compute.tolerance");
     if (const auto* n = t.get("memory_limit_gb")) job.memory_limit_bytes = 1e9 * r.number(*n, "compute.memory_limit_gb");
   }
@@ -220,15 +232,19 @@ std::string to_toml(const PrecomputeJob& job) {
   auto vec = [&](const Eigen::Vector3d& v, double scale) {
     return toml::array{v.x() / scale, v.y() / scale, v.z() / scale};
   };
-  toml::table mesh{{"file", std::filesystem::absolute(job.mesh_file).string()},
-                   {"unit", job.mesh_unit}};
+  auto absolute = [](const std::filesystem::path& p) {
+    return p.empty() ? std::string() : std::filesystem::absolute(p).string();
+  };
+  toml::table mesh{{"file", absolute(job.mesh_file)}, {"unit", job.mesh_unit}};
   if (job.fill_size > 0) mesh.insert("fill_size", job.fill_size);
   toml::array groups;
   for (const auto& g : job.group_materials)
     groups.push_back(toml::table{{"name", g.group},
                                  {"young_modulus_pa", g.young_modulus_pa},
                                  {"poisson_ratio", g.poisson_ratio}});
-  toml::table material{{"young_modulus_pa", job.young_modulus_pa}, {"poisson_ratio", job.poisson_ratio}};
+  toml::table material;
+  if (job.young_modulus_pa) material.insert("young_modulus_pa", *job.young_modulus_pa);
+  if (job.poisson_ratio) material.insert("poisson_ratio", *job.poisson_ratio);
   if (!groups.empty()) material.insert("group", groups);
   toml::table attachment;
   const auto& a = job.attachment;
@@ -237,7 +253,7 @@ std::string to_toml(const PrecomputeJob& job) {
     for (const auto& name : a.groups) g.push_back(name);
     attachment.insert("groups", g);
   }
-  if (!a.ids_file.empty()) attachment.insert("ids_file", std::filesystem::absolute(a.ids_file).string());
+  if (!a.ids_file.empty()) attachment.insert("ids_file", absolute(a.ids_file));
   toml::array boxes, spheres, half_spaces;
   for (const auto& b : a.boxes) boxes.push_back(toml::table{{"min", vec(b.min, unit)}, {"max", vec(b.max, unit)}});
   for (const auto& s : a.spheres) spheres.push_back(toml::table{{"center", vec(s.center, unit)}, {"radius", s.radius / unit}});
@@ -252,7 +268,7 @@ std::string to_toml(const PrecomputeJob& job) {
   if (job.memory_limit_bytes > 0) compute.insert("memory_limit_gb", job.memory_limit_bytes / 1e9);
   toml::table root{{"mesh", mesh}, {"material", material}, {"attachment", attachment},
                    {"compute", compute},
-                   {"output", toml::table{{"file", std::filesystem::absolute(job.output).string()}}}};
+                   {"output", toml::table{{"file", absolute(job.output)}}}};
   std::ostringstream out;
   out << "# palpate-precompute job (written by " << "palpate-precompute " PALPATE_VERSION << ")\n"
       << root << "\n";
@@ -266,10 +282,16 @@ namespace {
 void validate_job(const PrecomputeJob& job) {
   if (job.mesh_file.empty()) throw InputError("no mesh given: use --mesh FILE or [mesh] file in the job file");
   if (job.output.empty()) throw InputError("no output file given: use -o FILE.h5 or [output] file in the job file");
-  if (job.young_modulus_pa == 0)
+  if (!job.young_modulus_pa)
     throw InputError("no Young's modulus given: use --young-modulus PA or [material] young_modulus_pa");
-  if (job.poisson_ratio == -2)
+  if (!job.poisson_ratio)
     throw InputError("no Poisson ratio given: use --poisson-ratio NU or [material] poisson_ratio");
+  {
+    const auto dir = job.output.has_parent_path() ? job.output.parent_path() : std::filesystem::path(".");
+    std::error_code ec;
+    if (!std::filesystem::is_directory(dir, ec))
+      throw InputError(fmt::format("output path '{}': directory '{}' does not exist", job.output.string(), dir.string()));
+  }
   if (job.attachment.empty())
     throw InputError("no attachment given: the organ must be held somewhere; use --fix-ids, "
                      "--fix-group, --fix-box, --fix-sphere, --fix-half-space or [attachment]");
@@ -356,8 +378,8 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
   Phases phases(&report["phases"]);
 
   // Materials first: a bad modulus is reported before any long work.
-  std::vector<MaterialRecord> materials{{"organ", job.young_modulus_pa, job.poisson_ratio}};
-  std::vector<Lame> lame{lame_parameters(job.young_modulus_pa, job.poisson_ratio)};
+  std::vector<MaterialRecord> materials{{"organ", *job.young_modulus_pa, *job.poisson_ratio}};
+  std::vector<Lame> lame{lame_parameters(*job.young_modulus_pa, *job.poisson_ratio)};
   for (const auto& g : job.group_materials) {
     try {
       lame.push_back(lame_parameters(g.young_modulus_pa, g.poisson_ratio));
@@ -549,6 +571,15 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
         "the two methods disagree: largest relative difference {:.3g} > tolerance {:.3g}; "
         "no file written (the stiffness may be too ill-conditioned: check ν < 0.5 and the mesh quality)",
         max_difference, job.tolerance));
+  // A residual this large means K is singular to working precision (a part
+  // held too loosely, a degenerate region): G would be meaningless.
+  constexpr double kMaxResidual = 1e-6;
+  if (!(residual <= kMaxResidual) || !(mismatch <= kMaxResidual))
+    throw NumericalError(fmt::format(
+        "the solution does not satisfy K u = e: residual {:.3g}, column mismatch {:.3g} (accepted: "
+        "≤ {:.0e}); K is numerically singular: check that the attachment holds every part of the "
+        "organ and that no region is degenerate; no file written",
+        residual, mismatch, kMaxResidual));
   if (!(min_eig > 0))
     throw NumericalError(fmt::format("G has a diagonal block that is not positive definite (vertex {}, "
                                      "eigenvalue {:.3g} m/N); no file written",

@@ -67,8 +67,12 @@ std::string blas_description() {
 
 void ensure_optimized_blas(char** argv) {
   using CoreFn = char* (*)();
+  if (std::getenv("PALPATE_BLAS_REEXEC")) {
+    ::unsetenv("PALPATE_BLAS_REEXEC");  // done: children start afresh
+    return;
+  }
   auto corename = reinterpret_cast<CoreFn>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
-  if (!corename || std::getenv("OPENBLAS_CORETYPE") || std::getenv("PALPATE_BLAS_REEXEC")) return;
+  if (!corename || std::getenv("OPENBLAS_CORETYPE")) return;
   const std::string core = corename();
   if (core != "Prescott" && core != "Core2" && core != "Nehalem" && core != "Sandybridge") return;
   const char* better = nullptr;

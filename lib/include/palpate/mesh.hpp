@@ -23,6 +23,8 @@ struct TetMesh {
   /// #V: index of each vertex in the input file's node order (before dropping
   /// unreferenced vertices).
   Eigen::VectorXi source_ids;
+  /// Number of nodes in the input file (before dropping unreferenced ones).
+  Eigen::Index source_vertex_count = 0;
   std::string source;  ///< where the mesh came from (file path), for messages
 };
 
@@ -52,7 +54,9 @@ struct Boundary {
 ///   boundary is not a 2-manifold (an edge with other than two boundary faces).
 Boundary extract_boundary(const TetMesh& mesh);
 
-/// Connected components through shared vertices of tetrahedra: #V labels 0..C−1.
-std::vector<int> connected_components(const TetMesh& mesh, int* count);
+/// Parts of the mesh that move as one elastic body: tetrahedra connected
+/// through shared faces (bodies touching at a vertex or an edge can still
+/// turn about it). Returns #T labels 0..C−1.
+std::vector<int> solid_parts(const TetMesh& mesh, int* count);
 
 }  // namespace palpate

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -38,8 +39,8 @@ struct PrecomputeJob {
   std::filesystem::path mesh_file;
   std::string mesh_unit = "m";
   double fill_size = 0;  ///< STL input: target tetrahedron size, mesh unit (0: automatic)
-  double young_modulus_pa = 0;
-  double poisson_ratio = -2;  ///< unset until given
+  std::optional<double> young_modulus_pa;  ///< Pa; required
+  std::optional<double> poisson_ratio;     ///< required
   std::vector<GroupMaterial> group_materials;
   AttachmentSpec attachment;
   Method method = Method::kBoth;
