@@ -52,7 +52,7 @@ int run(int argc, char** argv) {
   app.add_option("--fix-half-space", half_space, "fix vertices with (x-p).n >= 0: PX PY PZ NX NY NZ (mesh unit)")->expected(6);
   app.add_option("--method", method, "solves, condensation or both (default both: computes both and cross-checks)");
   app.add_option("--precision", precision, "storage of G: float64 (default) or float32");
-  app.add_option("--block-columns", block_columns, "right-hand sides per blocked solve (default 384)");
+  app.add_option("--block-columns", block_columns, "right-hand sides per blocked solve (default 64)");
   app.add_option("--tolerance", tolerance, "largest accepted relative difference between the methods (default 1e-8)");
   app.add_option("--memory-limit-gb", memory_gb, "refuse jobs needing more than this (default: available memory)");
   app.add_option("-o,--output", output, "compliance file to write (HDF5, written atomically)");

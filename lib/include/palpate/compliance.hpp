@@ -22,7 +22,7 @@ using ProgressFn = std::function<void(long done, long total)>;
 
 struct ComplianceOptions {
   /// Right-hand sides per blocked solve in the `solves` method (BLAS-3 work).
-  int block_columns = 384;
+  int block_columns = 64;
   /// Columns of G re-solved and checked against K u = e (spread over the surface).
   int check_columns = 6;
   ProgressFn progress;  ///< optional

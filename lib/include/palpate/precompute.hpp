@@ -45,7 +45,7 @@ struct PrecomputeJob {
   AttachmentSpec attachment;
   Method method = Method::kBoth;
   Precision precision = Precision::kFloat64;
-  int block_columns = 384;
+  int block_columns = 64;
   double tolerance = 1e-8;         ///< `both`: largest accepted relative difference
   double memory_limit_bytes = 0;   ///< 0: the machine's available memory
   std::filesystem::path output;
