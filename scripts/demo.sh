@@ -14,7 +14,7 @@ cmake --build build -j2 --target palpate-precompute
 mkdir -p out
 precompute=build/precompute/palpate-precompute
 if [ $# -eq 0 ]; then
-  # About 1,500 vertices: the scale of the 1999 INRIA liver.
+  # About 1,900 vertices: the scale of the 1999 INRIA liver (1,969).
   "$precompute" make-sample -o out/sample-organ.msh --size 0.008
   job=config/sample-organ.toml
 else

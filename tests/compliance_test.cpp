@@ -69,7 +69,7 @@ TEST(Compliance, IsSymmetricWithPositiveDefiniteDiagonalBlocks) {
 
 TEST(Compliance, MethodsAgreeOnALiverSizedOrgan) {
   testing::TempDir dir;
-  write_sample_organ(dir / "organ.msh", 0.008);  // ~1,500 vertices: the 1999 liver's scale
+  write_sample_organ(dir / "organ.msh", 0.008);  // ~1,900 vertices: the 1999 liver's scale
   TetMesh mesh = read_mesh(dir / "organ.msh", {});
   validate_and_compact(mesh);
   ASSERT_GT(mesh.vertices.rows(), 1200);

@@ -108,7 +108,7 @@ class TomlReader {
 
 std::filesystem::path relative_to(const std::filesystem::path& base, const std::string& p) {
   std::filesystem::path path(p);
-  return path.is_absolute() ? path : base / path;
+  return (path.is_absolute() ? path : base / path).lexically_normal();
 }
 
 }  // namespace
