@@ -7,11 +7,13 @@
 #include <algorithm>
 #include <array>
 #include <fstream>
+#include <functional>
 
 #include "palpate/error.hpp"
 #include "palpate/fem.hpp"
 #include "palpate/mesh.hpp"
 #include "palpate/mesh_io.hpp"
+#include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {
@@ -40,17 +42,8 @@ Eigen::MatrixX3d sorted_rows(const Eigen::MatrixX3d& X) {
   return S;
 }
 
-// Expects an InputError whose message contains every fragment.
-template <typename F>
-void expect_input_error(F f, std::initializer_list<std::string> fragments) {
-  try {
-    f();
-    ADD_FAILURE() << "no InputError";
-  } catch (const InputError& e) {
-    const std::string msg = e.what();
-    for (const auto& frag : fragments) EXPECT_NE(msg.find(frag), std::string::npos) << msg << "\n  lacks: " << frag;
-    EXPECT_EQ(msg.find('\n'), std::string::npos) << "one line: " << msg;
-  }
+void expect_input_error(const std::function<void()>& f, std::initializer_list<std::string> fragments) {
+  testing::expect_error<InputError>(f, fragments);
 }
 
 TEST(Boundary, OfABoxIsClosedOutwardAndComplete) {

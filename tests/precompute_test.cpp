@@ -12,6 +12,7 @@
 #include "palpate/compliance_file.hpp"
 #include "palpate/error.hpp"
 #include "palpate/precompute.hpp"
+#include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {
@@ -31,17 +32,7 @@ PrecomputeJob box_job(const TempDir& dir) {
   return job;
 }
 
-template <typename Error, typename F>
-void expect_error(F f, std::initializer_list<std::string> fragments) {
-  try {
-    f();
-    ADD_FAILURE() << "no error thrown";
-  } catch (const Error& e) {
-    const std::string msg = e.what();
-    for (const auto& frag : fragments) EXPECT_NE(msg.find(frag), std::string::npos) << msg << "\n  lacks: " << frag;
-    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
-  }
-}
+using testing::expect_error;
 
 TEST(Precompute, WritesAFileThatReadsBackWithTheContract) {
   TempDir dir;

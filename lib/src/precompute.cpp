@@ -489,12 +489,17 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
 
   ComplianceOptions options;
   options.block_columns = job.block_columns;
-  auto not_pd = [&](const NotPositiveDefinite& e) {
-    const int v = dofs.vertex_of_dof(e.column());
-    return NumericalError(fmt::format(
-        "{}: the stiffness matrix is not positive definite (Cholesky failed at vertex {}, axis {}): "
-        "check that the attachment holds every part of the organ and that no element is degenerate",
-        mesh.source, mesh.source_ids[v], "xyz"[e.column() % 3]));
+  // Runs a method, turning a failed Cholesky into a message about the mesh.
+  auto with_vertex_context = [&](auto method) {
+    try {
+      method();
+    } catch (const NotPositiveDefinite& e) {
+      const int v = dofs.vertex_of_dof(e.column());
+      throw NumericalError(fmt::format(
+          "{}: the stiffness matrix is not positive definite (Cholesky failed at vertex {}, axis {}): "
+          "check that the attachment holds every part of the organ and that no element is degenerate",
+          mesh.source, mesh.source_ids[v], "xyz"[e.column() % 3]));
+    }
   };
 
   Eigen::MatrixXd G;
@@ -504,11 +509,7 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
     phases.begin("condensation");
     options.progress = progress("condensation");
     ComplianceStats stats;
-    try {
-      G = compliance_by_condensation(K, m, options, &stats);
-    } catch (const NotPositiveDefinite& e) {
-      throw not_pd(e);
-    }
+    with_vertex_context([&] { G = compliance_by_condensation(K, m, options, &stats); });
     auto& p = phases.end();
     p["gflop_per_s"] = stats.dense_seconds > 0 ? stats.dense_flops / stats.dense_seconds / 1e9 : 0.0;
     methods["condensation"] = factor_json(stats);
@@ -526,18 +527,10 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
       options.on_block = [&](int first, CRef<Eigen::MatrixXd> block) {
         worst = std::max(worst, (block - G.middleCols(first, block.cols())).cwiseAbs().maxCoeff());
       };
-      try {
-        compliance_by_solves(K, m, options, G, &stats);
-      } catch (const NotPositiveDefinite& e) {
-        throw not_pd(e);
-      }
+      with_vertex_context([&] { compliance_by_solves(K, m, options, G, &stats); });
       max_difference = worst / scale;
     } else {
-      try {
-        G = compliance_by_solves(K, m, options, &stats);
-      } catch (const NotPositiveDefinite& e) {
-        throw not_pd(e);
-      }
+      with_vertex_context([&] { G = compliance_by_solves(K, m, options, &stats); });
     }
     auto& p = phases.end();
     p["gflop_per_s"] = stats.dense_seconds > 0 ? stats.dense_flops / stats.dense_seconds / 1e9 : 0.0;

@@ -73,6 +73,24 @@ const char* ordering_name(int ordering) {
   }
 }
 
+// Symbolic analysis: CHOLMOD's fill-reducing ordering, or exactly the given
+// elimination order (no postordering) when one is given.
+cholmod_factor* analyze(cholmod_sparse* A, std::span<const int> permutation, Common& common) {
+  auto& c = common.c;
+  cholmod_factor* L = nullptr;
+  if (!permutation.empty()) {
+    PALPATE_DEMAND(permutation.size() == A->nrow);
+    c.nmethods = 1;
+    c.method[0].ordering = CHOLMOD_GIVEN;
+    c.postorder = 0;
+    L = cholmod_analyze_p(A, const_cast<int*>(permutation.data()), nullptr, 0, &c);
+  } else {
+    L = cholmod_analyze(A, &c);
+  }
+  common.check("cholmod_analyze");
+  return L;
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -109,16 +127,7 @@ SparseCholesky::SparseCholesky(const SparseMatrixd& upper, std::span<const int> 
   auto& c = impl_->common.c;
   cholmod_sparse A = view_upper(upper);
   const auto t0 = std::chrono::steady_clock::now();
-  if (!permutation.empty()) {
-    PALPATE_DEMAND(static_cast<Eigen::Index>(permutation.size()) == upper.rows());
-    c.nmethods = 1;
-    c.method[0].ordering = CHOLMOD_GIVEN;
-    c.postorder = 0;  // keep the given order exactly
-    impl_->L = cholmod_analyze_p(&A, const_cast<int*>(permutation.data()), nullptr, 0, &c);
-  } else {
-    impl_->L = cholmod_analyze(&A, &c);
-  }
-  impl_->common.check("cholmod_analyze");
+  impl_->L = analyze(&A, permutation, impl_->common);
   impl_->info.analyze_seconds = seconds_since(t0);
   impl_->info.ordering = ordering_name(c.method[c.selected].ordering);
 
@@ -219,16 +228,7 @@ double SparseCholesky::estimate_factor_bytes(const SparseMatrixd& upper,
                                             std::span<const int> permutation) {
   Common common;
   cholmod_sparse A = view_upper(upper);
-  cholmod_factor* L = nullptr;
-  if (!permutation.empty()) {
-    common.c.nmethods = 1;
-    common.c.method[0].ordering = CHOLMOD_GIVEN;
-    common.c.postorder = 0;
-    L = cholmod_analyze_p(&A, const_cast<int*>(permutation.data()), nullptr, 0, &common.c);
-  } else {
-    L = cholmod_analyze(&A, &common.c);
-  }
-  common.check("cholmod_analyze");
+  cholmod_factor* L = analyze(&A, permutation, common);
   const double bytes = static_cast<double>(L->xsize) * sizeof(double) +
                        static_cast<double>(L->ssize) * sizeof(int);
   cholmod_free_factor(&L, &common.c);
