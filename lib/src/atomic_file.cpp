@@ -32,14 +32,19 @@ void fsync_path(const std::filesystem::path& p, int flags) {
 
 }  // namespace
 
-AtomicOutput::AtomicOutput(std::filesystem::path final_path) : final_(std::move(final_path)) {
-  if (final_.filename().empty())
-    throw InputError(fmt::format("output path '{}' names no file", final_.string()));
-  const auto dir = final_.has_parent_path() ? final_.parent_path() : std::filesystem::path(".");
+void require_output_directory(const std::filesystem::path& final_path) {
+  if (final_path.filename().empty())
+    throw InputError(fmt::format("output path '{}' names no file", final_path.string()));
+  const auto dir = final_path.has_parent_path() ? final_path.parent_path() : std::filesystem::path(".");
   std::error_code ec;
   if (!std::filesystem::is_directory(dir, ec))
     throw InputError(fmt::format("output path '{}': directory '{}' does not exist",
-                                 final_.string(), dir.string()));
+                                 final_path.string(), dir.string()));
+}
+
+AtomicOutput::AtomicOutput(std::filesystem::path final_path) : final_(std::move(final_path)) {
+  require_output_directory(final_);
+  const auto dir = final_.has_parent_path() ? final_.parent_path() : std::filesystem::path(".");
   temp_ = dir / fmt::format(".{}.tmp-{}", final_.filename().string(), ::getpid());
   if (temp_.string().size() < sizeof(g_pending_temp)) {
     std::strcpy(g_pending_temp, temp_.c_str());

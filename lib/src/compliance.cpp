@@ -82,6 +82,8 @@ void check_columns(const SparseMatrixd& K_upper, SparseCholesky& factor, CRef<Ei
 
 }  // namespace
 
+int solve_threads() { return std::max(1, static_cast<int>(std::thread::hardware_concurrency())); }
+
 Eigen::MatrixXd compliance_by_solves(const SparseMatrixd& K_upper, int m,
                                      const ComplianceOptions& options, ComplianceStats* stats) {
   Eigen::MatrixXd G(m, m);
@@ -105,7 +107,7 @@ void compliance_by_solves(const SparseMatrixd& K_upper, int m, const ComplianceO
   // Blocks of columns are independent: one thread per core, each with its
   // own workspace and single-threaded BLAS (CHOLMOD's supernodes are too
   // small for OpenBLAS's own threads to pay off).
-  const int threads = std::max(1, std::min<int>(static_cast<int>(std::thread::hardware_concurrency()), blocks));
+  const int threads = std::min(solve_threads(), blocks);
   std::mutex report;  // serializes on_block and progress
   long done = 0;
   std::vector<std::exception_ptr> errors(static_cast<size_t>(threads));

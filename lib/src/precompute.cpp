@@ -8,9 +8,9 @@
 #include <map>
 #include <set>
 #include <sstream>
-#include <thread>
 #include <toml++/toml.h>
 
+#include "palpate/atomic_file.hpp"
 #include "palpate/error.hpp"
 #include "palpate/fem.hpp"
 #include "palpate/hash.hpp"
@@ -23,6 +23,10 @@
 namespace palpate {
 
 using nlohmann::json;
+
+namespace {
+constexpr int kMaxBlockColumns = 100000;
+}  // namespace
 
 Method parse_method(const std::string& name) {
   if (name == "solves") return Method::kSolves;
@@ -213,7 +217,8 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
     }
     if (const auto* n = t.get("block_columns")) {
       const auto v = n->value<int64_t>();
-      if (!v || *v < 1 || *v > 100000) r.fail(n, "compute.block_columns", "expected an integer from 1 to 100000");
+      if (!v || *v < 1 || *v > kMaxBlockColumns)
+        r.fail(n, "compute.block_columns", fmt::format("expected an integer from 1 to {}", kMaxBlockColumns));
       job.block_columns = static_cast<int>(*v);
     }
     if (const auto* n = t.get("tolerance")) job.tolerance = r.number(*n, "compute.tolerance");
@@ -286,17 +291,12 @@ void validate_job(const PrecomputeJob& job) {
     throw InputError("no Young's modulus given: use --young-modulus PA or [material] young_modulus_pa");
   if (!job.poisson_ratio)
     throw InputError("no Poisson ratio given: use --poisson-ratio NU or [material] poisson_ratio");
-  {
-    const auto dir = job.output.has_parent_path() ? job.output.parent_path() : std::filesystem::path(".");
-    std::error_code ec;
-    if (!std::filesystem::is_directory(dir, ec))
-      throw InputError(fmt::format("output path '{}': directory '{}' does not exist", job.output.string(), dir.string()));
-  }
+  require_output_directory(job.output);
   if (job.attachment.empty())
     throw InputError("no attachment given: the organ must be held somewhere; use --fix-ids, "
                      "--fix-group, --fix-box, --fix-sphere, --fix-half-space or [attachment]");
-  if (job.block_columns < 1 || job.block_columns > 100000)
-    throw InputError(fmt::format("block columns {} is not accepted: use 1 to 100000", job.block_columns));
+  if (job.block_columns < 1 || job.block_columns > kMaxBlockColumns)
+    throw InputError(fmt::format("block columns {} is not accepted: use 1 to {}", job.block_columns, kMaxBlockColumns));
   if (!(job.tolerance > 0)) throw InputError(fmt::format("tolerance {} is not accepted: use a number > 0", job.tolerance));
   if (!(job.memory_limit_bytes >= 0)) throw InputError("memory limit must be ≥ 0 (0: available memory)");
   parse_length_unit(job.mesh_unit);
@@ -479,7 +479,7 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
     double need = 0;
     if (do_solves)
       need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K) +
-                                2.0 * 8.0 * n * std::min(job.block_columns, m) * std::max(1u, std::thread::hardware_concurrency()));
+                                2.0 * 8.0 * n * std::min(job.block_columns, m) * solve_threads());
     if (do_condensation)
       need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K, condensation_ordering(K, m)));
     need += k_bytes;

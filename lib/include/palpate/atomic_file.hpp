@@ -30,6 +30,10 @@ class AtomicOutput {
   bool committed_ = false;
 };
 
+/// Checks that @p final_path names a file in an existing directory.
+/// @throws InputError otherwise, naming the missing directory.
+void require_output_directory(const std::filesystem::path& final_path);
+
 /// Installs handlers for SIGINT, SIGTERM and SIGHUP that remove the current
 /// AtomicOutput's temporary file and then end the process as the signal would.
 void install_interrupt_cleanup();

@@ -20,6 +20,9 @@ namespace palpate {
 /// Progress of a long phase: done out of total units.
 using ProgressFn = std::function<void(long done, long total)>;
 
+/// Threads the `solves` method runs its column blocks on (one per core).
+int solve_threads();
+
 struct ComplianceOptions {
   /// Right-hand sides per blocked solve in the `solves` method (BLAS-3 work).
   int block_columns = 64;
