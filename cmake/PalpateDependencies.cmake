@@ -11,6 +11,7 @@ find_package(fmt REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)
 find_package(CLI11 CONFIG QUIET)
 find_package(Threads REQUIRED)
+find_package(CycloneDDS 0.10 REQUIRED)
 
 # CHOLMOD (SuiteSparse 5.x ships no CMake package): an imported target.
 find_path(CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse REQUIRED)

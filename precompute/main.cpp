@@ -144,23 +144,7 @@ int main(int argc, char** argv) {
   palpate::ensure_optimized_blas(argv);
   try {
     return run(argc, argv);
-  } catch (const palpate::InputError& e) {
-    std::fprintf(stderr, "palpate-precompute: error: %s\n", e.what());
-    return static_cast<int>(ExitCode::kUsage);
-  } catch (const palpate::NumericalError& e) {
-    std::fprintf(stderr, "palpate-precompute: error: %s\n", e.what());
-    return static_cast<int>(ExitCode::kNumerical);
-  } catch (const palpate::ResourceError& e) {
-    std::fprintf(stderr, "palpate-precompute: error: %s\n", e.what());
-    return static_cast<int>(ExitCode::kResource);
-  } catch (const palpate::SystemError& e) {
-    std::fprintf(stderr, "palpate-precompute: error: %s\n", e.what());
-    return static_cast<int>(ExitCode::kSystem);
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "palpate-precompute: error: out of memory\n");
-    return static_cast<int>(ExitCode::kResource);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "palpate-precompute: error: %s (a bug in palpate: please report it)\n", e.what());
-    return static_cast<int>(ExitCode::kInternal);
+  } catch (...) {
+    return palpate::report_current_exception("palpate-precompute");
   }
 }

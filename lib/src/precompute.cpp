@@ -15,6 +15,7 @@
 #include "palpate/fem.hpp"
 #include "palpate/hash.hpp"
 #include "palpate/system_info.hpp"
+#include "toml_reader.hpp"
 
 #ifndef PALPATE_VERSION
 #define PALPATE_VERSION "0.0.0"
@@ -56,77 +57,11 @@ std::string to_string(Precision precision) {
 
 // ---- job file ----------------------------------------------------------------
 
-namespace {
-
-class TomlReader {
- public:
-  explicit TomlReader(std::string file) : file_(std::move(file)) {}
-
-  [[noreturn]] void fail(const toml::node* node, const std::string& key, const std::string& what) const {
-    const auto line = node ? node->source().begin.line : 0;
-    throw InputError(line ? fmt::format("{}:{}: {}: {}", file_, line, key, what)
-                          : fmt::format("{}: {}: {}", file_, key, what));
-  }
-
-  void only_keys(const toml::table& table, const std::string& where,
-                 std::initializer_list<std::string_view> allowed) const {
-    for (const auto& [key, node] : table) {
-      if (std::find(allowed.begin(), allowed.end(), key.str()) == allowed.end()) {
-        std::string list;
-        for (auto a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-        fail(&node, where.empty() ? std::string(key.str()) : where + "." + std::string(key.str()),
-             fmt::format("unknown key (accepted here: {})", list));
-      }
-    }
-  }
-
-  double number(const toml::node& node, const std::string& key) const {
-    if (auto v = node.value<double>()) return *v;
-    fail(&node, key, "expected a number");
-  }
-  std::string string(const toml::node& node, const std::string& key) const {
-    if (auto v = node.value<std::string>()) return *v;
-    fail(&node, key, "expected a string");
-  }
-  Eigen::Vector3d vec3(const toml::node& node, const std::string& key) const {
-    const auto* arr = node.as_array();
-    if (!arr || arr->size() != 3) fail(&node, key, "expected an array of 3 numbers [x, y, z]");
-    Eigen::Vector3d v;
-    for (int i = 0; i < 3; ++i) v[i] = number((*arr)[static_cast<size_t>(i)], key);
-    return v;
-  }
-  const toml::table& table(const toml::node& node, const std::string& key) const {
-    if (const auto* t = node.as_table()) return *t;
-    fail(&node, key, "expected a table");
-  }
-  template <typename F>
-  void each_table(const toml::node& node, const std::string& key, F f) const {
-    const auto* arr = node.as_array();
-    if (!arr) fail(&node, key, "expected an array of tables");
-    for (const auto& item : *arr) f(table(item, key));
-  }
-
- private:
-  std::string file_;
-};
-
-std::filesystem::path relative_to(const std::filesystem::path& base, const std::string& p) {
-  std::filesystem::path path(p);
-  return (path.is_absolute() ? path : base / path).lexically_normal();
-}
-
-}  // namespace
+using detail::relative_to;
 
 PrecomputeJob read_job_file(const std::filesystem::path& file) {
-  toml::table root;
-  try {
-    root = toml::parse_file(file.string());
-  } catch (const toml::parse_error& e) {
-    if (!std::filesystem::exists(file)) throw InputError(fmt::format("{}: no such job file", file.string()));
-    throw InputError(fmt::format("{}:{}:{}: not valid TOML: {}", file.string(),
-                                 e.source().begin.line, e.source().begin.column, e.description()));
-  }
-  const TomlReader r(file.string());
+  const toml::table root = detail::parse_toml_file(file);
+  const detail::TomlReader r(file.string());
   const auto base = std::filesystem::absolute(file).parent_path();
   PrecomputeJob job;
   r.only_keys(root, "", {"mesh", "material", "attachment", "compute", "output"});

@@ -48,6 +48,10 @@ enum class ExitCode : int {
   kInterrupted = 130,
 };
 
+/// Maps the exception being handled to its exit code after printing
+/// "<program>: error: <message>" on stderr. Call it in a catch (...) block.
+int report_current_exception(const char* program) noexcept;
+
 /// Internal invariant: a violation is a bug in palpate, never a user error.
 #define PALPATE_DEMAND(condition)                                                   \
   do {                                                                              \

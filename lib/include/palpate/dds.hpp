@@ -1,0 +1,96 @@
+#pragma once
+/// @file
+/// Cyclone DDS plumbing shared by palpated and its clients: RAII handles, one
+/// status check, the domain configuration (loopback unless the user gives
+/// one), and the topics with their QoS (docs/dds.md). Both sides take the
+/// QoS from here so that they always match.
+
+#include <dds/dds.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <utility>
+
+namespace palpate::dds {
+
+/// Owns a dds_entity_t; dds_delete on destruction (children go with it).
+class Entity {
+ public:
+  Entity() = default;
+  explicit Entity(dds_entity_t handle) : handle_(handle) {}
+  Entity(Entity&& other) noexcept : handle_(other.release()) {}
+  Entity& operator=(Entity&& other) noexcept {
+    if (this != &other) reset(other.release());
+    return *this;
+  }
+  Entity(const Entity&) = delete;
+  Entity& operator=(const Entity&) = delete;
+  ~Entity() { reset(); }
+
+  dds_entity_t get() const { return handle_; }
+  explicit operator bool() const { return handle_ > 0; }
+  dds_entity_t release() { return std::exchange(handle_, 0); }
+  void reset(dds_entity_t handle = 0) {
+    if (handle_ > 0) dds_delete(handle_);
+    handle_ = handle;
+  }
+
+ private:
+  dds_entity_t handle_ = 0;
+};
+
+/// Throws SystemError "<what>: <Cyclone's message>" when @p status is an
+/// error code (negative); returns it otherwise (handles are positive).
+dds_return_t check(dds_return_t status, std::string_view what);
+
+/// Owns a dds_qos_t.
+struct QosDeleter {
+  void operator()(dds_qos_t* qos) const { dds_delete_qos(qos); }
+};
+using Qos = std::unique_ptr<dds_qos_t, QosDeleter>;
+
+/// The configuration palpate uses when the user gives none: loopback only,
+/// no multicast, unicast discovery to 127.0.0.1.
+std::string_view loopback_config();
+
+/// Where a process's DDS configuration comes from.
+struct DomainConfig {
+  std::string text;    ///< passed to dds_create_domain: XML or file:// URIs
+  std::string origin;  ///< for logs: "built-in loopback", "--dds-config", "CYCLONEDDS_URI"
+};
+
+/// The user's configuration when there is one (@p user_config: a file path,
+/// a file:// URI or an XML fragment; then the CYCLONEDDS_URI environment
+/// variable), else loopback_config().
+/// @throws InputError when @p user_config names a file that cannot be read.
+DomainConfig resolve_domain_config(const std::string& user_config);
+
+/// The domain entity of @p domain_id in this process, created with @p config
+/// on first use and shared by every participant of the process (Cyclone
+/// accepts one dds_create_domain per domain and process).
+std::shared_ptr<Entity> acquire_domain(std::uint32_t domain_id, const DomainConfig& config);
+
+// ------------------------------------------------------------------ topics
+
+inline constexpr const char* kModelTopic = "palpate_model";
+inline constexpr const char* kRequestTopic = "palpate_request";
+inline constexpr const char* kReplyTopic = "palpate_reply";
+inline constexpr const char* kSurfaceTopic = "palpate_surface";
+inline constexpr const char* kStatusTopic = "palpate_status";
+
+/// Partition of the replies to client @p client_id.
+std::string reply_partition(std::string_view client_id);
+inline constexpr std::string_view kReplyPartitionPrefix = "palpate.client.";
+
+/// Model descriptions: reliable, transient-local, keep-last 1 per model.
+Qos model_qos();
+/// Requests and replies: reliable, volatile, keep-last 16, no latency budget.
+Qos request_reply_qos();
+/// Surface stream: reliable, transient-local, keep-last 1 per model.
+Qos surface_qos();
+/// Status heartbeat: reliable, volatile, keep-last 1.
+Qos status_qos();
+
+}  // namespace palpate::dds

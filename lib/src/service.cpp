@@ -1,0 +1,567 @@
+#include "palpate/service.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstring>
+#include <mutex>
+#include <thread>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "palpate.h"
+#include "palpate/constraint_solver.hpp"
+#include "palpate/dds.hpp"
+#include "palpate/error.hpp"
+#include "palpate/surface_model.hpp"
+
+namespace palpate {
+
+// The wire enums and the library's must agree number for number.
+static_assert(static_cast<int>(RequestStatus::kOk) == palpate_STATUS_OK);
+static_assert(static_cast<int>(RequestStatus::kIllConditioned) == palpate_STATUS_ILL_CONDITIONED);
+static_assert(static_cast<int>(RequestStatus::kInternalError) == palpate_STATUS_INTERNAL_ERROR);
+static_assert(static_cast<int>(ConstraintKind::kNormalDisplacement) == palpate_CONSTRAINT_NORMAL_DISPLACEMENT);
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// Copies @p text into a bounded IDL string, truncating.
+template <std::size_t N>
+void copy_bounded(char (&destination)[N], std::string_view text) {
+  const std::size_t n = std::min(text.size(), N - 1);
+  std::memcpy(destination, text.data(), n);
+  destination[n] = '\0';
+}
+
+/// Nearest-rank percentiles of the latencies of one heartbeat interval.
+palpate_Latency percentiles(std::vector<double>& values_us, std::size_t count) {
+  palpate_Latency latency{};
+  if (count == 0) return latency;
+  std::sort(values_us.begin(), values_us.begin() + static_cast<std::ptrdiff_t>(count));
+  auto at = [&](double q) { return values_us[static_cast<std::size_t>(q * static_cast<double>(count - 1) + 0.5)]; };
+  latency.p50_us = at(0.50);
+  latency.p99_us = at(0.99);
+  latency.p999_us = at(0.999);
+  latency.max_us = values_us[count - 1];
+  return latency;
+}
+
+/// Latencies of the request thread, handed to the status thread once per
+/// heartbeat. Fixed capacity: samples beyond it in one interval are dropped
+/// from the percentiles (not from the counts).
+class LatencyLog {
+ public:
+  static constexpr std::size_t kCapacity = 1 << 17;
+  LatencyLog() : solve_us_(kCapacity), reply_us_(kCapacity) {}
+
+  void record(double solve_us, double request_to_reply_us) {
+    const std::lock_guard lock(mutex_);
+    if (count_ == kCapacity) return;
+    solve_us_[count_] = solve_us;
+    reply_us_[count_] = request_to_reply_us;
+    ++count_;
+  }
+  /// Swaps the interval's samples into @p solve_us, @p reply_us (same capacity); returns their count.
+  std::size_t drain(std::vector<double>& solve_us, std::vector<double>& reply_us) {
+    const std::lock_guard lock(mutex_);
+    solve_us.swap(solve_us_);
+    reply_us.swap(reply_us_);
+    return std::exchange(count_, 0);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<double> solve_us_, reply_us_;
+  std::size_t count_ = 0;
+};
+
+/// A model, its solver (request thread only) and the state it shows.
+struct ServedModel {
+  SurfaceModel model;
+  std::unique_ptr<ConstraintSolver> solver;
+
+  // The shown state: written by the request thread, read by the stream thread.
+  std::mutex mutex;
+  std::uint64_t version = 0;
+  int shown_count = 0;
+  std::vector<int> shown_indices;
+  std::vector<double> shown_forces;
+  char shown_client[64] = {};
+  std::uint64_t shown_request = 0;
+  double shown_total_force[3] = {};
+
+  // Stream thread only.
+  palpate_SurfaceDisplacement sample{};  // its buffer is `displacement`
+  std::uint64_t published_version = 0;
+  std::vector<int> stream_indices;
+  std::vector<double> stream_forces;
+  Eigen::VectorXd displacement;
+};
+
+struct ClientWriter {
+  char id[64] = {};
+  dds::Entity publisher;
+  dds::Entity writer;
+};
+
+}  // namespace
+
+struct Service::Impl {
+  DaemonConfig config;
+  std::vector<std::unique_ptr<ServedModel>> models;
+  std::string served_ids;  // "a, b" for error messages
+
+  std::shared_ptr<dds::Entity> domain;
+  dds::Entity participant;
+  dds::Entity model_writer, request_reader, surface_writer, status_writer, subscriptions_reader;
+  dds::Entity reply_topic;
+  dds::Entity waitset, stop_condition;
+  dds_entity_t request_condition = 0, subscriptions_condition = 0;
+  std::vector<ClientWriter> clients;
+
+  // Request thread buffers, sized once.
+  static constexpr int kBatch = 16;
+  std::vector<palpate_ConstraintRequest> requests;
+  std::vector<void*> request_pointers;
+  std::vector<dds_sample_info_t> request_infos;
+  palpate_ConstraintReply reply{};
+  std::vector<palpate_ConstraintResult> reply_results;
+  std::vector<double> reply_surface;
+
+  // Counters and the stream/status thread.
+  LatencyLog latencies;
+  std::atomic<std::uint64_t> requests_served{0}, errors{0}, surface_samples{0};
+  std::atomic<bool> stopping{false};
+  std::mutex stream_mutex;
+  std::condition_variable stream_wake;
+  Clock::time_point started = Clock::now();
+
+  explicit Impl(const DaemonConfig& c);
+  ~Impl();
+  void publish_descriptions();
+  void serve_requests();
+  void handle(const palpate_ConstraintRequest& request, const dds_sample_info_t& info);
+  RequestStatus solve(const palpate_ConstraintRequest& request, ServedModel*& served);
+  void discover_clients();
+  ClientWriter* client_writer(const char* client_id);
+  void stream_loop();
+  void stop();
+  void publish_surfaces();
+  void publish_status(double interval_s, std::uint64_t served_in_interval, std::uint64_t surfaces_in_interval,
+                      std::vector<double>& solve_us, std::vector<double>& reply_us);
+};
+
+Service::Impl::Impl(const DaemonConfig& c) : config(c) {
+  std::size_t max_surface = 0;
+  for (const auto& entry : config.models) {
+    auto served = std::make_unique<ServedModel>();
+    const auto start = Clock::now();
+    served->model = load_surface_model(entry.id, entry.file);
+    const auto& m = served->model;
+    served->solver = std::make_unique<ConstraintSolver>(m, config.limits);
+    const auto k = static_cast<std::size_t>(config.limits.max_constraints);
+    served->shown_indices.resize(k);
+    served->shown_forces.resize(3 * k);
+    served->stream_indices.resize(k);
+    served->stream_forces.resize(3 * k);
+    served->displacement = Eigen::VectorXd::Zero(m.G.rows());
+    max_surface = std::max(max_surface, static_cast<std::size_t>(m.G.rows()));
+    spdlog::info("event=model_loaded model={} file={} compliance_vertices={} mesh_vertices={} triangles={} "
+                 "G_MB={:.1f} seconds={:.2f}",
+                 m.id, m.path.string(), m.compliance_vertex_count(), m.mesh_vertex_count(),
+                 m.drawn_triangles.size() / 3, static_cast<double>(m.G.size()) * 8 / 1e6,
+                 std::chrono::duration<double>(Clock::now() - start).count());
+    served_ids += (served_ids.empty() ? "" : ", ") + m.id;
+    models.push_back(std::move(served));
+  }
+  reply_results.resize(static_cast<std::size_t>(config.limits.max_constraints));
+  reply_surface.resize(max_surface);
+  reply.results._buffer = reply_results.data();
+  reply.results._maximum = static_cast<std::uint32_t>(reply_results.size());
+  reply.surface_displacement._buffer = reply_surface.data();
+  reply.surface_displacement._maximum = static_cast<std::uint32_t>(reply_surface.size());
+  requests.resize(kBatch);
+  request_infos.resize(kBatch);
+  for (auto& r : requests) request_pointers.push_back(&r);
+  clients.reserve(static_cast<std::size_t>(config.max_clients));
+
+  const dds::DomainConfig dds_config = dds::resolve_domain_config(config.dds_config);
+  spdlog::info("event=dds_domain domain={} configuration=\"{}\"", config.domain_id, dds_config.origin);
+  domain = dds::acquire_domain(config.domain_id, dds_config);
+  participant = dds::Entity(dds::check(dds_create_participant(config.domain_id, nullptr, nullptr),
+                                       "creating the DDS participant"));
+  auto topic = [&](const dds_topic_descriptor_t* type, const char* name) {
+    return dds::check(dds_create_topic(participant.get(), type, name, nullptr, nullptr),
+                      fmt::format("creating topic {}", name));
+  };
+  const dds_entity_t model_topic = topic(&palpate_ModelDescription_desc, dds::kModelTopic);
+  const dds_entity_t request_topic = topic(&palpate_ConstraintRequest_desc, dds::kRequestTopic);
+  reply_topic = dds::Entity(topic(&palpate_ConstraintReply_desc, dds::kReplyTopic));
+  const dds_entity_t surface_topic = topic(&palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic);
+  const dds_entity_t status_topic = topic(&palpate_DaemonStatus_desc, dds::kStatusTopic);
+
+  model_writer = dds::Entity(dds::check(dds_create_writer(participant.get(), model_topic, dds::model_qos().get(), nullptr),
+                                        "creating the model writer"));
+  request_reader = dds::Entity(dds::check(
+      dds_create_reader(participant.get(), request_topic, dds::request_reply_qos().get(), nullptr),
+      "creating the request reader"));
+  surface_writer = dds::Entity(dds::check(
+      dds_create_writer(participant.get(), surface_topic, dds::surface_qos().get(), nullptr), "creating the surface writer"));
+  status_writer = dds::Entity(dds::check(
+      dds_create_writer(participant.get(), status_topic, dds::status_qos().get(), nullptr), "creating the status writer"));
+  subscriptions_reader = dds::Entity(dds::check(
+      dds_create_reader(participant.get(), DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION, nullptr, nullptr),
+      "creating the discovery reader"));
+
+  waitset = dds::Entity(dds::check(dds_create_waitset(participant.get()), "creating the waitset"));
+  stop_condition = dds::Entity(dds::check(dds_create_guardcondition(participant.get()), "creating the guard condition"));
+  request_condition = dds::check(dds_create_readcondition(request_reader.get(), DDS_ANY_STATE), "read condition");
+  subscriptions_condition =
+      dds::check(dds_create_readcondition(subscriptions_reader.get(), DDS_ANY_STATE), "read condition");
+  dds::check(dds_waitset_attach(waitset.get(), stop_condition.get(), 0), "waitset");
+  dds::check(dds_waitset_attach(waitset.get(), request_condition, 1), "waitset");
+  dds::check(dds_waitset_attach(waitset.get(), subscriptions_condition, 2), "waitset");
+
+  publish_descriptions();
+}
+
+Service::Impl::~Impl() {
+  // Request samples own the constraint buffers Cyclone allocated into them.
+  for (auto& r : requests) dds_sample_free(&r, &palpate_ConstraintRequest_desc, DDS_FREE_CONTENTS);
+  participant.reset();  // deletes every entity of the participant
+}
+
+void Service::Impl::publish_descriptions() {
+  for (const auto& served : models) {
+    const SurfaceModel& m = served->model;
+    palpate_ModelDescription d{};
+    copy_bounded(d.model_id, m.id);
+    copy_bounded(d.units, "m, N (SI)");
+    copy_bounded(d.material_summary, m.material_summary);
+    copy_bounded(d.input_hash, m.input_hash);
+    d.compliance_vertex_count = static_cast<std::uint32_t>(m.compliance_vertex_count());
+    auto view = [](auto& sequence, auto& vector) {
+      sequence._buffer = const_cast<std::remove_cvref_t<decltype(*vector.data())>*>(vector.data());
+      sequence._length = sequence._maximum = static_cast<std::uint32_t>(vector.size());
+      sequence._release = false;
+    };
+    view(d.vertex_ids, m.drawn_vertex_ids);
+    view(d.rest_positions, m.drawn_rest_positions_m);
+    view(d.triangles, m.drawn_triangles);
+    dds::check(dds_write(model_writer.get(), &d), "publishing model " + m.id);
+  }
+}
+
+ClientWriter* Service::Impl::client_writer(const char* client_id) {
+  for (auto& client : clients)
+    if (std::strcmp(client.id, client_id) == 0) return &client;
+  // A client id names a partition: no wildcards.
+  if (client_id[0] == '\0' || std::strpbrk(client_id, "*?[]\\") != nullptr) return nullptr;
+  ClientWriter* slot = nullptr;
+  if (clients.size() < clients.capacity()) {
+    slot = &clients.emplace_back();
+  } else {
+    // Reuse the writer of a client that has gone (no matched reader).
+    for (auto& client : clients) {
+      dds_publication_matched_status_t status{};
+      if (dds_get_publication_matched_status(client.writer.get(), &status) == DDS_RETCODE_OK &&
+          status.current_count == 0) {
+        spdlog::info("event=client_forgotten client={}", client.id);
+        client.writer.reset();
+        client.publisher.reset();
+        slot = &client;
+        break;
+      }
+    }
+    if (slot == nullptr) {
+      spdlog::warn("event=too_many_clients client={} max_clients={}", client_id, config.max_clients);
+      return nullptr;
+    }
+  }
+  copy_bounded(slot->id, client_id);
+  const std::string partition = dds::reply_partition(client_id);
+  const char* partitions[] = {partition.c_str()};
+  dds::Qos qos(dds_create_qos());
+  dds_qset_partition(qos.get(), 1, partitions);
+  dds_entity_t publisher = dds_create_publisher(participant.get(), qos.get(), nullptr);
+  if (publisher < 0) {
+    spdlog::error("event=dds_error what=\"creating the reply publisher of client {}\" error={}", client_id,
+                  dds_strretcode(publisher));
+    slot->id[0] = '\0';
+    return nullptr;
+  }
+  slot->publisher = dds::Entity(publisher);
+  dds_entity_t writer = dds_create_writer(publisher, reply_topic.get(), dds::request_reply_qos().get(), nullptr);
+  if (writer < 0) {
+    spdlog::error("event=dds_error what=\"creating the reply writer of client {}\" error={}", client_id,
+                  dds_strretcode(writer));
+    slot->publisher.reset();
+    slot->id[0] = '\0';
+    return nullptr;
+  }
+  slot->writer = dds::Entity(writer);
+  spdlog::info("event=client_added client={} partition={}", client_id, partition);
+  return slot;
+}
+
+void Service::Impl::discover_clients() {
+  // A client's reply reader announces its partition "palpate.client.<id>":
+  // the reply writer is made before its first request.
+  void* samples[8] = {};
+  dds_sample_info_t infos[8];
+  const dds_return_t n = dds_take(subscriptions_reader.get(), samples, infos, 8, 8);
+  if (n <= 0) return;
+  for (dds_return_t i = 0; i < n; ++i) {
+    if (!infos[i].valid_data || infos[i].instance_state != DDS_IST_ALIVE) continue;
+    const auto* endpoint = static_cast<const dds_builtintopic_endpoint_t*>(samples[i]);
+    if (endpoint->topic_name == nullptr || std::strcmp(endpoint->topic_name, dds::kReplyTopic) != 0) continue;
+    std::uint32_t count = 0;
+    char** names = nullptr;
+    if (!dds_qget_partition(endpoint->qos, &count, &names)) continue;
+    for (std::uint32_t p = 0; p < count; ++p) {
+      const std::string_view name(names[p]);
+      if (name.starts_with(dds::kReplyPartitionPrefix) && name.size() > dds::kReplyPartitionPrefix.size() &&
+          name.size() - dds::kReplyPartitionPrefix.size() < 64)
+        client_writer(names[p] + dds::kReplyPartitionPrefix.size());
+      dds_free(names[p]);
+    }
+    dds_free(names);
+  }
+  dds_return_loan(subscriptions_reader.get(), samples, n);
+}
+
+RequestStatus Service::Impl::solve(const palpate_ConstraintRequest& request, ServedModel*& served) {
+  served = nullptr;
+  for (const auto& candidate : models)
+    if (std::strncmp(candidate->model.id.c_str(), request.model_id, sizeof request.model_id) == 0) served = candidate.get();
+  if (served == nullptr) {
+    std::snprintf(reply.message, sizeof reply.message, "model '%s' is not served here; served: %s", request.model_id,
+                  served_ids.c_str());
+    return RequestStatus::kUnknownModel;
+  }
+  ConstraintSolver& solver = *served->solver;
+  const std::uint32_t k = request.constraints._length;
+  RequestStatus status = solver.begin(k);
+  for (std::uint32_t j = 0; j < k && status == RequestStatus::kOk; ++j) {
+    const palpate_Constraint& c = request.constraints._buffer[j];
+    status = solver.add(c.vertex, static_cast<std::int32_t>(c.kind), c.value, c.normal);
+  }
+  if (status == RequestStatus::kOk) status = solver.solve();
+  reply.condition_estimate = solver.condition_estimate();
+  if (status != RequestStatus::kOk) {
+    copy_bounded(reply.message, solver.message());
+    return status;
+  }
+
+  const auto forces = solver.forces();
+  const auto displacements = solver.displacements();
+  reply.results._length = k;
+  for (std::uint32_t j = 0; j < k; ++j) {
+    palpate_ConstraintResult& result = reply_results[j];
+    result.vertex = request.constraints._buffer[j].vertex;
+    for (int d = 0; d < 3; ++d) {
+      result.force[d] = forces(3 * j + d);
+      result.displacement[d] = displacements(3 * j + d);
+    }
+  }
+  const Eigen::Vector3d total = solver.total_force();
+  for (int d = 0; d < 3; ++d) reply.total_force[d] = total[d];
+  if (request.want_surface) {
+    const auto n = static_cast<Eigen::Index>(served->model.G.rows());
+    solver.surface_displacement(Eigen::Map<Eigen::VectorXd>(reply_surface.data(), n));
+    reply.surface_displacement._length = static_cast<std::uint32_t>(n);
+  }
+  if (request.update_state) {
+    // The latest successful state-changing request defines what the model
+    // shows: its vertices and forces; the stream thread does the big product.
+    const std::lock_guard lock(served->mutex);
+    served->shown_count = static_cast<int>(k);
+    std::copy_n(solver.indices().begin(), k, served->shown_indices.begin());
+    std::copy_n(forces.data(), 3 * k, served->shown_forces.begin());
+    copy_bounded(served->shown_client, reply.client_id);
+    served->shown_request = request.request_id;
+    for (int d = 0; d < 3; ++d) served->shown_total_force[d] = total[d];
+    ++served->version;
+  }
+  return RequestStatus::kOk;
+}
+
+void Service::Impl::handle(const palpate_ConstraintRequest& request, const dds_sample_info_t& info) {
+  const auto start = Clock::now();
+  copy_bounded(reply.client_id, std::string_view(request.client_id, strnlen(request.client_id, sizeof request.client_id)));
+  copy_bounded(reply.model_id, std::string_view(request.model_id, strnlen(request.model_id, sizeof request.model_id)));
+  reply.request_id = request.request_id;
+  reply.message[0] = '\0';
+  reply.condition_estimate = 1;
+  reply.total_force[0] = reply.total_force[1] = reply.total_force[2] = 0;
+  reply.results._length = 0;
+  reply.surface_displacement._length = 0;
+
+  ServedModel* served = nullptr;
+  RequestStatus status = RequestStatus::kInternalError;
+  try {
+    status = solve(request, served);
+  } catch (const std::exception& e) {
+    copy_bounded(reply.message, e.what());
+  }
+  reply.status = static_cast<palpate_ReplyStatus>(status);
+  if (status != RequestStatus::kOk) {
+    reply.results._length = 0;
+    reply.surface_displacement._length = 0;
+    errors.fetch_add(1, std::memory_order_relaxed);
+    spdlog::debug("event=request_refused client={} request={} status={} message=\"{}\"", reply.client_id,
+                  request.request_id, status_name(status), reply.message);
+  }
+
+  ClientWriter* client = client_writer(reply.client_id);
+  reply.solve_ns = static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count());
+  if (client == nullptr) {
+    spdlog::warn("event=reply_dropped client=\"{}\" request={} reason=\"no reply writer for this client id\"",
+                 reply.client_id, request.request_id);
+  } else if (const dds_return_t rc = dds_write(client->writer.get(), &reply); rc < 0) {
+    spdlog::error("event=dds_error what=\"writing a reply\" client={} error={}", reply.client_id, dds_strretcode(rc));
+  }
+  requests_served.fetch_add(1, std::memory_order_relaxed);
+  const double solve_us = static_cast<double>(reply.solve_ns) * 1e-3;
+  const double request_to_reply_us = static_cast<double>(dds_time() - info.source_timestamp) * 1e-3;
+  latencies.record(solve_us, request_to_reply_us);
+}
+
+void Service::Impl::serve_requests() {
+  for (;;) {
+    const dds_return_t n = dds_take(request_reader.get(), request_pointers.data(), request_infos.data(), kBatch, kBatch);
+    if (n < 0) throw SystemError(std::string("taking requests: ") + dds_strretcode(n));
+    for (dds_return_t i = 0; i < n; ++i)
+      if (request_infos[i].valid_data) handle(requests[i], request_infos[i]);
+    if (n < kBatch) return;
+  }
+}
+
+void Service::Impl::publish_surfaces() {
+  for (const auto& served : models) {
+    palpate_SurfaceDisplacement& sample = served->sample;
+    int count = 0;
+    {
+      const std::lock_guard lock(served->mutex);
+      if (served->version == served->published_version) continue;
+      served->published_version = served->version;
+      count = served->shown_count;
+      std::copy_n(served->shown_indices.begin(), count, served->stream_indices.begin());
+      std::copy_n(served->shown_forces.begin(), 3 * count, served->stream_forces.begin());
+      copy_bounded(sample.source_client_id, served->shown_client);
+      sample.source_request_id = served->shown_request;
+      std::copy_n(served->shown_total_force, 3, sample.total_force);
+    }
+    // u_S = G_SC f_C, off the request path.
+    surface_displacement(served->model.G, {served->stream_indices.data(), static_cast<std::size_t>(count)},
+                         served->stream_forces.data(), served->displacement);
+    copy_bounded(sample.model_id, served->model.id);
+    ++sample.sequence_number;
+    sample.displacement._buffer = served->displacement.data();
+    sample.displacement._length = sample.displacement._maximum = static_cast<std::uint32_t>(served->displacement.size());
+    sample.displacement._release = false;
+    if (const dds_return_t rc = dds_write(surface_writer.get(), &sample); rc < 0)
+      spdlog::error("event=dds_error what=\"writing the surface of {}\" error={}", served->model.id, dds_strretcode(rc));
+    else
+      surface_samples.fetch_add(1, std::memory_order_relaxed);
+  }
+}
+
+void Service::Impl::publish_status(double interval_s, std::uint64_t served_in_interval,
+                                   std::uint64_t surfaces_in_interval, std::vector<double>& solve_us,
+                                   std::vector<double>& reply_us) {
+  const std::size_t n = latencies.drain(solve_us, reply_us);
+  palpate_DaemonStatus status{};
+  copy_bounded(status.daemon_id, config.daemon_id);
+  status.uptime_ns = static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - started).count());
+  status.requests_served = requests_served.load(std::memory_order_relaxed);
+  status.error_replies = errors.load(std::memory_order_relaxed);
+  status.request_rate_hz = static_cast<double>(served_in_interval) / interval_s;
+  status.surface_rate_hz = static_cast<double>(surfaces_in_interval) / interval_s;
+  status.solve = percentiles(solve_us, n);
+  status.request_to_reply = percentiles(reply_us, n);
+  status.models = static_cast<std::uint32_t>(models.size());
+  status.clients = static_cast<std::uint32_t>(clients.size());
+  if (const dds_return_t rc = dds_write(status_writer.get(), &status); rc < 0)
+    spdlog::error("event=dds_error what=\"writing the status\" error={}", dds_strretcode(rc));
+}
+
+void Service::Impl::stream_loop() {
+  using namespace std::chrono;
+  const auto surface_period = duration_cast<Clock::duration>(duration<double>(1.0 / config.surface_rate_hz));
+  const auto status_period = duration_cast<Clock::duration>(duration<double>(1.0 / config.status_rate_hz));
+  auto next_surface = Clock::now();
+  auto next_status = Clock::now() + status_period;
+  auto last_status = Clock::now();
+  std::uint64_t last_served = 0, last_surfaces = 0;
+  std::vector<double> solve_us(LatencyLog::kCapacity), reply_us(LatencyLog::kCapacity);
+  std::unique_lock lock(stream_mutex);
+  while (!stopping.load()) {
+    stream_wake.wait_until(lock, std::min(next_surface, next_status), [&] { return stopping.load(); });
+    if (stopping.load()) break;
+    const auto now = Clock::now();
+    if (now >= next_surface) {
+      publish_surfaces();
+      next_surface = std::max(next_surface + surface_period, now);
+    }
+    if (now >= next_status) {
+      const std::uint64_t s = requests_served.load(), f = surface_samples.load();
+      publish_status(duration<double>(now - last_status).count(), s - last_served, f - last_surfaces, solve_us,
+                     reply_us);
+      last_served = s;
+      last_surfaces = f;
+      last_status = now;
+      next_status = std::max(next_status + status_period, now);
+    }
+  }
+}
+
+Service::Service(const DaemonConfig& config) : impl_(std::make_unique<Impl>(config)) {}
+Service::~Service() = default;
+
+void Service::run() {
+  Impl& s = *impl_;
+  std::thread stream([&s] {
+    try {
+      s.stream_loop();
+    } catch (const std::exception& e) {
+      spdlog::critical("event=stream_thread_failed error=\"{}\"", e.what());
+      s.stop();
+    }
+  });
+  spdlog::info("event=serving models={} domain={}", s.models.size(), s.config.domain_id);
+  try {
+    dds_attach_t triggered[3];
+    while (!s.stopping.load()) {
+      const dds_return_t n = dds_waitset_wait(s.waitset.get(), triggered, 3, DDS_INFINITY);
+      if (n < 0) throw SystemError(std::string("waiting for requests: ") + dds_strretcode(n));
+      if (s.stopping.load()) break;
+      s.discover_clients();
+      s.serve_requests();
+    }
+  } catch (...) {
+    request_stop();
+    stream.join();
+    throw;
+  }
+  stream.join();
+  spdlog::info("event=stopped requests_served={} error_replies={}", s.requests_served.load(), s.errors.load());
+}
+
+void Service::request_stop() { impl_->stop(); }
+
+void Service::Impl::stop() {
+  {
+    const std::lock_guard lock(stream_mutex);
+    stopping.store(true);
+  }
+  stream_wake.notify_all();
+  dds_set_guardcondition(stop_condition.get(), true);
+}
+
+}  // namespace palpate

@@ -1,0 +1,132 @@
+// palpated: serves precomputed organ compliance over Cyclone DDS.
+// Flags override config/palpated.toml; docs/configuration.md lists both,
+// docs/dds.md the topics, docs/errors.md the exit codes.
+
+#include <semaphore.h>
+#include <signal.h>
+
+#include <atomic>
+#include <cstdio>
+#include <iostream>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include "palpate/daemon_config.hpp"
+#include "palpate/error.hpp"
+#include "palpate/service.hpp"
+#include "palpate/surface_model.hpp"
+#include "palpate/system_info.hpp"
+
+namespace {
+
+sem_t stop_semaphore;
+std::atomic<int> received_signal{0};
+
+extern "C" void on_stop_signal(int signal) {
+  received_signal.store(signal);
+  sem_post(&stop_semaphore);
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"palpated: answers force and imposed-displacement requests on precomputed organ models over DDS"};
+  app.set_version_flag("--version", "palpated " PALPATE_VERSION);
+  std::string config_file;
+  std::vector<std::string> model_flags;
+  bool check_only = false;
+  palpate::DaemonConfig overrides;
+  app.add_option("-c,--config", config_file, "configuration file (TOML, e.g. config/palpated.toml)");
+  app.add_option("-m,--model", model_flags, "serve a compliance file as ID=PATH (repeatable; adds to the configuration)");
+  app.add_option("--id", overrides.daemon_id, "daemon id in the status topic");
+  app.add_option("--domain", overrides.domain_id, "DDS domain id");
+  app.add_option("--dds-config", overrides.dds_config,
+                 "Cyclone DDS configuration: XML file, file:// URI or XML fragment (default: loopback only)");
+  app.add_option("--surface-hz", overrides.surface_rate_hz, "surface stream rate per model, Hz");
+  app.add_option("--status-hz", overrides.status_rate_hz, "status heartbeat rate, Hz");
+  app.add_option("--max-constraints", overrides.limits.max_constraints, "constrained vertices per request");
+  app.add_option("--max-condition", overrides.limits.max_condition, "largest accepted condition estimate");
+  app.add_option("--log-level", overrides.log_level, "trace, debug, info, warn or error");
+  app.add_flag("--check-config", check_only, "check the configuration and the compliance files, then exit");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::fprintf(stderr, "palpated: error: %s (see --help)\n", e.what());
+    return static_cast<int>(palpate::ExitCode::kUsage);
+  }
+
+  palpate::DaemonConfig config;
+  if (!config_file.empty()) config = palpate::read_daemon_config(config_file);
+  if (app.count("--id")) config.daemon_id = overrides.daemon_id;
+  if (app.count("--domain")) config.domain_id = overrides.domain_id;
+  if (app.count("--dds-config")) config.dds_config = overrides.dds_config;
+  if (app.count("--surface-hz")) config.surface_rate_hz = overrides.surface_rate_hz;
+  if (app.count("--status-hz")) config.status_rate_hz = overrides.status_rate_hz;
+  if (app.count("--max-constraints")) config.limits.max_constraints = overrides.limits.max_constraints;
+  if (app.count("--max-condition")) config.limits.max_condition = overrides.limits.max_condition;
+  if (app.count("--log-level")) config.log_level = overrides.log_level;
+  for (const auto& flag : model_flags) config.models.push_back(palpate::parse_model_flag(flag));
+  palpate::validate(config);
+
+  // Structured logs on stderr, one event per line: ts level event=... key=value.
+  auto log = spdlog::stderr_logger_mt("palpated");
+  log->set_pattern("ts=%Y-%m-%dT%H:%M:%S.%fZ level=%l %v", spdlog::pattern_time_type::utc);
+  log->set_level(spdlog::level::from_str(config.log_level));
+  log->flush_on(spdlog::level::info);
+  spdlog::set_default_logger(log);
+
+  if (check_only) {
+    for (const auto& entry : config.models) {
+      const auto model = palpate::load_surface_model(entry.id, entry.file);
+      std::printf("model %s: %s, %d compliance vertices, %s\n", model.id.c_str(), entry.file.c_str(),
+                  model.compliance_vertex_count(), model.material_summary.c_str());
+    }
+    std::printf("configuration OK: %zu model(s), domain %u\n", config.models.size(), config.domain_id);
+    return 0;
+  }
+
+  spdlog::info("event=starting version={} daemon_id={} blas=\"{}\"", PALPATE_VERSION, config.daemon_id,
+               palpate::blas_description());
+  palpate::Service service(config);
+  // SIGINT and SIGTERM post a semaphore (async-signal-safe); a thread
+  // waits on it and stops the service. A handler rather than sigwait because
+  // libraries start threads before main (OpenBLAS) whose masks we do not set.
+  sem_init(&stop_semaphore, 0, 0);
+  struct sigaction action {};
+  action.sa_handler = on_stop_signal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  std::thread signal_thread([&] {
+    while (sem_wait(&stop_semaphore) != 0) {
+    }
+    if (const int signal = received_signal.load(); signal != 0)
+      spdlog::info("event=signal signal={}", signal == SIGINT ? "SIGINT" : "SIGTERM");
+    service.request_stop();
+  });
+  auto stop_signal_thread = [&] {
+    sem_post(&stop_semaphore);
+    signal_thread.join();
+  };
+  try {
+    service.run();
+  } catch (...) {
+    stop_signal_thread();
+    throw;
+  }
+  stop_signal_thread();
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  palpate::ensure_optimized_blas(argv);
+  try {
+    return run(argc, argv);
+  } catch (...) {
+    return palpate::report_current_exception("palpated");
+  }
+}
