@@ -12,6 +12,7 @@
 #include "palpate/compliance_file.hpp"
 #include "palpate/error.hpp"
 #include "palpate/precompute.hpp"
+#include "support/box_job.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
 
@@ -20,17 +21,7 @@ namespace {
 
 using testing::TempDir;
 
-// A small job on a box mesh clamped on x = 0, written to `dir`.
-PrecomputeJob box_job(const TempDir& dir) {
-  testing::write_msh22(testing::box_mesh(0.1, 0.05, 0.04, 4, 2, 2), dir / "box.msh");
-  PrecomputeJob job;
-  job.mesh_file = dir / "box.msh";
-  job.young_modulus_pa = 85e3;
-  job.poisson_ratio = 0.45;
-  job.attachment.half_spaces.push_back({{0.001, 0, 0}, {-1, 0, 0}});
-  job.output = dir / "box.h5";
-  return job;
-}
+PrecomputeJob box_job(const TempDir& dir) { return testing::box_job(dir.path()); }
 
 using testing::expect_error;
 

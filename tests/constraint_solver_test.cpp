@@ -1,0 +1,265 @@
+// The run-time algebra (brief.md, "Run time") against dense computations on
+// the full G of a real compliance file, every request error, and the reuse
+// of factorizations.
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "palpate/constraint_solver.hpp"
+#include "palpate/surface_model.hpp"
+#include "support/box_job.hpp"
+#include "support/test_meshes.hpp"
+
+namespace palpate {
+namespace {
+
+// G has entries of order 1e-4 m/N; the small systems are well conditioned
+// (condition ≤ 1e4), so solves agree with dense references to ~1e-12
+// relative; 1e-9 leaves three orders of margin.
+constexpr double kRelativeTolerance = 1e-9;
+
+struct Request {
+  std::uint32_t vertex;
+  ConstraintKind kind;
+  Eigen::Vector3d value;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+};
+
+class ConstraintSolverTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new testing::TempDir;
+    model_ = new SurfaceModel(load_surface_model("box", testing::write_box_compliance(dir_->path())));
+  }
+  static void TearDownTestSuite() {
+    delete model_;
+    delete dir_;
+  }
+
+  static const SurfaceModel& model() { return *model_; }
+  /// Mesh id of compliance vertex i.
+  static std::uint32_t vertex(int i) { return model_->drawn_vertex_ids[static_cast<std::size_t>(i)]; }
+
+  static RequestStatus run(ConstraintSolver& solver, const std::vector<Request>& requests) {
+    RequestStatus status = solver.begin(requests.size());
+    for (const auto& r : requests) {
+      if (status != RequestStatus::kOk) return status;
+      status = solver.add(r.vertex, static_cast<std::int32_t>(r.kind), r.value.data(), r.normal.data());
+    }
+    return status == RequestStatus::kOk ? solver.solve() : status;
+  }
+
+  /// u = G f over the whole surface, f non-zero on the request's vertices only.
+  static Eigen::VectorXd full_field(const ConstraintSolver& solver) {
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(model().G.rows());
+    for (int j = 0; j < solver.size(); ++j) f.segment<3>(3 * solver.indices()[j]) = solver.forces().segment<3>(3 * j);
+    return model().G * f;
+  }
+
+  static double relative(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+    return (a - b).norm() / std::max(b.norm(), std::numeric_limits<double>::min());
+  }
+
+  inline static testing::TempDir* dir_ = nullptr;
+  inline static SurfaceModel* model_ = nullptr;
+};
+
+TEST_F(ConstraintSolverTest, DescribesTheSurfaceForDrawing) {
+  const SurfaceModel& m = model();
+  const int n = m.compliance_vertex_count();
+  ASSERT_GT(n, 10);
+  EXPECT_EQ(m.G.rows(), 3 * n);
+  EXPECT_GT(m.drawn_vertex_ids.size(), static_cast<std::size_t>(n)) << "fixed surface vertices are drawn after";
+  EXPECT_EQ(m.drawn_rest_positions_m.size(), 3 * m.drawn_vertex_ids.size());
+  for (std::uint32_t corner : m.drawn_triangles) EXPECT_LT(corner, m.drawn_vertex_ids.size());
+  for (std::size_t i = 0; i < m.drawn_vertex_ids.size(); ++i) {
+    const std::int32_t role = m.compliance_index_of_vertex[m.drawn_vertex_ids[i]];
+    if (static_cast<int>(i) < n)
+      EXPECT_EQ(role, static_cast<std::int32_t>(i));
+    else
+      EXPECT_EQ(role, static_cast<std::int32_t>(VertexRole::kFixed));
+  }
+  // The clamped face x = 0 is fixed: its vertices are drawn but not constrainable.
+  for (std::size_t i = static_cast<std::size_t>(n); i < m.drawn_vertex_ids.size(); ++i)
+    EXPECT_NEAR(m.drawn_rest_positions_m[3 * i], 0.0, 1e-12);
+}
+
+TEST_F(ConstraintSolverTest, ForcesGiveTheColumnsOfG) {
+  ConstraintSolver solver(model(), {});
+  const std::vector<Request> forces{{vertex(3), ConstraintKind::kForce, {0.1, -0.2, 0.3}},
+                                    {vertex(17), ConstraintKind::kForce, {0, 0, -1.5}}};
+  ASSERT_EQ(run(solver, forces), RequestStatus::kOk);
+  EXPECT_EQ(solver.forces(), (Eigen::VectorXd(6) << 0.1, -0.2, 0.3, 0, 0, -1.5).finished());
+  Eigen::VectorXd u(model().G.rows());
+  solver.surface_displacement(u);
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(model().G.rows());
+  f.segment<3>(9) = forces[0].value;
+  f.segment<3>(51) = forces[1].value;
+  const Eigen::VectorXd expected = model().G * f;
+  EXPECT_LT(relative(u, expected), kRelativeTolerance);
+  EXPECT_LT(relative(solver.displacements().segment<3>(0), expected.segment<3>(9)), kRelativeTolerance);
+  EXPECT_LT((solver.total_force() - Eigen::Vector3d(0.1, -0.2, -1.2)).norm(), 1e-15);
+}
+
+TEST_F(ConstraintSolverTest, ImposedDisplacementsSolveTheCompliance) {
+  // brief.md: G_CC F_C = U_C, U_S = G_SC F_C; the reference solves the same
+  // system with Eigen's full-pivot LU.
+  ConstraintSolver solver(model(), {});
+  const std::vector<int> patch{5, 6, 12, 20};
+  std::vector<Request> requests;
+  Eigen::VectorXd U(3 * patch.size());
+  for (std::size_t j = 0; j < patch.size(); ++j) {
+    const Eigen::Vector3d u(0.001 * static_cast<double>(j), -0.002, 0.0005);
+    U.segment<3>(3 * static_cast<Eigen::Index>(j)) = u;
+    requests.push_back({vertex(patch[j]), ConstraintKind::kDisplacement, u});
+  }
+  ASSERT_EQ(run(solver, requests), RequestStatus::kOk);
+  Eigen::MatrixXd G_CC(U.size(), U.size());
+  for (std::size_t a = 0; a < patch.size(); ++a)
+    for (std::size_t b = 0; b < patch.size(); ++b)
+      G_CC.block<3, 3>(3 * static_cast<Eigen::Index>(a), 3 * static_cast<Eigen::Index>(b)) =
+          model().G.block<3, 3>(3 * patch[a], 3 * patch[b]);
+  const Eigen::VectorXd F = G_CC.fullPivLu().solve(U);
+  EXPECT_LT(relative(solver.forces(), F), kRelativeTolerance);
+  EXPECT_LT(relative(solver.displacements(), U), kRelativeTolerance);
+  Eigen::VectorXd u(model().G.rows());
+  solver.surface_displacement(u);
+  EXPECT_LT(relative(u, full_field(solver)), kRelativeTolerance);
+  // The condition estimate (LAPACK dpocon) against the exact 1-norm condition:
+  // a lower bound, usually within a factor 3.
+  const double exact = G_CC.cwiseAbs().colwise().sum().maxCoeff() * G_CC.inverse().cwiseAbs().colwise().sum().maxCoeff();
+  EXPECT_LE(solver.condition_estimate(), exact * (1 + 1e-8));
+  EXPECT_GE(solver.condition_estimate(), exact / 10);
+}
+
+TEST_F(ConstraintSolverTest, MixedConstraintsMeetTheirDefinitions) {
+  // One vertex with a known force, one with an imposed displacement, two
+  // sliding (normal displacement): check each condition on the result.
+  ConstraintSolver solver(model(), {});
+  const Eigen::Vector3d n1 = Eigen::Vector3d(0.2, 0.1, 1).normalized();
+  const Eigen::Vector3d n2(0, -1, 0);
+  const std::vector<Request> requests{
+      {vertex(2), ConstraintKind::kForce, {0.5, 0, -0.25}},
+      {vertex(9), ConstraintKind::kDisplacement, {0, 0.001, -0.003}},
+      {vertex(14), ConstraintKind::kNormalDisplacement, {-0.002, 0, 0}, 3.0 * n1},  // unnormalized on purpose
+      {vertex(30), ConstraintKind::kNormalDisplacement, {0.0015, 0, 0}, n2},
+  };
+  ASSERT_EQ(run(solver, requests), RequestStatus::kOk);
+  const auto f = solver.forces();
+  const Eigen::VectorXd u = full_field(solver);
+  auto u_at = [&](int i) { return Eigen::Vector3d(u.segment<3>(3 * i)); };
+
+  EXPECT_LT((f.segment<3>(0) - requests[0].value).norm(), 1e-15);
+  EXPECT_LT((u_at(9) - requests[1].value).norm(), kRelativeTolerance * requests[1].value.norm());
+  EXPECT_NEAR(n1.dot(u_at(14)), -0.002, kRelativeTolerance * 0.002);
+  EXPECT_NEAR(n2.dot(u_at(30)), 0.0015, kRelativeTolerance * 0.0015);
+  // Sliding is frictionless: the force is along the normal.
+  const Eigen::Vector3d f14 = f.segment<3>(6), f30 = f.segment<3>(9);
+  EXPECT_LT((f14 - f14.dot(n1) * n1).norm(), 1e-12 * f14.norm());
+  EXPECT_LT((f30 - f30.dot(n2) * n2).norm(), 1e-12 * f30.norm());
+  // The reported displacements of the constrained vertices are those of u.
+  for (int j : {0, 1, 2, 3})
+    EXPECT_LT((solver.displacements().segment<3>(3 * j) - u_at(solver.indices()[j])).norm(),
+              kRelativeTolerance * u.norm());
+}
+
+TEST_F(ConstraintSolverTest, ReusesTheFactorizationWhileTheSetStaysTheSame) {
+  ConstraintSolver solver(model(), {.max_constraints = 8, .cache_slots = 2, .max_condition = 1e12});
+  ConstraintSolver fresh_solver(model(), {.max_constraints = 8, .cache_slots = 1, .max_condition = 1e12});
+  auto patch = [&](int first, double depth) {
+    return std::vector<Request>{{vertex(first), ConstraintKind::kDisplacement, {0, 0, -depth}},
+                                {vertex(first + 1), ConstraintKind::kNormalDisplacement, {-depth, 0, 0}, {0, 0, 1}},
+                                {vertex(first + 2), ConstraintKind::kForce, {0, 0.1, 0}}};
+  };
+  ASSERT_EQ(run(solver, patch(0, 0.001)), RequestStatus::kOk);
+  EXPECT_FALSE(solver.reused_factorization());
+  // Three structures through two slots: 0 and 10 alternate, 20 evicts the older.
+  for (int round = 0; round < 3; ++round)
+    for (int first : {0, 10, 20, 10}) {
+      const double depth = 0.001 * (1 + round) + 1e-4 * first;
+      ASSERT_EQ(run(solver, patch(first, depth)), RequestStatus::kOk);
+      ASSERT_EQ(run(fresh_solver, patch(first, depth)), RequestStatus::kOk);
+      EXPECT_LT(relative(solver.forces(), fresh_solver.forces()), 1e-14) << "first " << first;
+    }
+  ASSERT_EQ(run(solver, patch(10, 0.002)), RequestStatus::kOk);
+  EXPECT_TRUE(solver.reused_factorization());
+  ASSERT_EQ(run(solver, patch(10, 0.003)), RequestStatus::kOk);
+  EXPECT_TRUE(solver.reused_factorization()) << "only the right-hand side changed";
+  // A different normal is a different system.
+  auto tilted = patch(10, 0.003);
+  tilted[1].normal = {0, 0.1, 1};
+  ASSERT_EQ(run(solver, tilted), RequestStatus::kOk);
+  EXPECT_FALSE(solver.reused_factorization());
+}
+
+TEST_F(ConstraintSolverTest, EveryBadRequestGetsItsStatusAndMessage) {
+  ConstraintSolver solver(model(), {.max_constraints = 4, .cache_slots = 2, .max_condition = 1e12});
+  const SurfaceModel& m = model();
+  std::uint32_t interior = 0, fixed = 0;
+  for (std::uint32_t v = 0; v < m.mesh_vertex_count(); ++v) {
+    if (m.compliance_index_of_vertex[v] == static_cast<std::int32_t>(VertexRole::kInterior)) interior = v;
+    if (m.compliance_index_of_vertex[v] == static_cast<std::int32_t>(VertexRole::kFixed)) fixed = v;
+  }
+  ASSERT_LT(m.compliance_index_of_vertex[interior], 0);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d push(0, 0, -0.001);
+  struct Case {
+    std::vector<Request> requests;
+    RequestStatus status;
+    std::string fragment;
+  };
+  const std::vector<Case> cases{
+      {{{m.mesh_vertex_count(), ConstraintKind::kForce, push}}, RequestStatus::kVertexOutOfRange, "is not a vertex"},
+      {{{interior, ConstraintKind::kForce, push}}, RequestStatus::kVertexNotOnSurface, "inside the organ"},
+      {{{fixed, ConstraintKind::kDisplacement, push}}, RequestStatus::kVertexFixed, "is fixed"},
+      {{{vertex(1), ConstraintKind::kForce, push}, {vertex(1), ConstraintKind::kForce, push}},
+       RequestStatus::kDuplicateVertex, "appears twice"},
+      {{{vertex(1), ConstraintKind::kDisplacement, {0, nan, 0}}}, RequestStatus::kNonFiniteValue, "value[1]"},
+      {{{vertex(1), ConstraintKind::kForce, {inf, 0, 0}}}, RequestStatus::kNonFiniteValue, "finite"},
+      {{{vertex(1), ConstraintKind::kNormalDisplacement, push, {nan, 0, 1}}}, RequestStatus::kNonFiniteValue, "normal[0]"},
+      {{{vertex(1), ConstraintKind::kNormalDisplacement, push, {0, 0, 0}}}, RequestStatus::kBadNormal, "no direction"},
+      {{{vertex(1), static_cast<ConstraintKind>(7), push}}, RequestStatus::kBadNormal, "unknown kind 7"},
+      {std::vector<Request>(5, {vertex(1), ConstraintKind::kForce, push}), RequestStatus::kTooManyConstraints,
+       "at most 4"},
+  };
+  for (const auto& c : cases) {
+    EXPECT_EQ(run(solver, c.requests), c.status) << c.fragment;
+    EXPECT_NE(std::string(solver.message()).find(c.fragment), std::string::npos) << solver.message();
+    EXPECT_STRNE(status_name(c.status), "unknown_status");
+    // The solver is usable after every refusal.
+    ASSERT_EQ(run(solver, {{vertex(1), ConstraintKind::kDisplacement, push}}), RequestStatus::kOk);
+    EXPECT_STREQ(solver.message(), "");
+  }
+}
+
+TEST_F(ConstraintSolverTest, RefusesSystemsAboveTheConditionLimit) {
+  // Two neighbouring vertices with full imposed displacements give a system
+  // whose condition is well above 1; a limit of 2 refuses it and says why.
+  ConstraintSolver strict(model(), {.max_constraints = 4, .cache_slots = 2, .max_condition = 2});
+  const std::vector<Request> requests{{vertex(0), ConstraintKind::kDisplacement, {0, 0, 0.001}},
+                                      {vertex(1), ConstraintKind::kDisplacement, {0, 0, 0.001}}};
+  EXPECT_EQ(run(strict, requests), RequestStatus::kIllConditioned);
+  EXPECT_GT(strict.condition_estimate(), 2);
+  EXPECT_NE(std::string(strict.message()).find("condition estimate"), std::string::npos) << strict.message();
+  // The same request is accepted under the default limit, with the same estimate.
+  ConstraintSolver lenient(model(), {});
+  ASSERT_EQ(run(lenient, requests), RequestStatus::kOk);
+  EXPECT_NEAR(lenient.condition_estimate(), strict.condition_estimate(), 1e-12 * strict.condition_estimate());
+}
+
+TEST_F(ConstraintSolverTest, AnEmptyRequestIsTheRestState) {
+  ConstraintSolver solver(model(), {});
+  ASSERT_EQ(run(solver, {}), RequestStatus::kOk);
+  Eigen::VectorXd u = Eigen::VectorXd::Ones(model().G.rows());
+  solver.surface_displacement(u);
+  EXPECT_EQ(u.norm(), 0.0);
+  EXPECT_EQ(solver.total_force().norm(), 0.0);
+}
+
+}  // namespace
+}  // namespace palpate

@@ -1,0 +1,28 @@
+#include "box_job.hpp"
+
+#include <algorithm>
+
+#include "test_meshes.hpp"
+
+namespace palpate::testing {
+
+PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name, int cells, double young_modulus_pa) {
+  const int side = std::max(2, cells / 2);
+  write_msh22(box_mesh(0.1, 0.05, 0.04, cells, side, side), dir / (name + ".msh"));
+  PrecomputeJob job;
+  job.mesh_file = dir / (name + ".msh");
+  job.young_modulus_pa = young_modulus_pa;
+  job.poisson_ratio = 0.45;
+  job.attachment.half_spaces.push_back({{0.001, 0, 0}, {-1, 0, 0}});
+  job.output = dir / (name + ".h5");
+  return job;
+}
+
+std::filesystem::path write_box_compliance(const std::filesystem::path& dir, const std::string& name, int cells,
+                                           double young_modulus_pa) {
+  const PrecomputeJob job = box_job(dir, name, cells, young_modulus_pa);
+  run_precompute(job, {});
+  return job.output;
+}
+
+}  // namespace palpate::testing

@@ -1,0 +1,21 @@
+#pragma once
+// A small precompute job the tests run themselves: a 100 × 50 × 40 mm box,
+// clamped on x = 0, soft-tissue material.
+
+#include <filesystem>
+#include <string>
+
+#include "palpate/precompute.hpp"
+
+namespace palpate::testing {
+
+/// The job for box mesh `<dir>/<name>.msh` (written here) → `<dir>/<name>.h5`.
+/// @param cells cubes along x (y and z get half as many, at least 2)
+PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name = "box", int cells = 4,
+                      double young_modulus_pa = 85e3);
+
+/// Runs box_job and returns the compliance file.
+std::filesystem::path write_box_compliance(const std::filesystem::path& dir, const std::string& name = "box",
+                                           int cells = 4, double young_modulus_pa = 85e3);
+
+}  // namespace palpate::testing
