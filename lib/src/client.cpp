@@ -82,6 +82,7 @@ struct Client::Impl {
   WaitableReader models, replies, surfaces, statuses;
   std::map<std::string, ModelInfo> known_models;
   std::uint64_t next_request_id = 1;
+  std::uint64_t foreign_replies = 0;
   palpate_ConstraintRequest request{};
   std::vector<palpate_Constraint> constraints;
 };
@@ -188,7 +189,12 @@ std::uint64_t Client::send(const std::string& model_id, std::span<const Constrai
 
 std::optional<Reply> Client::wait_reply(std::uint64_t request_id, std::chrono::milliseconds timeout) {
   std::optional<Reply> reply;
-  impl_->replies.take_until<palpate_ConstraintReply>(Clock::now() + timeout, [&](const palpate_ConstraintReply& r) {
+  Impl& c = *impl_;
+  c.replies.take_until<palpate_ConstraintReply>(Clock::now() + timeout, [&](const palpate_ConstraintReply& r) {
+    if (std::strncmp(r.client_id, c.options.client_id.c_str(), sizeof r.client_id) != 0) {
+      ++c.foreign_replies;
+      return false;
+    }
     if (r.request_id != request_id) return false;
     Reply& out = reply.emplace();
     out.request_id = r.request_id;
@@ -209,6 +215,8 @@ std::optional<Reply> Client::wait_reply(std::uint64_t request_id, std::chrono::m
   });
   return reply;
 }
+
+std::uint64_t Client::foreign_replies() const { return impl_->foreign_replies; }
 
 Reply Client::request(const std::string& model_id, std::span<const ConstraintSpec> constraints, bool want_surface,
                       bool update_state, std::chrono::milliseconds timeout) {

@@ -114,6 +114,9 @@ class Client {
                      bool want_surface = false, bool update_state = true);
   /// The reply to @p request_id; replies to other ids are dropped. std::nullopt on timeout.
   std::optional<Reply> wait_reply(std::uint64_t request_id, std::chrono::milliseconds timeout);
+  /// Replies received that were addressed to another client (partitions
+  /// should make this 0; the tests check it).
+  std::uint64_t foreign_replies() const;
   /// send + wait_reply. @throws SystemError on timeout.
   Reply request(const std::string& model_id, std::span<const ConstraintSpec> constraints, bool want_surface = false,
                 bool update_state = true, std::chrono::milliseconds timeout = std::chrono::seconds(5));

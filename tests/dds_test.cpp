@@ -1,0 +1,401 @@
+// palpated end to end: the real daemon binary, real Cyclone DDS on loopback,
+// compliance files made by the real precompute. CTest runs this executable
+// inside a private network namespace (tests/CMakeLists.txt), and palpated and
+// the clients use their loopback-only default configuration as well.
+//
+// Replies are checked against dense computations on G read from the HDF5
+// file, independently of the daemon's solver.
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <Eigen/Dense>
+#include <chrono>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <thread>
+
+#include "palpate/client.hpp"
+#include "palpate/compliance_file.hpp"
+#include "support/box_job.hpp"
+#include "support/test_meshes.hpp"
+
+namespace palpate {
+namespace {
+
+using namespace std::chrono_literals;
+using testing::TempDir;
+
+// Small well-conditioned systems on G of order 1e-4 m/N: the daemon and the
+// dense reference agree to ~1e-13 relative; 1e-9 leaves margin.
+constexpr double kRelativeTolerance = 1e-9;
+constexpr auto kTimeout = 10s;
+
+/// palpated as a child process, its stderr in a file.
+class Daemon {
+ public:
+  Daemon(const std::vector<std::string>& args, const std::filesystem::path& log) : log_(log) {
+    pid_ = fork();
+    if (pid_ == 0) {
+      std::FILE* err = std::freopen(log.c_str(), "w", stderr);
+      (void)err;
+      std::vector<char*> argv{const_cast<char*>(PALPATED_PATH)};
+      for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+      argv.push_back(nullptr);
+      execv(PALPATED_PATH, argv.data());
+      _exit(127);
+    }
+  }
+  ~Daemon() {
+    if (pid_ > 0 && !exited_) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+  }
+  /// Sends @p signal (0: none) and returns the exit code, -1 if it had to be killed.
+  int stop(int signal) {
+    if (signal != 0) kill(pid_, signal);
+    int status = 0;
+    for (int i = 0; i < 1000; ++i) {
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        exited_ = true;
+        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+      }
+      std::this_thread::sleep_for(10ms);
+    }
+    return -1;
+  }
+  std::string log() const {
+    std::ifstream in(log_);
+    return {std::istreambuf_iterator<char>(in), {}};
+  }
+
+ private:
+  std::filesystem::path log_;
+  pid_t pid_ = -1;
+  bool exited_ = false;
+};
+
+/// G and the compliance order of a file, for the dense references.
+struct Reference {
+  Eigen::MatrixXd G;
+  std::vector<int> compliance_index;  // per mesh vertex, -1 if none
+
+  explicit Reference(const std::filesystem::path& file) {
+    const ComplianceModel model = read_compliance_file(file, &G);
+    compliance_index.assign(static_cast<std::size_t>(model.vertices_m.rows()), -1);
+    for (Eigen::Index i = 0; i < model.compliance_vertices.size(); ++i)
+      compliance_index[static_cast<std::size_t>(model.compliance_vertices(i))] = static_cast<int>(i);
+  }
+  /// u = G f for forces on the given mesh vertices.
+  Eigen::VectorXd field(const std::vector<VertexResult>& results) const {
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(G.rows());
+    for (const auto& r : results) f.segment<3>(3 * compliance_index[r.vertex]) += Eigen::Vector3d(r.force_n.data());
+    return G * f;
+  }
+  Eigen::Vector3d at(const Eigen::VectorXd& u, std::uint32_t vertex) const {
+    return u.segment<3>(3 * compliance_index[vertex]);
+  }
+};
+
+double relative(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return (a - b).norm() / std::max(b.norm(), std::numeric_limits<double>::min());
+}
+
+Eigen::Vector3d vec(const std::array<double, 3>& a) { return {a[0], a[1], a[2]}; }
+
+class PalpatedTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new TempDir;
+    box_ = testing::write_box_compliance(dir_->path(), "box", 4, 85e3);
+    stiff_ = testing::write_box_compliance(dir_->path(), "stiff", 4, 340e3);
+    std::ofstream(dir_->path() / "palpated.toml") << "[daemon]\nid = \"test-daemon\"\nlog_level = \"debug\"\n"
+                                                     "[rates]\nsurface_hz = 200\nstatus_hz = 20\n"
+                                                     "[limits]\nmax_constraints = 8\n"
+                                                     "[[model]]\nid = \"box\"\nfile = \"box.h5\"\n"
+                                                     "[[model]]\nid = \"stiff\"\nfile = \"stiff.h5\"\n";
+    daemon_ = new Daemon({"--config", (dir_->path() / "palpated.toml").string()}, dir_->path() / "palpated.log");
+    reference_ = new Reference(box_);
+  }
+  static void TearDownTestSuite() {
+    // A clean stop on SIGTERM exits 0.
+    EXPECT_EQ(daemon_->stop(SIGTERM), 0) << daemon_->log();
+    EXPECT_NE(daemon_->log().find("event=stopped"), std::string::npos) << daemon_->log();
+    delete daemon_;
+    delete reference_;
+    delete dir_;
+  }
+
+  /// A connected client: the model is known and the reply path matched.
+  static std::unique_ptr<Client> connect(const std::string& id, bool surface = false, bool status = false) {
+    auto client = std::make_unique<Client>(ClientOptions{id, 0, "", surface, status});
+    EXPECT_TRUE(client->wait_for_model("box", kTimeout)) << daemon_->log();
+    EXPECT_TRUE(client->wait_for_service(kTimeout)) << daemon_->log();
+    return client;
+  }
+  static ModelInfo box_info(Client& client) { return *client.wait_for_model("box", kTimeout); }
+
+  inline static TempDir* dir_ = nullptr;
+  inline static std::filesystem::path box_, stiff_;
+  inline static Daemon* daemon_ = nullptr;
+  inline static Reference* reference_ = nullptr;
+};
+
+TEST_F(PalpatedTest, DescribesEachModelToLateJoiners) {
+  auto client = connect("describe");
+  const ModelInfo m = box_info(*client);
+  const Reference& ref = *reference_;
+  EXPECT_EQ(m.compliance_vertex_count * 3, ref.G.rows());
+  EXPECT_EQ(m.rest_positions_m.size(), 3 * m.vertex_ids.size());
+  EXPECT_EQ(m.triangles.size() % 3, 0u);
+  EXPECT_GT(m.triangles.size(), 0u);
+  for (int i = 0; i < m.compliance_vertex_count; ++i) EXPECT_EQ(ref.compliance_index[m.vertex_ids[i]], i);
+  EXPECT_EQ(m.units, "m, N (SI)");
+  EXPECT_NE(m.material_summary.find("85000"), std::string::npos) << m.material_summary;
+  EXPECT_EQ(m.input_hash.rfind("sha256:", 0), 0u);
+  EXPECT_TRUE(client->wait_for_model("stiff", kTimeout));
+}
+
+TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
+  auto client = connect("kinds");
+  const ModelInfo m = box_info(*client);
+  const Reference& ref = *reference_;
+  const std::uint32_t a = m.vertex_ids[2], b = m.vertex_ids[9], c = m.vertex_ids[14], d = m.vertex_ids[30];
+
+  // Forces: the surface field is G f.
+  {
+    const std::vector<ConstraintSpec> cs{ConstraintSpec::force(a, {0.1, 0, -0.3}), ConstraintSpec::force(b, {0, 0.2, 0})};
+    const Reply reply = client->request("box", cs, true);
+    ASSERT_EQ(reply.status, RequestStatus::kOk) << reply.message;
+    EXPECT_EQ(reply.model_id, "box");
+    ASSERT_EQ(reply.results.size(), 2u);
+    EXPECT_EQ(reply.results[0].vertex, a);
+    EXPECT_EQ(vec(reply.results[0].force_n), Eigen::Vector3d(0.1, 0, -0.3));
+    EXPECT_LT(relative(Eigen::Map<const Eigen::VectorXd>(reply.surface_displacement_m.data(), ref.G.rows()),
+                       ref.field(reply.results)),
+              kRelativeTolerance);
+    EXPECT_LT((vec(reply.total_force_n) - Eigen::Vector3d(0.1, 0.2, -0.3)).norm(), 1e-15);
+    EXPECT_GT(reply.solve_ns, 0u);
+  }
+  // Imposed displacements on three vertices: F = G_CC⁻¹ U.
+  {
+    const std::vector<std::uint32_t> vs{a, b, c};
+    const std::vector<ConstraintSpec> cs{ConstraintSpec::displacement(a, {0, 0, -0.002}),
+                                         ConstraintSpec::displacement(b, {0.001, 0, -0.001}),
+                                         ConstraintSpec::displacement(c, {0, 0, 0.0005})};
+    const Reply reply = client->request("box", cs, true);
+    ASSERT_EQ(reply.status, RequestStatus::kOk) << reply.message;
+    Eigen::MatrixXd G_CC(9, 9);
+    Eigen::VectorXd U(9), F(9);
+    for (int i = 0; i < 3; ++i) {
+      U.segment<3>(3 * i) = vec(cs[i].value);
+      F.segment<3>(3 * i) = vec(reply.results[i].force_n);
+      for (int j = 0; j < 3; ++j)
+        G_CC.block<3, 3>(3 * i, 3 * j) = ref.G.block<3, 3>(3 * ref.compliance_index[vs[i]], 3 * ref.compliance_index[vs[j]]);
+    }
+    EXPECT_LT(relative(F, G_CC.fullPivLu().solve(U)), kRelativeTolerance);
+    const Eigen::VectorXd u = ref.field(reply.results);
+    EXPECT_LT(relative(Eigen::Map<const Eigen::VectorXd>(reply.surface_displacement_m.data(), u.size()), u),
+              kRelativeTolerance);
+    EXPECT_GE(reply.condition_estimate, 1.0);
+  }
+  // Mixed, with sliding: each condition holds on the dense field.
+  {
+    const Eigen::Vector3d n = Eigen::Vector3d(0, 0.3, 1).normalized();
+    const std::vector<ConstraintSpec> cs{ConstraintSpec::force(a, {0, 0, -0.2}),
+                                         ConstraintSpec::displacement(b, {0, 0.001, 0}),
+                                         ConstraintSpec::normal_displacement(c, {0, 0.3, 1}, -0.0015),
+                                         ConstraintSpec::normal_displacement(d, {1, 0, 0}, 0.001)};
+    const Reply reply = client->request("box", cs, false);
+    ASSERT_EQ(reply.status, RequestStatus::kOk) << reply.message;
+    EXPECT_TRUE(reply.surface_displacement_m.empty()) << "not asked for";
+    const Eigen::VectorXd u = ref.field(reply.results);
+    EXPECT_LT((vec(reply.results[0].force_n) - Eigen::Vector3d(0, 0, -0.2)).norm(), 1e-15);
+    EXPECT_LT((ref.at(u, b) - Eigen::Vector3d(0, 0.001, 0)).norm(), kRelativeTolerance * 0.001);
+    EXPECT_NEAR(n.dot(ref.at(u, c)), -0.0015, kRelativeTolerance * 0.0015);
+    EXPECT_NEAR(ref.at(u, d).x(), 0.001, kRelativeTolerance * 0.001);
+    const Eigen::Vector3d fc = vec(reply.results[2].force_n);
+    EXPECT_LT((fc - fc.dot(n) * n).norm(), 1e-12 * fc.norm()) << "sliding: no tangential force";
+    for (std::size_t j = 0; j < cs.size(); ++j)
+      EXPECT_LT((vec(reply.results[j].displacement_m) - ref.at(u, cs[j].vertex)).norm(), kRelativeTolerance * u.norm());
+  }
+}
+
+TEST_F(PalpatedTest, ServesEachModelWithItsOwnCompliance) {
+  // Same mesh, E four times larger: G is four times smaller, the force for the
+  // same imposed displacement four times larger.
+  auto client = connect("models");
+  const ModelInfo m = box_info(*client);
+  const std::vector<ConstraintSpec> cs{ConstraintSpec::displacement(m.vertex_ids[5], {0, 0, -0.001})};
+  const Reply soft = client->request("box", cs);
+  const Reply stiff = client->request("stiff", cs);
+  ASSERT_EQ(soft.status, RequestStatus::kOk);
+  ASSERT_EQ(stiff.status, RequestStatus::kOk);
+  EXPECT_LT(relative(vec(stiff.total_force_n), 4.0 * vec(soft.total_force_n)), 1e-9);
+}
+
+TEST_F(PalpatedTest, SeveralClientsAtOnceGetOnlyTheirOwnReplies) {
+  constexpr int kClients = 3, kRequests = 60;
+  std::vector<std::unique_ptr<Client>> clients;
+  for (int c = 0; c < kClients; ++c) clients.push_back(connect("concurrent-" + std::to_string(c)));
+  const ModelInfo m = box_info(*clients[0]);
+  const std::uint32_t vertex = m.vertex_ids[7];
+  // A single imposed displacement has force (G^kk)⁻¹ u: linear in u, so each
+  // client's depth is recognisable in the force it gets back.
+  const Reply unit = clients[0]->request("box", std::vector{ConstraintSpec::displacement(vertex, {0, 0, -0.001})});
+  ASSERT_EQ(unit.status, RequestStatus::kOk);
+  std::vector<int> wrong(kClients, 0);
+  std::vector<std::thread> threads;
+  for (int c = 0; c < kClients; ++c)
+    threads.emplace_back([&, c] {
+      for (int r = 0; r < kRequests; ++r) {
+        const double scale = 1.0 + c + 0.01 * r;
+        const auto reply = clients[static_cast<std::size_t>(c)]->request(
+            "box", std::vector{ConstraintSpec::displacement(vertex, {0, 0, -0.001 * scale})});
+        if (reply.status != RequestStatus::kOk ||
+            relative(vec(reply.total_force_n), scale * vec(unit.total_force_n)) > kRelativeTolerance)
+          ++wrong[static_cast<std::size_t>(c)];
+      }
+    });
+  for (auto& t : threads) t.join();
+  for (int c = 0; c < kClients; ++c) {
+    EXPECT_EQ(wrong[static_cast<std::size_t>(c)], 0) << "client " << c;
+    EXPECT_EQ(clients[static_cast<std::size_t>(c)]->foreign_replies(), 0u) << "client " << c;
+  }
+}
+
+TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMoveIt) {
+  auto toucher = connect("toucher");
+  const ModelInfo m = box_info(*toucher);
+  const Reference& ref = *reference_;
+  const std::vector<ConstraintSpec> press{ConstraintSpec::displacement(m.vertex_ids[11], {0, 0, -0.003})};
+  const Reply shown = toucher->request("box", press, false, true);
+  ASSERT_EQ(shown.status, RequestStatus::kOk);
+
+  // A viewer that starts afterwards gets the description and the current state.
+  Client viewer(ClientOptions{"viewer", 0, "", true, false});
+  ASSERT_TRUE(viewer.wait_for_model("box", kTimeout));
+  const auto sample = viewer.wait_surface("box", 0, shown.request_id, kTimeout);
+  ASSERT_TRUE(sample) << daemon_->log();
+  EXPECT_EQ(sample->source_client_id, "toucher");
+  EXPECT_LT(relative(Eigen::Map<const Eigen::VectorXd>(sample->displacement_m.data(), ref.G.rows()),
+                     ref.field(shown.results)),
+            kRelativeTolerance);
+  EXPECT_LT((vec(sample->total_force_n) - vec(shown.total_force_n)).norm(), 1e-15);
+
+  // A query (update_state = false) and a refused request leave the state alone:
+  // the next state the viewer sees is the next state-changing request's.
+  const Reply query = toucher->request("box", std::vector{ConstraintSpec::force(m.vertex_ids[3], {0, 0, 1})}, false, false);
+  ASSERT_EQ(query.status, RequestStatus::kOk);
+  const Reply refused = toucher->request("box", std::vector{ConstraintSpec::force(1u << 30, {0, 0, 1})});
+  ASSERT_EQ(refused.status, RequestStatus::kVertexOutOfRange);
+  const Reply next = toucher->request("box", std::vector{ConstraintSpec::force(m.vertex_ids[4], {0, 0, -0.5})});
+  ASSERT_EQ(next.status, RequestStatus::kOk);
+  const auto after = viewer.wait_surface("box", sample->sequence_number + 1, 0, kTimeout);
+  ASSERT_TRUE(after);
+  EXPECT_EQ(after->source_request_id, next.request_id) << "only state-changing successes are shown";
+  EXPECT_EQ(after->sequence_number, sample->sequence_number + 1);
+}
+
+TEST_F(PalpatedTest, EveryBadRequestGetsItsErrorAndTheDaemonKeepsServing) {
+  auto client = connect("bad-requests", false, true);
+  const ModelInfo m = box_info(*client);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::uint32_t v = m.vertex_ids[1];
+  const std::uint32_t fixed = m.vertex_ids.back();  // drawn after the compliance vertices
+  std::uint32_t interior = 0;
+  while (std::find(m.vertex_ids.begin(), m.vertex_ids.end(), interior) != m.vertex_ids.end()) ++interior;
+  struct Case {
+    std::string model;
+    std::vector<ConstraintSpec> constraints;
+    RequestStatus status;
+    std::string fragment;
+  };
+  const auto push = ConstraintSpec::displacement(v, {0, 0, -0.001});
+  const std::vector<Case> cases{
+      {"spleen", {push}, RequestStatus::kUnknownModel, "served: box, stiff"},
+      {"box", {ConstraintSpec::force(100000, {0, 0, 1})}, RequestStatus::kVertexOutOfRange, "vertex 100000"},
+      {"box", {ConstraintSpec::force(interior, {0, 0, 1})}, RequestStatus::kVertexNotOnSurface, "inside the organ"},
+      {"box", {ConstraintSpec::force(fixed, {0, 0, 1})}, RequestStatus::kVertexFixed, "is fixed"},
+      {"box", {push, push}, RequestStatus::kDuplicateVertex, "appears twice"},
+      {"box", {ConstraintSpec::displacement(v, {nan, 0, 0})}, RequestStatus::kNonFiniteValue, "value[0]"},
+      {"box", {ConstraintSpec::normal_displacement(v, {0, 0, 0}, -0.001)}, RequestStatus::kBadNormal, "no direction"},
+      {"box", std::vector<ConstraintSpec>(9, push), RequestStatus::kTooManyConstraints, "at most 8"},
+  };
+  for (const auto& c : cases) {
+    const Reply reply = client->request(c.model, c.constraints);
+    EXPECT_EQ(reply.status, c.status) << c.fragment << ": " << reply.message;
+    EXPECT_NE(reply.message.find(c.fragment), std::string::npos) << reply.message;
+    EXPECT_TRUE(reply.results.empty());
+    const Reply good = client->request("box", std::vector{push});
+    EXPECT_EQ(good.status, RequestStatus::kOk) << "still serving after " << c.fragment;
+  }
+  // The heartbeat counts the refusals.
+  std::optional<StatusSample> status;
+  for (int i = 0; i < 50 && (!status || status->error_replies < cases.size()); ++i) status = client->wait_status(kTimeout);
+  ASSERT_TRUE(status);
+  EXPECT_GE(status->error_replies, cases.size());
+  EXPECT_GE(status->requests_served, 2 * cases.size());
+  EXPECT_EQ(status->daemon_id, "test-daemon");
+  EXPECT_EQ(status->models, 2u);
+}
+
+TEST_F(PalpatedTest, RefusesIllConditionedSystemsWithTheEstimate) {
+  // A second daemon on another domain with a condition limit of 1.5, which
+  // any two-vertex displacement system exceeds; SIGINT stops it cleanly.
+  Daemon strict({"--model", "box=" + box_.string(), "--domain", "3", "--max-condition", "1.5"},
+                dir_->path() / "strict.log");
+  Client client(ClientOptions{"conditioning", 3, "", false, false});
+  const auto m = client.wait_for_model("box", kTimeout);
+  ASSERT_TRUE(m) << strict.log();
+  ASSERT_TRUE(client.wait_for_service(kTimeout));
+  const std::vector<ConstraintSpec> cs{ConstraintSpec::displacement(m->vertex_ids[0], {0, 0, 0.001}),
+                                       ConstraintSpec::displacement(m->vertex_ids[1], {0, 0, 0.001})};
+  const Reply reply = client.request("box", cs);
+  EXPECT_EQ(reply.status, RequestStatus::kIllConditioned);
+  EXPECT_GT(reply.condition_estimate, 1.5);
+  EXPECT_NE(reply.message.find("condition estimate"), std::string::npos) << reply.message;
+  EXPECT_EQ(strict.stop(SIGINT), 0) << strict.log();
+}
+
+TEST(PalpatedStartUp, StopsWithAClearMessageOnBadFilesAndConfiguration) {
+  TempDir dir;
+  auto run = [&](const std::vector<std::string>& args) {
+    Daemon daemon(args, dir / "out.log");
+    const int code = daemon.stop(0);
+    return std::make_pair(code, daemon.log());
+  };
+  {
+    const auto [code, log] = run({"--model", "liver=" + (dir / "missing.h5").string()});
+    EXPECT_EQ(code, 2) << log;
+    EXPECT_NE(log.find("missing.h5 does not exist"), std::string::npos) << log;
+  }
+  {
+    std::ofstream(dir / "not-hdf5.h5") << "this is not an HDF5 file\n";
+    const auto [code, log] = run({"--model", "liver=" + (dir / "not-hdf5.h5").string()});
+    EXPECT_EQ(code, 2) << log;
+    EXPECT_NE(log.find("not-hdf5.h5"), std::string::npos) << log;
+    // One line says what is wrong, with the file.
+    const auto line = log.find("palpated: error: ");
+    ASSERT_NE(line, std::string::npos) << log;
+    EXPECT_NE(log.substr(line, log.find('\n', line) - line).find("not-hdf5.h5"), std::string::npos) << log;
+  }
+  {
+    std::ofstream(dir / "bad.toml") << "[rates]\nsurface_hz = 0\n";
+    const auto [code, log] = run({"--config", (dir / "bad.toml").string()});
+    EXPECT_EQ(code, 2) << log;
+    EXPECT_NE(log.find("bad.toml:2: rates.surface_hz"), std::string::npos) << log;
+  }
+  {
+    const auto box = testing::write_box_compliance(dir.path());
+    const auto [code, log] = run({"--model", "box=" + box.string(), "--check-config"});
+    EXPECT_EQ(code, 0) << log;
+  }
+}
+
+}  // namespace
+}  // namespace palpate
