@@ -11,6 +11,7 @@
 
 #include "palpate/constraint_solver.hpp"
 #include "palpate/surface_model.hpp"
+#include "support/allocation_counter.hpp"
 #include "support/box_job.hpp"
 #include "support/test_meshes.hpp"
 
@@ -250,6 +251,36 @@ TEST_F(ConstraintSolverTest, RefusesSystemsAboveTheConditionLimit) {
   ConstraintSolver lenient(model(), {});
   ASSERT_EQ(run(lenient, requests), RequestStatus::kOk);
   EXPECT_NEAR(lenient.condition_estimate(), strict.condition_estimate(), 1e-12 * strict.condition_estimate());
+}
+
+TEST_F(ConstraintSolverTest, AllocatesNothingPerRequest) {
+  // The daemon's request path: begin/add/solve and the surface field, with
+  // factorizations reused and rebuilt, and refused requests.
+  ConstraintSolver solver(model(), {.max_constraints = 8, .cache_slots = 2, .max_condition = 1e12});
+  Eigen::VectorXd u(model().G.rows());
+  auto request = [&](int first, double depth) {
+    const std::vector<Request> patch{{vertex(first), ConstraintKind::kDisplacement, {0, 0, -depth}},
+                                     {vertex(first + 1), ConstraintKind::kNormalDisplacement, {-depth, 0, 0}, {0, 0, 1}},
+                                     {vertex(first + 2), ConstraintKind::kForce, {0, 0.1, 0}}};
+    return patch;
+  };
+  const std::vector<std::vector<Request>> requests{request(0, 0.001), request(10, 0.002), request(20, 0.001),
+                                                   {{vertex(3), ConstraintKind::kForce, {0, 0, std::nan("")}}}};
+  for (const auto& r : requests) run(solver, r);  // the vectors above are the only allocations
+  const std::uint64_t before = testing::allocations();
+  int refused = 0;
+  for (int i = 0; i < 200; ++i) {
+    if (run(solver, requests[static_cast<std::size_t>(i % 4)]) == RequestStatus::kOk)
+      solver.surface_displacement(u);
+    else
+      ++refused;
+  }
+  EXPECT_EQ(testing::allocations() - before, 0u);
+  EXPECT_EQ(refused, 50);
+  // The counter does count: one vector is one allocation.
+  std::vector<double> one(static_cast<std::size_t>(u.size()), 1.0);
+  EXPECT_EQ(testing::allocations() - before, 1u);
+  EXPECT_EQ(one.back(), 1.0);
 }
 
 TEST_F(ConstraintSolverTest, AnEmptyRequestIsTheRestState) {
