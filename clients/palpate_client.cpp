@@ -4,16 +4,16 @@
 //   demo      a scripted palpation at the haptic rate: press, pinch, slide, release
 //   status    print one status heartbeat
 
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <thread>
-#include <unistd.h>
 #include <vector>
-
-#include <CLI/CLI.hpp>
-#include <fmt/format.h>
 
 #include "palpate/client.hpp"
 #include "palpate/error.hpp"
@@ -32,16 +32,19 @@ std::array<double, 3> parse_vec3(const std::string& text, const std::string& wha
 }
 
 /// "V:x,y,z" (force, displacement) or "V:nx,ny,nz:depth" (normal displacement).
-ConstraintSpec parse_constraint(const std::string& text, palpate::ConstraintKind kind, const std::string& flag) {
+ConstraintSpec parse_constraint(const std::string& text, palpate::ConstraintKind kind,
+                                const std::string& flag) {
   const auto colon = text.find(':');
   if (colon == std::string::npos)
-    throw palpate::InputError(fmt::format("{} '{}': expected VERTEX:x,y,z{}", flag, text,
-                                          kind == palpate::ConstraintKind::kNormalDisplacement ? ":DEPTH" : ""));
+    throw palpate::InputError(
+        fmt::format("{} '{}': expected VERTEX:x,y,z{}", flag, text,
+                    kind == palpate::ConstraintKind::kNormalDisplacement ? ":DEPTH" : ""));
   const auto vertex = static_cast<std::uint32_t>(std::stoul(text.substr(0, colon)));
   std::string rest = text.substr(colon + 1);
   if (kind == palpate::ConstraintKind::kNormalDisplacement) {
     const auto second = rest.rfind(':');
-    if (second == std::string::npos) throw palpate::InputError(fmt::format("{} '{}': expected VERTEX:nx,ny,nz:DEPTH", flag, text));
+    if (second == std::string::npos)
+      throw palpate::InputError(fmt::format("{} '{}': expected VERTEX:nx,ny,nz:DEPTH", flag, text));
     return ConstraintSpec::normal_displacement(vertex, parse_vec3(rest.substr(0, second), flag),
                                                std::stod(rest.substr(second + 1)));
   }
@@ -49,28 +52,34 @@ ConstraintSpec parse_constraint(const std::string& text, palpate::ConstraintKind
 }
 
 void print_reply(const palpate::Reply& reply) {
-  std::printf("request %llu: %s", static_cast<unsigned long long>(reply.request_id), palpate::status_name(reply.status));
+  std::printf("request %llu: %s", static_cast<unsigned long long>(reply.request_id),
+              palpate::status_name(reply.status));
   if (!reply.message.empty()) std::printf(" — %s", reply.message.c_str());
-  std::printf("\n  condition estimate %.3g, solve %.1f µs, total force (%.6g, %.6g, %.6g) N\n", reply.condition_estimate,
-              static_cast<double>(reply.solve_ns) * 1e-3, reply.total_force_n[0], reply.total_force_n[1],
-              reply.total_force_n[2]);
+  std::printf("\n  condition estimate %.3g, solve %.1f µs, total force (%.6g, %.6g, %.6g) N\n",
+              reply.condition_estimate, static_cast<double>(reply.solve_ns) * 1e-3,
+              reply.total_force_n[0], reply.total_force_n[1], reply.total_force_n[2]);
   for (const auto& r : reply.results)
-    std::printf("  vertex %u: force (%.6g, %.6g, %.6g) N, displacement (%.6g, %.6g, %.6g) m\n", r.vertex, r.force_n[0],
-                r.force_n[1], r.force_n[2], r.displacement_m[0], r.displacement_m[1], r.displacement_m[2]);
+    std::printf("  vertex %u: force (%.6g, %.6g, %.6g) N, displacement (%.6g, %.6g, %.6g) m\n",
+                r.vertex, r.force_n[0], r.force_n[1], r.force_n[2], r.displacement_m[0],
+                r.displacement_m[1], r.displacement_m[2]);
   if (!reply.surface_displacement_m.empty()) {
     double largest = 0;
     for (std::size_t i = 0; i + 2 < reply.surface_displacement_m.size(); i += 3)
-      largest = std::max(largest, std::hypot(reply.surface_displacement_m[i], reply.surface_displacement_m[i + 1],
-                                             reply.surface_displacement_m[i + 2]));
-    std::printf("  surface: %zu vertices, largest displacement %.3f mm\n", reply.surface_displacement_m.size() / 3,
-                largest * 1e3);
+      largest = std::max(
+          largest, std::hypot(reply.surface_displacement_m[i], reply.surface_displacement_m[i + 1],
+                              reply.surface_displacement_m[i + 2]));
+    std::printf("  surface: %zu vertices, largest displacement %.3f mm\n",
+                reply.surface_displacement_m.size() / 3, largest * 1e3);
   }
 }
 
 palpate::ModelInfo connect(palpate::Client& client, const std::string& model_id) {
   const auto model = client.wait_for_model(model_id, 10s);
-  if (!model) throw palpate::SystemError("no description of model '" + model_id + "' within 10 s (is palpated serving it?)");
-  if (!client.wait_for_service(10s)) throw palpate::SystemError("palpated does not answer requests within 10 s");
+  if (!model)
+    throw palpate::SystemError("no description of model '" + model_id +
+                               "' within 10 s (is palpated serving it?)");
+  if (!client.wait_for_service(10s))
+    throw palpate::SystemError("palpated does not answer requests within 10 s");
   return *model;
 }
 
@@ -80,9 +89,12 @@ std::vector<std::array<double, 3>> vertex_normals(const palpate::ModelInfo& m) {
   const auto& p = m.rest_positions_m;
   for (std::size_t t = 0; t + 2 < m.triangles.size(); t += 3) {
     const std::uint32_t a = m.triangles[t], b = m.triangles[t + 1], c = m.triangles[t + 2];
-    const double u[3] = {p[3 * b] - p[3 * a], p[3 * b + 1] - p[3 * a + 1], p[3 * b + 2] - p[3 * a + 2]};
-    const double v[3] = {p[3 * c] - p[3 * a], p[3 * c + 1] - p[3 * a + 1], p[3 * c + 2] - p[3 * a + 2]};
-    const double w[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    const double u[3] = {p[3 * b] - p[3 * a], p[3 * b + 1] - p[3 * a + 1],
+                         p[3 * b + 2] - p[3 * a + 2]};
+    const double v[3] = {p[3 * c] - p[3 * a], p[3 * c + 1] - p[3 * a + 1],
+                         p[3 * c + 2] - p[3 * a + 2]};
+    const double w[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                         u[0] * v[1] - u[1] * v[0]};
     for (std::uint32_t i : {a, b, c})
       for (int d = 0; d < 3; ++d) n[i][d] += w[d];
   }
@@ -104,8 +116,8 @@ double percentile(std::vector<double> values, double q) {
 /// release: the gestures of brief.md at the haptic rate, with the forces.
 int demo(palpate::Client& client, const std::string& model_id, double rate_hz) {
   const palpate::ModelInfo m = connect(client, model_id);
-  std::printf("model %s: %d compliance vertices, %zu triangles; %s\n", m.model_id.c_str(), m.compliance_vertex_count,
-              m.triangles.size() / 3, m.material_summary.c_str());
+  std::printf("model %s: %d compliance vertices, %zu triangles; %s\n", m.model_id.c_str(),
+              m.compliance_vertex_count, m.triangles.size() / 3, m.material_summary.c_str());
   const int n = m.compliance_vertex_count;
   const auto& p = m.rest_positions_m;
   int top = 0;
@@ -117,13 +129,15 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz) {
     const std::uint32_t* tri = &m.triangles[t];
     if (std::find(tri, tri + 3, static_cast<std::uint32_t>(top)) == tri + 3) continue;
     for (int c = 0; c < 3; ++c)
-      if (static_cast<int>(tri[c]) < n && std::find(triangle.begin(), triangle.end(), static_cast<int>(tri[c])) == triangle.end())
+      if (static_cast<int>(tri[c]) < n &&
+          std::find(triangle.begin(), triangle.end(), static_cast<int>(tri[c])) == triangle.end())
         triangle.push_back(static_cast<int>(tri[c]));
   }
   triangle.resize(std::min<std::size_t>(triangle.size(), 3));
   const auto normals = vertex_normals(m);
   std::vector<double> round_trip_us;
-  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate_hz));
+  const auto period =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate_hz));
   auto next = Clock::now();
 
   auto step = [&](const std::vector<ConstraintSpec>& constraints) {
@@ -133,36 +147,44 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz) {
     const palpate::Reply reply = client.request(model_id, constraints);
     round_trip_us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - sent).count());
     if (reply.status != palpate::RequestStatus::kOk)
-      throw palpate::SystemError(fmt::format("request refused: {}: {}", palpate::status_name(reply.status), reply.message));
+      throw palpate::SystemError(fmt::format("request refused: {}: {}",
+                                             palpate::status_name(reply.status), reply.message));
     return reply;
   };
   auto norm = [](const std::array<double, 3>& v) { return std::hypot(v[0], v[1], v[2]); };
   const int steps = static_cast<int>(rate_hz);  // one second per gesture
 
-  std::printf("\npress: vertex %u at the top, pushed 0 → 5 mm into the organ over 1 s\n", m.vertex_ids[top]);
+  std::printf("\npress: vertex %u at the top, pushed 0 → 5 mm into the organ over 1 s\n",
+              m.vertex_ids[top]);
   for (int s = 1; s <= steps; ++s) {
     const double depth = 0.005 * s / steps;
-    const auto reply = step({ConstraintSpec::displacement(m.vertex_ids[top], {-depth * normals[top][0], -depth * normals[top][1],
-                                                                              -depth * normals[top][2]})});
+    const auto reply = step({ConstraintSpec::displacement(
+        m.vertex_ids[top],
+        {-depth * normals[top][0], -depth * normals[top][1], -depth * normals[top][2]})});
     if (s % (steps / 5) == 0)
-      std::printf("  depth %5.1f mm   reaction on the tool %7.3f N\n", depth * 1e3, norm(reply.total_force_n));
+      std::printf("  depth %5.1f mm   reaction on the tool %7.3f N\n", depth * 1e3,
+                  norm(reply.total_force_n));
   }
 
   std::printf("\npinch: vertices %u %u %u pulled out 5 mm together\n", m.vertex_ids[triangle[0]],
-              m.vertex_ids[triangle[std::min<std::size_t>(1, triangle.size() - 1)]], m.vertex_ids[triangle.back()]);
+              m.vertex_ids[triangle[std::min<std::size_t>(1, triangle.size() - 1)]],
+              m.vertex_ids[triangle.back()]);
   for (int s = 1; s <= steps; ++s) {
     const double lift = 0.005 * s / steps;
     std::vector<ConstraintSpec> constraints;
     for (int v : triangle)
       constraints.push_back(ConstraintSpec::displacement(
-          m.vertex_ids[v], {lift * normals[top][0], lift * normals[top][1], lift * normals[top][2]}));
+          m.vertex_ids[v],
+          {lift * normals[top][0], lift * normals[top][1], lift * normals[top][2]}));
     const auto reply = step(constraints);
     if (s % (steps / 5) == 0)
-      std::printf("  lift  %5.1f mm   pull on the tool %7.3f N\n", lift * 1e3, norm(reply.total_force_n));
+      std::printf("  lift  %5.1f mm   pull on the tool %7.3f N\n", lift * 1e3,
+                  norm(reply.total_force_n));
   }
 
   // Slide: 4 mm normal indentation that moves from vertex to vertex along a path of neighbours.
-  std::printf("\nslide: 4 mm indentation gliding over the surface (normal imposed, tangential free)\n");
+  std::printf(
+      "\nslide: 4 mm indentation gliding over the surface (normal imposed, tangential free)\n");
   int at = top;
   std::vector<int> visited{top};
   for (int s = 1; s <= steps; ++s) {
@@ -187,20 +209,25 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz) {
     const auto& nn = normals[at];
     const auto reply = step({ConstraintSpec::normal_displacement(m.vertex_ids[at], nn, -0.004)});
     if (s % (steps / 5) == 0)
-      std::printf("  at vertex %5u   normal force %7.3f N\n", m.vertex_ids[at], norm(reply.total_force_n));
+      std::printf("  at vertex %5u   normal force %7.3f N\n", m.vertex_ids[at],
+                  norm(reply.total_force_n));
   }
 
   step({});
   std::printf("\nrelease: no constraint, the organ is back at rest\n");
-  std::printf("\n%zu requests at %.0f Hz; round trip seen by this client p50 %.0f µs, p99 %.0f µs, max %.0f µs\n",
-              round_trip_us.size(), rate_hz, percentile(round_trip_us, 0.5), percentile(round_trip_us, 0.99),
-              percentile(round_trip_us, 1.0));
+  std::printf(
+      "\n%zu requests at %.0f Hz; round trip seen by this client p50 %.0f µs, p99 %.0f µs, max "
+      "%.0f µs\n",
+      round_trip_us.size(), rate_hz, percentile(round_trip_us, 0.5),
+      percentile(round_trip_us, 0.99), percentile(round_trip_us, 1.0));
   // The daemon's own view: its latest heartbeat (kept by the keep-last-1 reader).
   if (const auto s = client.wait_status(2s))
-    std::printf("palpated's last heartbeat: %.0f requests/s, solve p50 %.1f µs p99 %.1f µs, request→reply p50 %.0f µs "
-                "p99 %.0f µs\n",
-                s->request_rate_hz, s->solve.p50_us, s->solve.p99_us, s->request_to_reply.p50_us,
-                s->request_to_reply.p99_us);
+    std::printf(
+        "palpated's last heartbeat: %.0f requests/s, solve p50 %.1f µs p99 %.1f µs, request→reply "
+        "p50 %.0f µs "
+        "p99 %.0f µs\n",
+        s->request_rate_hz, s->solve.p50_us, s->solve.p99_us, s->request_to_reply.p50_us,
+        s->request_to_reply.p99_us);
   return 0;
 }
 
@@ -232,7 +259,8 @@ int run(int argc, char** argv) {
   auto* demo_command = app.add_subcommand("demo", "scripted palpation at the haptic rate");
   double rate_hz = 1000;
   demo_command->add_option("--model", model_id, "model id");
-  demo_command->add_option("--rate", rate_hz, "requests per second (default 1000)")->check(CLI::Range(10.0, 20000.0));
+  demo_command->add_option("--rate", rate_hz, "requests per second (default 1000)")
+      ->check(CLI::Range(10.0, 20000.0));
 
   auto* status = app.add_subcommand("status", "print one status heartbeat");
   try {
@@ -243,38 +271,49 @@ int run(int argc, char** argv) {
     return static_cast<int>(palpate::ExitCode::kUsage);
   }
 
-  palpate::ClientOptions options{client_id, domain, dds_config, false, status->parsed() || demo_command->parsed()};
+  palpate::ClientOptions options{client_id, domain, dds_config, false,
+                                 status->parsed() || demo_command->parsed()};
   palpate::Client client(options);
   if (*describe) {
     const auto m = client.wait_for_model(model_id, 10s);
     if (!m) throw palpate::SystemError("no description of model '" + model_id + "' within 10 s");
-    std::printf("model %s\n  units %s\n  material %s\n  input %s\n  %d compliance vertices, %zu drawn, %zu triangles\n",
-                m->model_id.c_str(), m->units.c_str(), m->material_summary.c_str(), m->input_hash.c_str(),
-                m->compliance_vertex_count, m->vertex_ids.size(), m->triangles.size() / 3);
+    std::printf(
+        "model %s\n  units %s\n  material %s\n  input %s\n  %d compliance vertices, %zu drawn, %zu "
+        "triangles\n",
+        m->model_id.c_str(), m->units.c_str(), m->material_summary.c_str(), m->input_hash.c_str(),
+        m->compliance_vertex_count, m->vertex_ids.size(), m->triangles.size() / 3);
     return 0;
   }
   if (*request) {
     std::vector<ConstraintSpec> constraints;
-    for (const auto& f : forces) constraints.push_back(parse_constraint(f, palpate::ConstraintKind::kForce, "--force"));
+    for (const auto& f : forces)
+      constraints.push_back(parse_constraint(f, palpate::ConstraintKind::kForce, "--force"));
     for (const auto& d : displacements)
-      constraints.push_back(parse_constraint(d, palpate::ConstraintKind::kDisplacement, "--displacement"));
+      constraints.push_back(
+          parse_constraint(d, palpate::ConstraintKind::kDisplacement, "--displacement"));
     for (const auto& d : normals)
-      constraints.push_back(parse_constraint(d, palpate::ConstraintKind::kNormalDisplacement, "--normal-displacement"));
+      constraints.push_back(parse_constraint(d, palpate::ConstraintKind::kNormalDisplacement,
+                                             "--normal-displacement"));
     connect(client, model_id);
     const auto reply = client.request(model_id, constraints, surface, !no_update);
     print_reply(reply);
-    return reply.status == palpate::RequestStatus::kOk ? 0 : static_cast<int>(palpate::ExitCode::kUsage);
+    return reply.status == palpate::RequestStatus::kOk
+               ? 0
+               : static_cast<int>(palpate::ExitCode::kUsage);
   }
   if (*demo_command) return demo(client, model_id, rate_hz);
   const auto s = client.wait_status(10s);
   if (!s) throw palpate::SystemError("no status heartbeat within 10 s (is palpated running?)");
-  std::printf("daemon %s: up %.1f s, %llu requests (%llu refused), %.0f requests/s, %.1f surface samples/s\n"
-              "  solve p50 %.1f µs p99 %.1f µs p99.9 %.1f µs; request→reply p50 %.1f µs p99 %.1f µs\n"
-              "  %u models, %u clients\n",
-              s->daemon_id.c_str(), static_cast<double>(s->uptime_ns) * 1e-9,
-              static_cast<unsigned long long>(s->requests_served), static_cast<unsigned long long>(s->error_replies),
-              s->request_rate_hz, s->surface_rate_hz, s->solve.p50_us, s->solve.p99_us, s->solve.p999_us,
-              s->request_to_reply.p50_us, s->request_to_reply.p99_us, s->models, s->clients);
+  std::printf(
+      "daemon %s: up %.1f s, %llu requests (%llu refused), %.0f requests/s, %.1f surface "
+      "samples/s\n"
+      "  solve p50 %.1f µs p99 %.1f µs p99.9 %.1f µs; request→reply p50 %.1f µs p99 %.1f µs\n"
+      "  %u models, %u clients\n",
+      s->daemon_id.c_str(), static_cast<double>(s->uptime_ns) * 1e-9,
+      static_cast<unsigned long long>(s->requests_served),
+      static_cast<unsigned long long>(s->error_replies), s->request_rate_hz, s->surface_rate_hz,
+      s->solve.p50_us, s->solve.p99_us, s->solve.p999_us, s->request_to_reply.p50_us,
+      s->request_to_reply.p99_us, s->models, s->clients);
   return 0;
 }
 

@@ -4,15 +4,14 @@
 
 #include <semaphore.h>
 #include <signal.h>
+#include <spdlog/sinks/stdout_sinks.h>
+#include <spdlog/spdlog.h>
 
+#include <CLI/CLI.hpp>
 #include <atomic>
 #include <cstdio>
 #include <iostream>
 #include <thread>
-
-#include <CLI/CLI.hpp>
-#include <spdlog/sinks/stdout_sinks.h>
-#include <spdlog/spdlog.h>
 
 #include "palpate/daemon_config.hpp"
 #include "palpate/error.hpp"
@@ -31,24 +30,32 @@ extern "C" void on_stop_signal(int signal) {
 }
 
 int run(int argc, char** argv) {
-  CLI::App app{"palpated: answers force and imposed-displacement requests on precomputed organ models over DDS"};
+  CLI::App app{
+      "palpated: answers force and imposed-displacement requests on precomputed organ models over "
+      "DDS"};
   app.set_version_flag("--version", "palpated " PALPATE_VERSION);
   std::string config_file;
   std::vector<std::string> model_flags;
   bool check_only = false;
   palpate::DaemonConfig overrides;
-  app.add_option("-c,--config", config_file, "configuration file (TOML, e.g. config/palpated.toml)");
-  app.add_option("-m,--model", model_flags, "serve a compliance file as ID=PATH (repeatable; adds to the configuration)");
+  app.add_option("-c,--config", config_file,
+                 "configuration file (TOML, e.g. config/palpated.toml)");
+  app.add_option("-m,--model", model_flags,
+                 "serve a compliance file as ID=PATH (repeatable; adds to the configuration)");
   app.add_option("--id", overrides.daemon_id, "daemon id in the status topic");
   app.add_option("--domain", overrides.domain_id, "DDS domain id");
-  app.add_option("--dds-config", overrides.dds_config,
-                 "Cyclone DDS configuration: XML file, file:// URI or XML fragment (default: loopback only)");
+  app.add_option(
+      "--dds-config", overrides.dds_config,
+      "Cyclone DDS configuration: XML file, file:// URI or XML fragment (default: loopback only)");
   app.add_option("--surface-hz", overrides.surface_rate_hz, "surface stream rate per model, Hz");
   app.add_option("--status-hz", overrides.status_rate_hz, "status heartbeat rate, Hz");
-  app.add_option("--max-constraints", overrides.limits.max_constraints, "constrained vertices per request");
-  app.add_option("--max-condition", overrides.limits.max_condition, "largest accepted condition estimate");
+  app.add_option("--max-constraints", overrides.limits.max_constraints,
+                 "constrained vertices per request");
+  app.add_option("--max-condition", overrides.limits.max_condition,
+                 "largest accepted condition estimate");
   app.add_option("--log-level", overrides.log_level, "trace, debug, info, warn or error");
-  app.add_flag("--check-config", check_only, "check the configuration and the compliance files, then exit");
+  app.add_flag("--check-config", check_only,
+               "check the configuration and the compliance files, then exit");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -64,7 +71,8 @@ int run(int argc, char** argv) {
   if (app.count("--dds-config")) config.dds_config = overrides.dds_config;
   if (app.count("--surface-hz")) config.surface_rate_hz = overrides.surface_rate_hz;
   if (app.count("--status-hz")) config.status_rate_hz = overrides.status_rate_hz;
-  if (app.count("--max-constraints")) config.limits.max_constraints = overrides.limits.max_constraints;
+  if (app.count("--max-constraints"))
+    config.limits.max_constraints = overrides.limits.max_constraints;
   if (app.count("--max-condition")) config.limits.max_condition = overrides.limits.max_condition;
   if (app.count("--log-level")) config.log_level = overrides.log_level;
   for (const auto& flag : model_flags) config.models.push_back(palpate::parse_model_flag(flag));
@@ -80,15 +88,17 @@ int run(int argc, char** argv) {
   if (check_only) {
     for (const auto& entry : config.models) {
       const auto model = palpate::load_surface_model(entry.id, entry.file);
-      std::printf("model %s: %s, %d compliance vertices, %s\n", model.id.c_str(), entry.file.c_str(),
-                  model.compliance_vertex_count(), model.material_summary.c_str());
+      std::printf("model %s: %s, %d compliance vertices, %s\n", model.id.c_str(),
+                  entry.file.c_str(), model.compliance_vertex_count(),
+                  model.material_summary.c_str());
     }
-    std::printf("configuration OK: %zu model(s), domain %u\n", config.models.size(), config.domain_id);
+    std::printf("configuration OK: %zu model(s), domain %u\n", config.models.size(),
+                config.domain_id);
     return 0;
   }
 
-  spdlog::info("event=starting version={} daemon_id={} blas=\"{}\"", PALPATE_VERSION, config.daemon_id,
-               palpate::blas_description());
+  spdlog::info("event=starting version={} daemon_id={} blas=\"{}\"", PALPATE_VERSION,
+               config.daemon_id, palpate::blas_description());
   palpate::Service service(config);
   // SIGINT and SIGTERM post a semaphore (async-signal-safe); a thread
   // waits on it and stops the service. A handler rather than sigwait because

@@ -2,6 +2,8 @@
 // the full G of a real compliance file, every request error, and the reuse
 // of factorizations.
 
+#include "palpate/constraint_solver.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -9,7 +11,6 @@
 #include <limits>
 #include <random>
 
-#include "palpate/constraint_solver.hpp"
 #include "palpate/surface_model.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/box_job.hpp"
@@ -34,7 +35,8 @@ class ConstraintSolverTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new testing::TempDir;
-    model_ = new SurfaceModel(load_surface_model("box", testing::write_box_compliance(dir_->path())));
+    model_ =
+        new SurfaceModel(load_surface_model("box", testing::write_box_compliance(dir_->path())));
   }
   static void TearDownTestSuite() {
     delete model_;
@@ -43,13 +45,16 @@ class ConstraintSolverTest : public ::testing::Test {
 
   static const SurfaceModel& model() { return *model_; }
   /// Mesh id of compliance vertex i.
-  static std::uint32_t vertex(int i) { return model_->drawn_vertex_ids[static_cast<std::size_t>(i)]; }
+  static std::uint32_t vertex(int i) {
+    return model_->drawn_vertex_ids[static_cast<std::size_t>(i)];
+  }
 
   static RequestStatus run(ConstraintSolver& solver, const std::vector<Request>& requests) {
     RequestStatus status = solver.begin(requests.size());
     for (const auto& r : requests) {
       if (status != RequestStatus::kOk) return status;
-      status = solver.add(r.vertex, static_cast<std::int32_t>(r.kind), r.value.data(), r.normal.data());
+      status =
+          solver.add(r.vertex, static_cast<std::int32_t>(r.kind), r.value.data(), r.normal.data());
     }
     return status == RequestStatus::kOk ? solver.solve() : status;
   }
@@ -57,7 +62,8 @@ class ConstraintSolverTest : public ::testing::Test {
   /// u = G f over the whole surface, f non-zero on the request's vertices only.
   static Eigen::VectorXd full_field(const ConstraintSolver& solver) {
     Eigen::VectorXd f = Eigen::VectorXd::Zero(model().G.rows());
-    for (int j = 0; j < solver.size(); ++j) f.segment<3>(3 * solver.indices()[j]) = solver.forces().segment<3>(3 * j);
+    for (int j = 0; j < solver.size(); ++j)
+      f.segment<3>(3 * solver.indices()[j]) = solver.forces().segment<3>(3 * j);
     return model().G * f;
   }
 
@@ -74,7 +80,8 @@ TEST_F(ConstraintSolverTest, DescribesTheSurfaceForDrawing) {
   const int n = m.compliance_vertex_count();
   ASSERT_GT(n, 10);
   EXPECT_EQ(m.G.rows(), 3 * n);
-  EXPECT_GT(m.drawn_vertex_ids.size(), static_cast<std::size_t>(n)) << "fixed surface vertices are drawn after";
+  EXPECT_GT(m.drawn_vertex_ids.size(), static_cast<std::size_t>(n))
+      << "fixed surface vertices are drawn after";
   EXPECT_EQ(m.drawn_rest_positions_m.size(), 3 * m.drawn_vertex_ids.size());
   for (std::uint32_t corner : m.drawn_triangles) EXPECT_LT(corner, m.drawn_vertex_ids.size());
   for (std::size_t i = 0; i < m.drawn_vertex_ids.size(); ++i) {
@@ -102,7 +109,8 @@ TEST_F(ConstraintSolverTest, ForcesGiveTheColumnsOfG) {
   f.segment<3>(51) = forces[1].value;
   const Eigen::VectorXd expected = model().G * f;
   EXPECT_LT(relative(u, expected), kRelativeTolerance);
-  EXPECT_LT(relative(solver.displacements().segment<3>(0), expected.segment<3>(9)), kRelativeTolerance);
+  EXPECT_LT(relative(solver.displacements().segment<3>(0), expected.segment<3>(9)),
+            kRelativeTolerance);
   EXPECT_LT((solver.total_force() - Eigen::Vector3d(0.1, -0.2, -1.2)).norm(), 1e-15);
 }
 
@@ -132,7 +140,8 @@ TEST_F(ConstraintSolverTest, ImposedDisplacementsSolveTheCompliance) {
   EXPECT_LT(relative(u, full_field(solver)), kRelativeTolerance);
   // The condition estimate (LAPACK dpocon) against the exact 1-norm condition:
   // a lower bound, usually within a factor 3.
-  const double exact = G_CC.cwiseAbs().colwise().sum().maxCoeff() * G_CC.inverse().cwiseAbs().colwise().sum().maxCoeff();
+  const double exact = G_CC.cwiseAbs().colwise().sum().maxCoeff() *
+                       G_CC.inverse().cwiseAbs().colwise().sum().maxCoeff();
   EXPECT_LE(solver.condition_estimate(), exact * (1 + 1e-8));
   EXPECT_GE(solver.condition_estimate(), exact / 10);
 }
@@ -146,7 +155,10 @@ TEST_F(ConstraintSolverTest, MixedConstraintsMeetTheirDefinitions) {
   const std::vector<Request> requests{
       {vertex(2), ConstraintKind::kForce, {0.5, 0, -0.25}},
       {vertex(9), ConstraintKind::kDisplacement, {0, 0.001, -0.003}},
-      {vertex(14), ConstraintKind::kNormalDisplacement, {-0.002, 0, 0}, 3.0 * n1},  // unnormalized on purpose
+      {vertex(14),
+       ConstraintKind::kNormalDisplacement,
+       {-0.002, 0, 0},
+       3.0 * n1},  // unnormalized on purpose
       {vertex(30), ConstraintKind::kNormalDisplacement, {0.0015, 0, 0}, n2},
   };
   ASSERT_EQ(run(solver, requests), RequestStatus::kOk);
@@ -170,11 +182,13 @@ TEST_F(ConstraintSolverTest, MixedConstraintsMeetTheirDefinitions) {
 
 TEST_F(ConstraintSolverTest, ReusesTheFactorizationWhileTheSetStaysTheSame) {
   ConstraintSolver solver(model(), {.max_constraints = 8, .cache_slots = 2, .max_condition = 1e12});
-  ConstraintSolver fresh_solver(model(), {.max_constraints = 8, .cache_slots = 1, .max_condition = 1e12});
+  ConstraintSolver fresh_solver(model(),
+                                {.max_constraints = 8, .cache_slots = 1, .max_condition = 1e12});
   auto patch = [&](int first, double depth) {
-    return std::vector<Request>{{vertex(first), ConstraintKind::kDisplacement, {0, 0, -depth}},
-                                {vertex(first + 1), ConstraintKind::kNormalDisplacement, {-depth, 0, 0}, {0, 0, 1}},
-                                {vertex(first + 2), ConstraintKind::kForce, {0, 0.1, 0}}};
+    return std::vector<Request>{
+        {vertex(first), ConstraintKind::kDisplacement, {0, 0, -depth}},
+        {vertex(first + 1), ConstraintKind::kNormalDisplacement, {-depth, 0, 0}, {0, 0, 1}},
+        {vertex(first + 2), ConstraintKind::kForce, {0, 0.1, 0}}};
   };
   ASSERT_EQ(run(solver, patch(0, 0.001)), RequestStatus::kOk);
   EXPECT_FALSE(solver.reused_factorization());
@@ -202,7 +216,8 @@ TEST_F(ConstraintSolverTest, EveryBadRequestGetsItsStatusAndMessage) {
   const SurfaceModel& m = model();
   std::uint32_t interior = 0, fixed = 0;
   for (std::uint32_t v = 0; v < m.mesh_vertex_count(); ++v) {
-    if (m.compliance_index_of_vertex[v] == static_cast<std::int32_t>(VertexRole::kInterior)) interior = v;
+    if (m.compliance_index_of_vertex[v] == static_cast<std::int32_t>(VertexRole::kInterior))
+      interior = v;
     if (m.compliance_index_of_vertex[v] == static_cast<std::int32_t>(VertexRole::kFixed)) fixed = v;
   }
   ASSERT_LT(m.compliance_index_of_vertex[interior], 0);
@@ -215,22 +230,38 @@ TEST_F(ConstraintSolverTest, EveryBadRequestGetsItsStatusAndMessage) {
     std::string fragment;
   };
   const std::vector<Case> cases{
-      {{{m.mesh_vertex_count(), ConstraintKind::kForce, push}}, RequestStatus::kVertexOutOfRange, "is not a vertex"},
-      {{{interior, ConstraintKind::kForce, push}}, RequestStatus::kVertexNotOnSurface, "inside the organ"},
+      {{{m.mesh_vertex_count(), ConstraintKind::kForce, push}},
+       RequestStatus::kVertexOutOfRange,
+       "is not a vertex"},
+      {{{interior, ConstraintKind::kForce, push}},
+       RequestStatus::kVertexNotOnSurface,
+       "inside the organ"},
       {{{fixed, ConstraintKind::kDisplacement, push}}, RequestStatus::kVertexFixed, "is fixed"},
       {{{vertex(1), ConstraintKind::kForce, push}, {vertex(1), ConstraintKind::kForce, push}},
-       RequestStatus::kDuplicateVertex, "appears twice"},
-      {{{vertex(1), ConstraintKind::kDisplacement, {0, nan, 0}}}, RequestStatus::kNonFiniteValue, "value[1]"},
-      {{{vertex(1), ConstraintKind::kForce, {inf, 0, 0}}}, RequestStatus::kNonFiniteValue, "finite"},
-      {{{vertex(1), ConstraintKind::kNormalDisplacement, push, {nan, 0, 1}}}, RequestStatus::kNonFiniteValue, "normal[0]"},
-      {{{vertex(1), ConstraintKind::kNormalDisplacement, push, {0, 0, 0}}}, RequestStatus::kBadNormal, "no direction"},
-      {{{vertex(1), static_cast<ConstraintKind>(7), push}}, RequestStatus::kBadNormal, "unknown kind 7"},
-      {std::vector<Request>(5, {vertex(1), ConstraintKind::kForce, push}), RequestStatus::kTooManyConstraints,
-       "at most 4"},
+       RequestStatus::kDuplicateVertex,
+       "appears twice"},
+      {{{vertex(1), ConstraintKind::kDisplacement, {0, nan, 0}}},
+       RequestStatus::kNonFiniteValue,
+       "value[1]"},
+      {{{vertex(1), ConstraintKind::kForce, {inf, 0, 0}}},
+       RequestStatus::kNonFiniteValue,
+       "finite"},
+      {{{vertex(1), ConstraintKind::kNormalDisplacement, push, {nan, 0, 1}}},
+       RequestStatus::kNonFiniteValue,
+       "normal[0]"},
+      {{{vertex(1), ConstraintKind::kNormalDisplacement, push, {0, 0, 0}}},
+       RequestStatus::kBadNormal,
+       "no direction"},
+      {{{vertex(1), static_cast<ConstraintKind>(7), push}},
+       RequestStatus::kBadNormal,
+       "unknown kind 7"},
+      {std::vector<Request>(5, {vertex(1), ConstraintKind::kForce, push}),
+       RequestStatus::kTooManyConstraints, "at most 4"},
   };
   for (const auto& c : cases) {
     EXPECT_EQ(run(solver, c.requests), c.status) << c.fragment;
-    EXPECT_NE(std::string(solver.message()).find(c.fragment), std::string::npos) << solver.message();
+    EXPECT_NE(std::string(solver.message()).find(c.fragment), std::string::npos)
+        << solver.message();
     EXPECT_STRNE(status_name(c.status), "unknown_status");
     // The solver is usable after every refusal.
     ASSERT_EQ(run(solver, {{vertex(1), ConstraintKind::kDisplacement, push}}), RequestStatus::kOk);
@@ -246,11 +277,13 @@ TEST_F(ConstraintSolverTest, RefusesSystemsAboveTheConditionLimit) {
                                       {vertex(1), ConstraintKind::kDisplacement, {0, 0, 0.001}}};
   EXPECT_EQ(run(strict, requests), RequestStatus::kIllConditioned);
   EXPECT_GT(strict.condition_estimate(), 2);
-  EXPECT_NE(std::string(strict.message()).find("condition estimate"), std::string::npos) << strict.message();
+  EXPECT_NE(std::string(strict.message()).find("condition estimate"), std::string::npos)
+      << strict.message();
   // The same request is accepted under the default limit, with the same estimate.
   ConstraintSolver lenient(model(), {});
   ASSERT_EQ(run(lenient, requests), RequestStatus::kOk);
-  EXPECT_NEAR(lenient.condition_estimate(), strict.condition_estimate(), 1e-12 * strict.condition_estimate());
+  EXPECT_NEAR(lenient.condition_estimate(), strict.condition_estimate(),
+              1e-12 * strict.condition_estimate());
 }
 
 TEST_F(ConstraintSolverTest, AllocatesNothingPerRequest) {
@@ -259,13 +292,17 @@ TEST_F(ConstraintSolverTest, AllocatesNothingPerRequest) {
   ConstraintSolver solver(model(), {.max_constraints = 8, .cache_slots = 2, .max_condition = 1e12});
   Eigen::VectorXd u(model().G.rows());
   auto request = [&](int first, double depth) {
-    const std::vector<Request> patch{{vertex(first), ConstraintKind::kDisplacement, {0, 0, -depth}},
-                                     {vertex(first + 1), ConstraintKind::kNormalDisplacement, {-depth, 0, 0}, {0, 0, 1}},
-                                     {vertex(first + 2), ConstraintKind::kForce, {0, 0.1, 0}}};
+    const std::vector<Request> patch{
+        {vertex(first), ConstraintKind::kDisplacement, {0, 0, -depth}},
+        {vertex(first + 1), ConstraintKind::kNormalDisplacement, {-depth, 0, 0}, {0, 0, 1}},
+        {vertex(first + 2), ConstraintKind::kForce, {0, 0.1, 0}}};
     return patch;
   };
-  const std::vector<std::vector<Request>> requests{request(0, 0.001), request(10, 0.002), request(20, 0.001),
-                                                   {{vertex(3), ConstraintKind::kForce, {0, 0, std::nan("")}}}};
+  const std::vector<std::vector<Request>> requests{
+      request(0, 0.001),
+      request(10, 0.002),
+      request(20, 0.001),
+      {{vertex(3), ConstraintKind::kForce, {0, 0, std::nan("")}}}};
   for (const auto& r : requests) run(solver, r);  // the vectors above are the only allocations
   const std::uint64_t before = testing::allocations();
   int refused = 0;

@@ -1,11 +1,12 @@
 // palpated's configuration file: defaults, every key, and errors that name
 // the file, the line and the key.
 
+#include "palpate/daemon_config.hpp"
+
 #include <gtest/gtest.h>
 
 #include <fstream>
 
-#include "palpate/daemon_config.hpp"
 #include "palpate/error.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
@@ -66,21 +67,25 @@ TEST(DaemonConfig, DefaultsNeedOnlyAModel) {
   EXPECT_TRUE(config.dds_config.empty()) << "loopback unless the user gives a configuration";
   expect_error<InputError>([&] { validate(config); }, {"no model to serve", "--model ID=PATH"});
   config.models.push_back(parse_model_flag("liver=/nonexistent/liver.h5"));
-  expect_error<InputError>([&] { validate(config); }, {"model 'liver'", "/nonexistent/liver.h5", "does not exist"});
+  expect_error<InputError>([&] { validate(config); },
+                           {"model 'liver'", "/nonexistent/liver.h5", "does not exist"});
 }
 
 TEST(DaemonConfig, ErrorsNameTheLineTheKeyAndWhatIsAccepted) {
   testing::TempDir dir;
   expect_error<InputError>([&] { read_daemon_config(write(dir, "[rates]\nsurface_hz = -3\n")); },
                            {"palpated.toml:2", "rates.surface_hz", "positive"});
-  expect_error<InputError>([&] { read_daemon_config(write(dir, "[limits]\nmax_constraint = 3\n")); },
-                           {"palpated.toml:2", "limits.max_constraint", "unknown key", "max_constraints"});
+  expect_error<InputError>(
+      [&] { read_daemon_config(write(dir, "[limits]\nmax_constraint = 3\n")); },
+      {"palpated.toml:2", "limits.max_constraint", "unknown key", "max_constraints"});
   expect_error<InputError>([&] { read_daemon_config(write(dir, "[dds]\ndomain = 300\n")); },
                            {"dds.domain", "[0, 232]"});
   expect_error<InputError>([&] { read_daemon_config(write(dir, "[[model]]\nid = \"a\"\n")); },
                            {"palpated.toml:1", "needs id and file"});
-  expect_error<InputError>([&] { read_daemon_config(write(dir, "[daemon\n")); }, {"palpated.toml:1", "not valid TOML"});
-  expect_error<InputError>([&] { read_daemon_config(dir / "missing.toml"); }, {"missing.toml", "no such file"});
+  expect_error<InputError>([&] { read_daemon_config(write(dir, "[daemon\n")); },
+                           {"palpated.toml:1", "not valid TOML"});
+  expect_error<InputError>([&] { read_daemon_config(dir / "missing.toml"); },
+                           {"missing.toml", "no such file"});
   expect_error<InputError>([] { parse_model_flag("liver.h5"); }, {"--model 'liver.h5'", "ID=PATH"});
 
   std::ofstream(dir / "a.h5") << "x";
@@ -91,7 +96,8 @@ TEST(DaemonConfig, ErrorsNameTheLineTheKeyAndWhatIsAccepted) {
   expect_error<InputError>([&] { validate(config); }, {"model id 'bad id*'", "A-Z a-z 0-9"});
   config.models = {{"a", dir / "a.h5"}};
   config.log_level = "verbose";
-  expect_error<InputError>([&] { validate(config); }, {"daemon.log_level 'verbose'", "trace, debug"});
+  expect_error<InputError>([&] { validate(config); },
+                           {"daemon.log_level 'verbose'", "trace, debug"});
 }
 
 }  // namespace

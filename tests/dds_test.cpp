@@ -88,12 +88,14 @@ struct Reference {
     const ComplianceModel model = read_compliance_file(file, &G);
     compliance_index.assign(static_cast<std::size_t>(model.vertices_m.rows()), -1);
     for (Eigen::Index i = 0; i < model.compliance_vertices.size(); ++i)
-      compliance_index[static_cast<std::size_t>(model.compliance_vertices(i))] = static_cast<int>(i);
+      compliance_index[static_cast<std::size_t>(model.compliance_vertices(i))] =
+          static_cast<int>(i);
   }
   /// u = G f for forces on the given mesh vertices.
   Eigen::VectorXd field(const std::vector<VertexResult>& results) const {
     Eigen::VectorXd f = Eigen::VectorXd::Zero(G.rows());
-    for (const auto& r : results) f.segment<3>(3 * compliance_index[r.vertex]) += Eigen::Vector3d(r.force_n.data());
+    for (const auto& r : results)
+      f.segment<3>(3 * compliance_index[r.vertex]) += Eigen::Vector3d(r.force_n.data());
     return G * f;
   }
   Eigen::Vector3d at(const Eigen::VectorXd& u, std::uint32_t vertex) const {
@@ -113,12 +115,14 @@ class PalpatedTest : public ::testing::Test {
     dir_ = new TempDir;
     box_ = testing::write_box_compliance(dir_->path(), "box", 4, 85e3);
     stiff_ = testing::write_box_compliance(dir_->path(), "stiff", 4, 340e3);
-    std::ofstream(dir_->path() / "palpated.toml") << "[daemon]\nid = \"test-daemon\"\nlog_level = \"debug\"\n"
-                                                     "[rates]\nsurface_hz = 200\nstatus_hz = 20\n"
-                                                     "[limits]\nmax_constraints = 8\n"
-                                                     "[[model]]\nid = \"box\"\nfile = \"box.h5\"\n"
-                                                     "[[model]]\nid = \"stiff\"\nfile = \"stiff.h5\"\n";
-    daemon_ = new Daemon({"--config", (dir_->path() / "palpated.toml").string()}, dir_->path() / "palpated.log");
+    std::ofstream(dir_->path() / "palpated.toml")
+        << "[daemon]\nid = \"test-daemon\"\nlog_level = \"debug\"\n"
+           "[rates]\nsurface_hz = 200\nstatus_hz = 20\n"
+           "[limits]\nmax_constraints = 8\n"
+           "[[model]]\nid = \"box\"\nfile = \"box.h5\"\n"
+           "[[model]]\nid = \"stiff\"\nfile = \"stiff.h5\"\n";
+    daemon_ = new Daemon({"--config", (dir_->path() / "palpated.toml").string()},
+                         dir_->path() / "palpated.log");
     reference_ = new Reference(box_);
   }
   static void TearDownTestSuite() {
@@ -131,7 +135,8 @@ class PalpatedTest : public ::testing::Test {
   }
 
   /// A connected client: the model is known and the reply path matched.
-  static std::unique_ptr<Client> connect(const std::string& id, bool surface = false, bool status = false) {
+  static std::unique_ptr<Client> connect(const std::string& id, bool surface = false,
+                                         bool status = false) {
     auto client = std::make_unique<Client>(ClientOptions{id, 0, "", surface, status});
     EXPECT_TRUE(client->wait_for_model("box", kTimeout)) << daemon_->log();
     EXPECT_TRUE(client->wait_for_service(kTimeout)) << daemon_->log();
@@ -153,7 +158,8 @@ TEST_F(PalpatedTest, DescribesEachModelToLateJoiners) {
   EXPECT_EQ(m.rest_positions_m.size(), 3 * m.vertex_ids.size());
   EXPECT_EQ(m.triangles.size() % 3, 0u);
   EXPECT_GT(m.triangles.size(), 0u);
-  for (int i = 0; i < m.compliance_vertex_count; ++i) EXPECT_EQ(ref.compliance_index[m.vertex_ids[i]], i);
+  for (int i = 0; i < m.compliance_vertex_count; ++i)
+    EXPECT_EQ(ref.compliance_index[m.vertex_ids[i]], i);
   EXPECT_EQ(m.units, "m, N (SI)");
   EXPECT_NE(m.material_summary.find("85000"), std::string::npos) << m.material_summary;
   EXPECT_EQ(m.input_hash.rfind("sha256:", 0), 0u);
@@ -164,18 +170,21 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
   auto client = connect("kinds");
   const ModelInfo m = box_info(*client);
   const Reference& ref = *reference_;
-  const std::uint32_t a = m.vertex_ids[2], b = m.vertex_ids[9], c = m.vertex_ids[14], d = m.vertex_ids[30];
+  const std::uint32_t a = m.vertex_ids[2], b = m.vertex_ids[9], c = m.vertex_ids[14],
+                      d = m.vertex_ids[30];
 
   // Forces: the surface field is G f.
   {
-    const std::vector<ConstraintSpec> cs{ConstraintSpec::force(a, {0.1, 0, -0.3}), ConstraintSpec::force(b, {0, 0.2, 0})};
+    const std::vector<ConstraintSpec> cs{ConstraintSpec::force(a, {0.1, 0, -0.3}),
+                                         ConstraintSpec::force(b, {0, 0.2, 0})};
     const Reply reply = client->request("box", cs, true);
     ASSERT_EQ(reply.status, RequestStatus::kOk) << reply.message;
     EXPECT_EQ(reply.model_id, "box");
     ASSERT_EQ(reply.results.size(), 2u);
     EXPECT_EQ(reply.results[0].vertex, a);
     EXPECT_EQ(vec(reply.results[0].force_n), Eigen::Vector3d(0.1, 0, -0.3));
-    EXPECT_LT(relative(Eigen::Map<const Eigen::VectorXd>(reply.surface_displacement_m.data(), ref.G.rows()),
+    EXPECT_LT(relative(Eigen::Map<const Eigen::VectorXd>(reply.surface_displacement_m.data(),
+                                                         ref.G.rows()),
                        ref.field(reply.results)),
               kRelativeTolerance);
     EXPECT_LT((vec(reply.total_force_n) - Eigen::Vector3d(0.1, 0.2, -0.3)).norm(), 1e-15);
@@ -195,21 +204,24 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
       U.segment<3>(3 * i) = vec(cs[i].value);
       F.segment<3>(3 * i) = vec(reply.results[i].force_n);
       for (int j = 0; j < 3; ++j)
-        G_CC.block<3, 3>(3 * i, 3 * j) = ref.G.block<3, 3>(3 * ref.compliance_index[vs[i]], 3 * ref.compliance_index[vs[j]]);
+        G_CC.block<3, 3>(3 * i, 3 * j) =
+            ref.G.block<3, 3>(3 * ref.compliance_index[vs[i]], 3 * ref.compliance_index[vs[j]]);
     }
     EXPECT_LT(relative(F, G_CC.fullPivLu().solve(U)), kRelativeTolerance);
     const Eigen::VectorXd u = ref.field(reply.results);
-    EXPECT_LT(relative(Eigen::Map<const Eigen::VectorXd>(reply.surface_displacement_m.data(), u.size()), u),
-              kRelativeTolerance);
+    EXPECT_LT(
+        relative(Eigen::Map<const Eigen::VectorXd>(reply.surface_displacement_m.data(), u.size()),
+                 u),
+        kRelativeTolerance);
     EXPECT_GE(reply.condition_estimate, 1.0);
   }
   // Mixed, with sliding: each condition holds on the dense field.
   {
     const Eigen::Vector3d n = Eigen::Vector3d(0, 0.3, 1).normalized();
-    const std::vector<ConstraintSpec> cs{ConstraintSpec::force(a, {0, 0, -0.2}),
-                                         ConstraintSpec::displacement(b, {0, 0.001, 0}),
-                                         ConstraintSpec::normal_displacement(c, {0, 0.3, 1}, -0.0015),
-                                         ConstraintSpec::normal_displacement(d, {1, 0, 0}, 0.001)};
+    const std::vector<ConstraintSpec> cs{
+        ConstraintSpec::force(a, {0, 0, -0.2}), ConstraintSpec::displacement(b, {0, 0.001, 0}),
+        ConstraintSpec::normal_displacement(c, {0, 0.3, 1}, -0.0015),
+        ConstraintSpec::normal_displacement(d, {1, 0, 0}, 0.001)};
     const Reply reply = client->request("box", cs, false);
     ASSERT_EQ(reply.status, RequestStatus::kOk) << reply.message;
     EXPECT_TRUE(reply.surface_displacement_m.empty()) << "not asked for";
@@ -221,7 +233,8 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
     const Eigen::Vector3d fc = vec(reply.results[2].force_n);
     EXPECT_LT((fc - fc.dot(n) * n).norm(), 1e-12 * fc.norm()) << "sliding: no tangential force";
     for (std::size_t j = 0; j < cs.size(); ++j)
-      EXPECT_LT((vec(reply.results[j].displacement_m) - ref.at(u, cs[j].vertex)).norm(), kRelativeTolerance * u.norm());
+      EXPECT_LT((vec(reply.results[j].displacement_m) - ref.at(u, cs[j].vertex)).norm(),
+                kRelativeTolerance * u.norm());
   }
 }
 
@@ -230,7 +243,8 @@ TEST_F(PalpatedTest, ServesEachModelWithItsOwnCompliance) {
   // same imposed displacement four times larger.
   auto client = connect("models");
   const ModelInfo m = box_info(*client);
-  const std::vector<ConstraintSpec> cs{ConstraintSpec::displacement(m.vertex_ids[5], {0, 0, -0.001})};
+  const std::vector<ConstraintSpec> cs{
+      ConstraintSpec::displacement(m.vertex_ids[5], {0, 0, -0.001})};
   const Reply soft = client->request("box", cs);
   const Reply stiff = client->request("stiff", cs);
   ASSERT_EQ(soft.status, RequestStatus::kOk);
@@ -246,7 +260,8 @@ TEST_F(PalpatedTest, SeveralClientsAtOnceGetOnlyTheirOwnReplies) {
   const std::uint32_t vertex = m.vertex_ids[7];
   // A single imposed displacement has force (G^kk)⁻¹ u: linear in u, so each
   // client's depth is recognisable in the force it gets back.
-  const Reply unit = clients[0]->request("box", std::vector{ConstraintSpec::displacement(vertex, {0, 0, -0.001})});
+  const Reply unit =
+      clients[0]->request("box", std::vector{ConstraintSpec::displacement(vertex, {0, 0, -0.001})});
   ASSERT_EQ(unit.status, RequestStatus::kOk);
   std::vector<int> wrong(kClients, 0);
   std::vector<std::thread> threads;
@@ -257,7 +272,8 @@ TEST_F(PalpatedTest, SeveralClientsAtOnceGetOnlyTheirOwnReplies) {
         const auto reply = clients[static_cast<std::size_t>(c)]->request(
             "box", std::vector{ConstraintSpec::displacement(vertex, {0, 0, -0.001 * scale})});
         if (reply.status != RequestStatus::kOk ||
-            relative(vec(reply.total_force_n), scale * vec(unit.total_force_n)) > kRelativeTolerance)
+            relative(vec(reply.total_force_n), scale * vec(unit.total_force_n)) >
+                kRelativeTolerance)
           ++wrong[static_cast<std::size_t>(c)];
       }
     });
@@ -272,7 +288,8 @@ TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMove
   auto toucher = connect("toucher");
   const ModelInfo m = box_info(*toucher);
   const Reference& ref = *reference_;
-  const std::vector<ConstraintSpec> press{ConstraintSpec::displacement(m.vertex_ids[11], {0, 0, -0.003})};
+  const std::vector<ConstraintSpec> press{
+      ConstraintSpec::displacement(m.vertex_ids[11], {0, 0, -0.003})};
   const Reply shown = toucher->request("box", press, false, true);
   ASSERT_EQ(shown.status, RequestStatus::kOk);
 
@@ -289,11 +306,14 @@ TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMove
 
   // A query (update_state = false) and a refused request leave the state alone:
   // the next state the viewer sees is the next state-changing request's.
-  const Reply query = toucher->request("box", std::vector{ConstraintSpec::force(m.vertex_ids[3], {0, 0, 1})}, false, false);
+  const Reply query = toucher->request(
+      "box", std::vector{ConstraintSpec::force(m.vertex_ids[3], {0, 0, 1})}, false, false);
   ASSERT_EQ(query.status, RequestStatus::kOk);
-  const Reply refused = toucher->request("box", std::vector{ConstraintSpec::force(1u << 30, {0, 0, 1})});
+  const Reply refused =
+      toucher->request("box", std::vector{ConstraintSpec::force(1u << 30, {0, 0, 1})});
   ASSERT_EQ(refused.status, RequestStatus::kVertexOutOfRange);
-  const Reply next = toucher->request("box", std::vector{ConstraintSpec::force(m.vertex_ids[4], {0, 0, -0.5})});
+  const Reply next =
+      toucher->request("box", std::vector{ConstraintSpec::force(m.vertex_ids[4], {0, 0, -0.5})});
   ASSERT_EQ(next.status, RequestStatus::kOk);
   const auto after = viewer.wait_surface("box", sample->sequence_number + 1, 0, kTimeout);
   ASSERT_TRUE(after);
@@ -308,7 +328,8 @@ TEST_F(PalpatedTest, EveryBadRequestGetsItsErrorAndTheDaemonKeepsServing) {
   const std::uint32_t v = m.vertex_ids[1];
   const std::uint32_t fixed = m.vertex_ids.back();  // drawn after the compliance vertices
   std::uint32_t interior = 0;
-  while (std::find(m.vertex_ids.begin(), m.vertex_ids.end(), interior) != m.vertex_ids.end()) ++interior;
+  while (std::find(m.vertex_ids.begin(), m.vertex_ids.end(), interior) != m.vertex_ids.end())
+    ++interior;
   struct Case {
     std::string model;
     std::vector<ConstraintSpec> constraints;
@@ -318,13 +339,26 @@ TEST_F(PalpatedTest, EveryBadRequestGetsItsErrorAndTheDaemonKeepsServing) {
   const auto push = ConstraintSpec::displacement(v, {0, 0, -0.001});
   const std::vector<Case> cases{
       {"spleen", {push}, RequestStatus::kUnknownModel, "served: box, stiff"},
-      {"box", {ConstraintSpec::force(100000, {0, 0, 1})}, RequestStatus::kVertexOutOfRange, "vertex 100000"},
-      {"box", {ConstraintSpec::force(interior, {0, 0, 1})}, RequestStatus::kVertexNotOnSurface, "inside the organ"},
+      {"box",
+       {ConstraintSpec::force(100000, {0, 0, 1})},
+       RequestStatus::kVertexOutOfRange,
+       "vertex 100000"},
+      {"box",
+       {ConstraintSpec::force(interior, {0, 0, 1})},
+       RequestStatus::kVertexNotOnSurface,
+       "inside the organ"},
       {"box", {ConstraintSpec::force(fixed, {0, 0, 1})}, RequestStatus::kVertexFixed, "is fixed"},
       {"box", {push, push}, RequestStatus::kDuplicateVertex, "appears twice"},
-      {"box", {ConstraintSpec::displacement(v, {nan, 0, 0})}, RequestStatus::kNonFiniteValue, "value[0]"},
-      {"box", {ConstraintSpec::normal_displacement(v, {0, 0, 0}, -0.001)}, RequestStatus::kBadNormal, "no direction"},
-      {"box", std::vector<ConstraintSpec>(9, push), RequestStatus::kTooManyConstraints, "at most 8"},
+      {"box",
+       {ConstraintSpec::displacement(v, {nan, 0, 0})},
+       RequestStatus::kNonFiniteValue,
+       "value[0]"},
+      {"box",
+       {ConstraintSpec::normal_displacement(v, {0, 0, 0}, -0.001)},
+       RequestStatus::kBadNormal,
+       "no direction"},
+      {"box", std::vector<ConstraintSpec>(9, push), RequestStatus::kTooManyConstraints,
+       "at most 8"},
   };
   for (const auto& c : cases) {
     const Reply reply = client->request(c.model, c.constraints);
@@ -336,7 +370,8 @@ TEST_F(PalpatedTest, EveryBadRequestGetsItsErrorAndTheDaemonKeepsServing) {
   }
   // The heartbeat counts the refusals.
   std::optional<StatusSample> status;
-  for (int i = 0; i < 50 && (!status || status->error_replies < cases.size()); ++i) status = client->wait_status(kTimeout);
+  for (int i = 0; i < 50 && (!status || status->error_replies < cases.size()); ++i)
+    status = client->wait_status(kTimeout);
   ASSERT_TRUE(status);
   EXPECT_GE(status->error_replies, cases.size());
   EXPECT_GE(status->requests_served, 2 * cases.size());
@@ -353,8 +388,9 @@ TEST_F(PalpatedTest, RefusesIllConditionedSystemsWithTheEstimate) {
   const auto m = client.wait_for_model("box", kTimeout);
   ASSERT_TRUE(m) << strict.log();
   ASSERT_TRUE(client.wait_for_service(kTimeout));
-  const std::vector<ConstraintSpec> cs{ConstraintSpec::displacement(m->vertex_ids[0], {0, 0, 0.001}),
-                                       ConstraintSpec::displacement(m->vertex_ids[1], {0, 0, 0.001})};
+  const std::vector<ConstraintSpec> cs{
+      ConstraintSpec::displacement(m->vertex_ids[0], {0, 0, 0.001}),
+      ConstraintSpec::displacement(m->vertex_ids[1], {0, 0, 0.001})};
   const Reply reply = client.request("box", cs);
   EXPECT_EQ(reply.status, RequestStatus::kIllConditioned);
   EXPECT_GT(reply.condition_estimate, 1.5);
@@ -382,7 +418,8 @@ TEST(PalpatedStartUp, StopsWithAClearMessageOnBadFilesAndConfiguration) {
     // One line says what is wrong, with the file.
     const auto line = log.find("palpated: error: ");
     ASSERT_NE(line, std::string::npos) << log;
-    EXPECT_NE(log.substr(line, log.find('\n', line) - line).find("not-hdf5.h5"), std::string::npos) << log;
+    EXPECT_NE(log.substr(line, log.find('\n', line) - line).find("not-hdf5.h5"), std::string::npos)
+        << log;
   }
   {
     std::ofstream(dir / "bad.toml") << "[rates]\nsurface_hz = 0\n";

@@ -10,27 +10,38 @@
 
 extern "C" {
 void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
-void dpotrs_(const char* uplo, const int* n, const int* nrhs, const double* a, const int* lda, double* b,
-             const int* ldb, int* info);
-void dpocon_(const char* uplo, const int* n, const double* a, const int* lda, const double* anorm, double* rcond,
-             double* work, int* iwork, int* info);
+void dpotrs_(const char* uplo, const int* n, const int* nrhs, const double* a, const int* lda,
+             double* b, const int* ldb, int* info);
+void dpocon_(const char* uplo, const int* n, const double* a, const int* lda, const double* anorm,
+             double* rcond, double* work, int* iwork, int* info);
 }
 
 namespace palpate {
 
 const char* status_name(RequestStatus status) {
   switch (status) {
-    case RequestStatus::kOk: return "ok";
-    case RequestStatus::kUnknownModel: return "unknown_model";
-    case RequestStatus::kVertexOutOfRange: return "vertex_out_of_range";
-    case RequestStatus::kVertexNotOnSurface: return "vertex_not_on_surface";
-    case RequestStatus::kVertexFixed: return "vertex_fixed";
-    case RequestStatus::kDuplicateVertex: return "duplicate_vertex";
-    case RequestStatus::kNonFiniteValue: return "non_finite_value";
-    case RequestStatus::kBadNormal: return "bad_normal";
-    case RequestStatus::kTooManyConstraints: return "too_many_constraints";
-    case RequestStatus::kIllConditioned: return "ill_conditioned";
-    case RequestStatus::kInternalError: return "internal_error";
+    case RequestStatus::kOk:
+      return "ok";
+    case RequestStatus::kUnknownModel:
+      return "unknown_model";
+    case RequestStatus::kVertexOutOfRange:
+      return "vertex_out_of_range";
+    case RequestStatus::kVertexNotOnSurface:
+      return "vertex_not_on_surface";
+    case RequestStatus::kVertexFixed:
+      return "vertex_fixed";
+    case RequestStatus::kDuplicateVertex:
+      return "duplicate_vertex";
+    case RequestStatus::kNonFiniteValue:
+      return "non_finite_value";
+    case RequestStatus::kBadNormal:
+      return "bad_normal";
+    case RequestStatus::kTooManyConstraints:
+      return "too_many_constraints";
+    case RequestStatus::kIllConditioned:
+      return "ill_conditioned";
+    case RequestStatus::kInternalError:
+      return "internal_error";
   }
   return "unknown_status";
 }
@@ -40,19 +51,19 @@ const char* status_name(RequestStatus status) {
 struct ConstraintSolver::Slot {
   bool valid = false;
   std::uint64_t last_used = 0;
-  int count = 0;                       // k
-  int unknowns = 0;                    // m
-  std::vector<int> index;              // k
-  std::vector<ConstraintKind> kind;    // k
-  std::vector<double> normal;          // 3k
-  std::vector<int> unknown_vertex;     // m: which constraint an unknown belongs to
-  std::vector<int> unknown_value;      // m: where its prescribed displacement is in value_
-  std::vector<double> unknown_dir;     // 3m: its unit direction (a column of B)
-  std::vector<double> G_CC;            // 3k × 3k, column-major
-  std::vector<double> GB;              // 3k × m, column-major: G_CC B
-  std::vector<double> L;               // m × m, Cholesky factor of Bᵀ G_CC B (lower)
-  std::vector<double> work;            // 3m for dpocon
-  std::vector<int> iwork;              // m
+  int count = 0;                     // k
+  int unknowns = 0;                  // m
+  std::vector<int> index;            // k
+  std::vector<ConstraintKind> kind;  // k
+  std::vector<double> normal;        // 3k
+  std::vector<int> unknown_vertex;   // m: which constraint an unknown belongs to
+  std::vector<int> unknown_value;    // m: where its prescribed displacement is in value_
+  std::vector<double> unknown_dir;   // 3m: its unit direction (a column of B)
+  std::vector<double> G_CC;          // 3k × 3k, column-major
+  std::vector<double> GB;            // 3k × m, column-major: G_CC B
+  std::vector<double> L;             // m × m, Cholesky factor of Bᵀ G_CC B (lower)
+  std::vector<double> work;          // 3m for dpocon
+  std::vector<int> iwork;            // m
   double condition = 1;
 
   explicit Slot(int max_constraints) {
@@ -104,8 +115,9 @@ RequestStatus ConstraintSolver::begin(std::size_t count) {
   count_ = 0;
   added_ = 0;
   if (count > static_cast<std::size_t>(limits_.max_constraints))
-    return fail(RequestStatus::kTooManyConstraints, "%zu constraints in one request; at most %d are accepted",
-                count, limits_.max_constraints);
+    return fail(RequestStatus::kTooManyConstraints,
+                "%zu constraints in one request; at most %d are accepted", count,
+                limits_.max_constraints);
   count_ = static_cast<int>(count);
   // A new epoch marks the vertices of this request without clearing seen_.
   if (++epoch_ == 0) {
@@ -121,53 +133,65 @@ RequestStatus ConstraintSolver::add(std::uint32_t vertex_id, std::int32_t kind, 
   const int j = added_;
   if (vertex_id >= model_.mesh_vertex_count())
     return fail(RequestStatus::kVertexOutOfRange,
-                "constraint %d: vertex %u is not a vertex of model '%s' (ids are 0..%u)", j, vertex_id,
-                model_.id.c_str(), model_.mesh_vertex_count() - 1);
+                "constraint %d: vertex %u is not a vertex of model '%s' (ids are 0..%u)", j,
+                vertex_id, model_.id.c_str(), model_.mesh_vertex_count() - 1);
   const std::int32_t index = model_.compliance_index_of_vertex[vertex_id];
   if (index == static_cast<std::int32_t>(VertexRole::kFixed))
-    return fail(RequestStatus::kVertexFixed,
-                "constraint %d: vertex %u of model '%s' is fixed (attached); only free surface vertices "
-                "(ModelDescription.vertex_ids, first compliance_vertex_count) can be constrained",
-                j, vertex_id, model_.id.c_str());
+    return fail(
+        RequestStatus::kVertexFixed,
+        "constraint %d: vertex %u of model '%s' is fixed (attached); only free surface vertices "
+        "(ModelDescription.vertex_ids, first compliance_vertex_count) can be constrained",
+        j, vertex_id, model_.id.c_str());
   if (index < 0)
-    return fail(RequestStatus::kVertexNotOnSurface,
-                "constraint %d: vertex %u of model '%s' is inside the organ; only free surface vertices "
-                "(ModelDescription.vertex_ids, first compliance_vertex_count) can be constrained",
-                j, vertex_id, model_.id.c_str());
+    return fail(
+        RequestStatus::kVertexNotOnSurface,
+        "constraint %d: vertex %u of model '%s' is inside the organ; only free surface vertices "
+        "(ModelDescription.vertex_ids, first compliance_vertex_count) can be constrained",
+        j, vertex_id, model_.id.c_str());
   if (seen_[static_cast<std::size_t>(index)] == epoch_)
-    return fail(RequestStatus::kDuplicateVertex, "constraint %d: vertex %u appears twice; each vertex at most once",
-                j, vertex_id);
+    return fail(RequestStatus::kDuplicateVertex,
+                "constraint %d: vertex %u appears twice; each vertex at most once", j, vertex_id);
   seen_[static_cast<std::size_t>(index)] = epoch_;
 
   if (kind < 0 || kind > 2)
-    return fail(RequestStatus::kBadNormal, "constraint %d (vertex %u): unknown kind %d; accepted: 0 force, "
-                "1 displacement, 2 normal displacement", j, vertex_id, kind);
+    return fail(RequestStatus::kBadNormal,
+                "constraint %d (vertex %u): unknown kind %d; accepted: 0 force, "
+                "1 displacement, 2 normal displacement",
+                j, vertex_id, kind);
   const auto k = static_cast<ConstraintKind>(kind);
   const bool uses_normal = k == ConstraintKind::kNormalDisplacement;
   const int value_count = uses_normal ? 1 : 3;
   for (int d = 0; d < value_count; ++d)
     if (!std::isfinite(value[d]))
-      return fail(RequestStatus::kNonFiniteValue, "constraint %d (vertex %u): value[%d] is %g; finite numbers "
-                  "only", j, vertex_id, d, value[d]);
+      return fail(RequestStatus::kNonFiniteValue,
+                  "constraint %d (vertex %u): value[%d] is %g; finite numbers "
+                  "only",
+                  j, vertex_id, d, value[d]);
   double* n = &normal_[3 * static_cast<std::size_t>(j)];
   if (uses_normal) {
     for (int d = 0; d < 3; ++d)
       if (!std::isfinite(normal[d]))
-        return fail(RequestStatus::kNonFiniteValue, "constraint %d (vertex %u): normal[%d] is %g; finite "
-                    "numbers only", j, vertex_id, d, normal[d]);
-    const double length = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
+        return fail(RequestStatus::kNonFiniteValue,
+                    "constraint %d (vertex %u): normal[%d] is %g; finite "
+                    "numbers only",
+                    j, vertex_id, d, normal[d]);
+    const double length =
+        std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
     // Below this a direction is noise; the solve would divide by it.
     if (!(length > 1e-12))
-      return fail(RequestStatus::kBadNormal, "constraint %d (vertex %u): normal (%g, %g, %g) has no direction; "
-                  "a normal displacement needs a non-zero normal", j, vertex_id, normal[0], normal[1], normal[2]);
+      return fail(RequestStatus::kBadNormal,
+                  "constraint %d (vertex %u): normal (%g, %g, %g) has no direction; "
+                  "a normal displacement needs a non-zero normal",
+                  j, vertex_id, normal[0], normal[1], normal[2]);
     for (int d = 0; d < 3; ++d) n[d] = normal[d] / length;
   } else {
     n[0] = n[1] = n[2] = 0;
   }
   index_[static_cast<std::size_t>(j)] = index;
   kind_[static_cast<std::size_t>(j)] = k;
-  for (int d = 0; d < 3; ++d) value_[3 * static_cast<std::size_t>(j) + static_cast<std::size_t>(d)] =
-      d < value_count ? value[d] : 0.0;
+  for (int d = 0; d < 3; ++d)
+    value_[3 * static_cast<std::size_t>(j) + static_cast<std::size_t>(d)] =
+        d < value_count ? value[d] : 0.0;
   ++added_;
   return RequestStatus::kOk;
 }
@@ -207,7 +231,8 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
   const int n3 = 3 * k;
   Eigen::Map<Eigen::MatrixXd> G_CC(slot.G_CC.data(), n3, n3);
   for (int b = 0; b < k; ++b)
-    for (int a = 0; a < k; ++a) G_CC.block<3, 3>(3 * a, 3 * b) = model_.G.block<3, 3>(3 * index_[a], 3 * index_[b]);
+    for (int a = 0; a < k; ++a)
+      G_CC.block<3, 3>(3 * a, 3 * b) = model_.G.block<3, 3>(3 * index_[a], 3 * index_[b]);
 
   // B: one unit column per unknown force component.
   int m = 0;
@@ -262,16 +287,19 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
 
 RequestStatus ConstraintSolver::solve() {
   if (added_ != count_)
-    return fail(RequestStatus::kInternalError, "solve() after %d of %d constraints", added_, count_);
+    return fail(RequestStatus::kInternalError, "solve() after %d of %d constraints", added_,
+                count_);
   const int k = count_;
   const Slot& slot = find_or_build_slot();
   condition_ = slot.condition;
   if (!slot.valid)
-    return fail(RequestStatus::kIllConditioned,
-                "the %d × %d system of the imposed displacements has condition estimate %.3g, above the limit "
-                "%.3g: constrained vertices too close together, or normals nearly parallel on neighbours; "
-                "constrain fewer vertices or give forces instead",
-                slot.unknowns, slot.unknowns, condition_, limits_.max_condition);
+    return fail(
+        RequestStatus::kIllConditioned,
+        "the %d × %d system of the imposed displacements has condition estimate %.3g, above the "
+        "limit "
+        "%.3g: constrained vertices too close together, or normals nearly parallel on neighbours; "
+        "constrain fewer vertices or give forces instead",
+        slot.unknowns, slot.unknowns, condition_, limits_.max_condition);
 
   const int n3 = 3 * k;
   const int m = slot.unknowns;
@@ -319,14 +347,15 @@ void ConstraintSolver::surface_displacement(Eigen::Ref<Eigen::VectorXd> u_m) con
   palpate::surface_displacement(model_.G, indices(), force_.data(), u_m);
 }
 
-void surface_displacement(const Eigen::MatrixXd& G, std::span<const int> indices, const double* forces_n,
-                          Eigen::Ref<Eigen::VectorXd> u_m) {
+void surface_displacement(const Eigen::MatrixXd& G, std::span<const int> indices,
+                          const double* forces_n, Eigen::Ref<Eigen::VectorXd> u_m) {
   PALPATE_DEMAND(u_m.size() == G.rows());
   u_m.setZero();
   // G is symmetric and column-major: the three columns of vertex c are
   // contiguous, so G_SC f_C reads k panels of 3N_S × 3 once each.
   for (std::size_t j = 0; j < indices.size(); ++j)
-    u_m.noalias() += G.middleCols<3>(3 * indices[j]) * Eigen::Map<const Eigen::Vector3d>(forces_n + 3 * j);
+    u_m.noalias() +=
+        G.middleCols<3>(3 * indices[j]) * Eigen::Map<const Eigen::Vector3d>(forces_n + 3 * j);
 }
 
 }  // namespace palpate

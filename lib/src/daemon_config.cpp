@@ -15,9 +15,11 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
   DaemonConfig config;
   r.only_keys(root, "", {"daemon", "dds", "rates", "limits", "model"});
 
-  auto integer = [&](const toml::node& node, const std::string& key, std::int64_t lo, std::int64_t hi) {
+  auto integer = [&](const toml::node& node, const std::string& key, std::int64_t lo,
+                     std::int64_t hi) {
     const auto v = node.value<std::int64_t>();
-    if (!v || *v < lo || *v > hi) r.fail(&node, key, fmt::format("expected an integer in [{}, {}]", lo, hi));
+    if (!v || *v < lo || *v > hi)
+      r.fail(&node, key, fmt::format("expected an integer in [{}, {}]", lo, hi));
     return *v;
   };
   auto positive = [&](const toml::node& node, const std::string& key) {
@@ -35,7 +37,8 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
   if (const auto* n = root.get("dds")) {
     const auto& t = r.table(*n, "dds");
     r.only_keys(t, "dds", {"domain", "config"});
-    if (const auto* v = t.get("domain")) config.domain_id = static_cast<std::uint32_t>(integer(*v, "dds.domain", 0, 232));
+    if (const auto* v = t.get("domain"))
+      config.domain_id = static_cast<std::uint32_t>(integer(*v, "dds.domain", 0, 232));
     if (const auto* v = t.get("config")) {
       config.dds_config = r.string(*v, "dds.config");
       // A path (not XML, not a URI) is relative to the configuration file.
@@ -47,15 +50,18 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
   if (const auto* n = root.get("rates")) {
     const auto& t = r.table(*n, "rates");
     r.only_keys(t, "rates", {"surface_hz", "status_hz"});
-    if (const auto* v = t.get("surface_hz")) config.surface_rate_hz = positive(*v, "rates.surface_hz");
+    if (const auto* v = t.get("surface_hz"))
+      config.surface_rate_hz = positive(*v, "rates.surface_hz");
     if (const auto* v = t.get("status_hz")) config.status_rate_hz = positive(*v, "rates.status_hz");
   }
   if (const auto* n = root.get("limits")) {
     const auto& t = r.table(*n, "limits");
     r.only_keys(t, "limits", {"max_constraints", "max_condition", "cache_slots", "max_clients"});
     if (const auto* v = t.get("max_constraints"))
-      config.limits.max_constraints = static_cast<int>(integer(*v, "limits.max_constraints", 1, 1024));
-    if (const auto* v = t.get("max_condition")) config.limits.max_condition = positive(*v, "limits.max_condition");
+      config.limits.max_constraints =
+          static_cast<int>(integer(*v, "limits.max_constraints", 1, 1024));
+    if (const auto* v = t.get("max_condition"))
+      config.limits.max_condition = positive(*v, "limits.max_condition");
     if (const auto* v = t.get("cache_slots"))
       config.limits.cache_slots = static_cast<int>(integer(*v, "limits.cache_slots", 1, 256));
     if (const auto* v = t.get("max_clients"))
@@ -83,33 +89,45 @@ void validate(const DaemonConfig& config) {
   auto valid_id = [](const std::string& id) {
     if (id.empty() || id.size() > 63) return false;
     for (char c : id)
-      if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) return false;
+      if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.'))
+        return false;
     return true;
   };
   if (!valid_id(config.daemon_id))
-    throw InputError("daemon.id '" + config.daemon_id + "': expected 1 to 63 characters among A-Z a-z 0-9 _ - .");
+    throw InputError("daemon.id '" + config.daemon_id +
+                     "': expected 1 to 63 characters among A-Z a-z 0-9 _ - .");
   static const std::set<std::string> levels{"trace", "debug", "info", "warn", "error"};
   if (!levels.contains(config.log_level))
-    throw InputError("daemon.log_level '" + config.log_level + "': expected trace, debug, info, warn or error");
+    throw InputError("daemon.log_level '" + config.log_level +
+                     "': expected trace, debug, info, warn or error");
   if (!(config.surface_rate_hz > 0 && config.surface_rate_hz <= 1000))
-    throw InputError(fmt::format("rates.surface_hz {}: expected a rate in (0, 1000] Hz", config.surface_rate_hz));
+    throw InputError(fmt::format("rates.surface_hz {}: expected a rate in (0, 1000] Hz",
+                                 config.surface_rate_hz));
   if (!(config.status_rate_hz > 0 && config.status_rate_hz <= 100))
-    throw InputError(fmt::format("rates.status_hz {}: expected a rate in (0, 100] Hz", config.status_rate_hz));
+    throw InputError(
+        fmt::format("rates.status_hz {}: expected a rate in (0, 100] Hz", config.status_rate_hz));
   if (!(config.limits.max_condition >= 1))
-    throw InputError(fmt::format("limits.max_condition {}: expected a number ≥ 1", config.limits.max_condition));
+    throw InputError(
+        fmt::format("limits.max_condition {}: expected a number ≥ 1", config.limits.max_condition));
   if (config.limits.max_constraints < 1 || config.limits.max_constraints > 1024)
-    throw InputError(fmt::format("limits.max_constraints {}: expected 1 to 1024", config.limits.max_constraints));
+    throw InputError(fmt::format("limits.max_constraints {}: expected 1 to 1024",
+                                 config.limits.max_constraints));
   if (config.limits.cache_slots < 1 || config.limits.cache_slots > 256)
-    throw InputError(fmt::format("limits.cache_slots {}: expected 1 to 256", config.limits.cache_slots));
+    throw InputError(
+        fmt::format("limits.cache_slots {}: expected 1 to 256", config.limits.cache_slots));
   if (config.max_clients < 1 || config.max_clients > 4096)
     throw InputError(fmt::format("limits.max_clients {}: expected 1 to 4096", config.max_clients));
   if (config.models.empty())
-    throw InputError("no model to serve: add a [[model]] table (id, file) to the configuration or --model ID=PATH");
+    throw InputError(
+        "no model to serve: add a [[model]] table (id, file) to the configuration or --model "
+        "ID=PATH");
   std::set<std::string> ids;
   for (const auto& model : config.models) {
     if (!valid_id(model.id))
-      throw InputError("model id '" + model.id + "': expected 1 to 63 characters among A-Z a-z 0-9 _ - .");
-    if (!ids.insert(model.id).second) throw InputError("model id '" + model.id + "' is given twice");
+      throw InputError("model id '" + model.id +
+                       "': expected 1 to 63 characters among A-Z a-z 0-9 _ - .");
+    if (!ids.insert(model.id).second)
+      throw InputError("model id '" + model.id + "' is given twice");
     if (!std::filesystem::is_regular_file(model.file))
       throw InputError("model '" + model.id + "': compliance file " + model.file.string() +
                        " does not exist (make one with palpate-precompute)");

@@ -30,8 +30,9 @@ DomainConfig resolve_domain_config(const std::string& user_config) {
     if (!is_xml && !is_uri) {
       std::ifstream file(user_config);
       if (!file)
-        throw InputError("DDS configuration '" + user_config +
-                         "' cannot be read; give a Cyclone DDS XML file, a file:// URI or an XML fragment");
+        throw InputError(
+            "DDS configuration '" + user_config +
+            "' cannot be read; give a Cyclone DDS XML file, a file:// URI or an XML fragment");
       return {"file://" + user_config, "file " + user_config};
     }
     return {user_config, "user configuration"};

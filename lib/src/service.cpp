@@ -1,5 +1,8 @@
 #include "palpate/service.hpp"
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -7,9 +10,6 @@
 #include <cstring>
 #include <mutex>
 #include <thread>
-
-#include <fmt/format.h>
-#include <spdlog/spdlog.h>
 
 #include "palpate.h"
 #include "palpate/constraint_solver.hpp"
@@ -23,7 +23,8 @@ namespace palpate {
 static_assert(static_cast<int>(RequestStatus::kOk) == palpate_STATUS_OK);
 static_assert(static_cast<int>(RequestStatus::kIllConditioned) == palpate_STATUS_ILL_CONDITIONED);
 static_assert(static_cast<int>(RequestStatus::kInternalError) == palpate_STATUS_INTERNAL_ERROR);
-static_assert(static_cast<int>(ConstraintKind::kNormalDisplacement) == palpate_CONSTRAINT_NORMAL_DISPLACEMENT);
+static_assert(static_cast<int>(ConstraintKind::kNormalDisplacement) ==
+              palpate_CONSTRAINT_NORMAL_DISPLACEMENT);
 
 namespace {
 
@@ -42,7 +43,9 @@ palpate_Latency percentiles(std::vector<double>& values_us, std::size_t count) {
   palpate_Latency latency{};
   if (count == 0) return latency;
   std::sort(values_us.begin(), values_us.begin() + static_cast<std::ptrdiff_t>(count));
-  auto at = [&](double q) { return values_us[static_cast<std::size_t>(q * static_cast<double>(count - 1) + 0.5)]; };
+  auto at = [&](double q) {
+    return values_us[static_cast<std::size_t>(q * static_cast<double>(count - 1) + 0.5)];
+  };
   latency.p50_us = at(0.50);
   latency.p99_us = at(0.99);
   latency.p999_us = at(0.999);
@@ -65,7 +68,8 @@ class LatencyLog {
     reply_us_[count_] = request_to_reply_us;
     ++count_;
   }
-  /// Swaps the interval's samples into @p solve_us, @p reply_us (same capacity); returns their count.
+  /// Swaps the interval's samples into @p solve_us, @p reply_us (same capacity); returns their
+  /// count.
   std::size_t drain(std::vector<double>& solve_us, std::vector<double>& reply_us) {
     const std::lock_guard lock(mutex_);
     solve_us.swap(solve_us_);
@@ -151,8 +155,9 @@ struct Service::Impl {
   void stream_loop();
   void stop();
   void publish_surfaces();
-  void publish_status(double interval_s, std::uint64_t served_in_interval, std::uint64_t surfaces_in_interval,
-                      std::vector<double>& solve_us, std::vector<double>& reply_us);
+  void publish_status(double interval_s, std::uint64_t served_in_interval,
+                      std::uint64_t surfaces_in_interval, std::vector<double>& solve_us,
+                      std::vector<double>& reply_us);
 };
 
 Service::Impl::Impl(const DaemonConfig& c) : config(c) {
@@ -170,11 +175,12 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
     served->stream_forces.resize(3 * k);
     served->displacement = Eigen::VectorXd::Zero(m.G.rows());
     max_surface = std::max(max_surface, static_cast<std::size_t>(m.G.rows()));
-    spdlog::info("event=model_loaded model={} file={} compliance_vertices={} mesh_vertices={} triangles={} "
-                 "G_MB={:.1f} seconds={:.2f}",
-                 m.id, m.path.string(), m.compliance_vertex_count(), m.mesh_vertex_count(),
-                 m.drawn_triangles.size() / 3, static_cast<double>(m.G.size()) * 8 / 1e6,
-                 std::chrono::duration<double>(Clock::now() - start).count());
+    spdlog::info(
+        "event=model_loaded model={} file={} compliance_vertices={} mesh_vertices={} triangles={} "
+        "G_MB={:.1f} seconds={:.2f}",
+        m.id, m.path.string(), m.compliance_vertex_count(), m.mesh_vertex_count(),
+        m.drawn_triangles.size() / 3, static_cast<double>(m.G.size()) * 8 / 1e6,
+        std::chrono::duration<double>(Clock::now() - start).count());
     served_ids += (served_ids.empty() ? "" : ", ") + m.id;
     models.push_back(std::move(served));
   }
@@ -190,7 +196,8 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   clients.reserve(static_cast<std::size_t>(config.max_clients));
 
   const dds::DomainConfig dds_config = dds::resolve_domain_config(config.dds_config);
-  spdlog::info("event=dds_domain domain={} configuration=\"{}\"", config.domain_id, dds_config.origin);
+  spdlog::info("event=dds_domain domain={} configuration=\"{}\"", config.domain_id,
+               dds_config.origin);
   domain = dds::acquire_domain(config.domain_id, dds_config);
   participant = dds::Entity(dds::check(dds_create_participant(config.domain_id, nullptr, nullptr),
                                        "creating the DDS participant"));
@@ -204,24 +211,29 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   const dds_entity_t surface_topic = topic(&palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic);
   const dds_entity_t status_topic = topic(&palpate_DaemonStatus_desc, dds::kStatusTopic);
 
-  model_writer = dds::Entity(dds::check(dds_create_writer(participant.get(), model_topic, dds::model_qos().get(), nullptr),
-                                        "creating the model writer"));
+  model_writer = dds::Entity(
+      dds::check(dds_create_writer(participant.get(), model_topic, dds::model_qos().get(), nullptr),
+                 "creating the model writer"));
   request_reader = dds::Entity(dds::check(
       dds_create_reader(participant.get(), request_topic, dds::request_reply_qos().get(), nullptr),
       "creating the request reader"));
   surface_writer = dds::Entity(dds::check(
-      dds_create_writer(participant.get(), surface_topic, dds::surface_qos().get(), nullptr), "creating the surface writer"));
+      dds_create_writer(participant.get(), surface_topic, dds::surface_qos().get(), nullptr),
+      "creating the surface writer"));
   status_writer = dds::Entity(dds::check(
-      dds_create_writer(participant.get(), status_topic, dds::status_qos().get(), nullptr), "creating the status writer"));
+      dds_create_writer(participant.get(), status_topic, dds::status_qos().get(), nullptr),
+      "creating the status writer"));
   subscriptions_reader = dds::Entity(dds::check(
       dds_create_reader(participant.get(), DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION, nullptr, nullptr),
       "creating the discovery reader"));
 
   waitset = dds::Entity(dds::check(dds_create_waitset(participant.get()), "creating the waitset"));
-  stop_condition = dds::Entity(dds::check(dds_create_guardcondition(participant.get()), "creating the guard condition"));
-  request_condition = dds::check(dds_create_readcondition(request_reader.get(), DDS_ANY_STATE), "read condition");
-  subscriptions_condition =
-      dds::check(dds_create_readcondition(subscriptions_reader.get(), DDS_ANY_STATE), "read condition");
+  stop_condition = dds::Entity(
+      dds::check(dds_create_guardcondition(participant.get()), "creating the guard condition"));
+  request_condition =
+      dds::check(dds_create_readcondition(request_reader.get(), DDS_ANY_STATE), "read condition");
+  subscriptions_condition = dds::check(
+      dds_create_readcondition(subscriptions_reader.get(), DDS_ANY_STATE), "read condition");
   dds::check(dds_waitset_attach(waitset.get(), stop_condition.get(), 0), "waitset");
   dds::check(dds_waitset_attach(waitset.get(), request_condition, 1), "waitset");
   dds::check(dds_waitset_attach(waitset.get(), subscriptions_condition, 2), "waitset");
@@ -278,7 +290,8 @@ ClientWriter* Service::Impl::client_writer(const char* client_id) {
       }
     }
     if (slot == nullptr) {
-      spdlog::warn("event=too_many_clients client={} max_clients={}", client_id, config.max_clients);
+      spdlog::warn("event=too_many_clients client={} max_clients={}", client_id,
+                   config.max_clients);
       return nullptr;
     }
   }
@@ -289,16 +302,17 @@ ClientWriter* Service::Impl::client_writer(const char* client_id) {
   dds_qset_partition(qos.get(), 1, partitions);
   dds_entity_t publisher = dds_create_publisher(participant.get(), qos.get(), nullptr);
   if (publisher < 0) {
-    spdlog::error("event=dds_error what=\"creating the reply publisher of client {}\" error={}", client_id,
-                  dds_strretcode(publisher));
+    spdlog::error("event=dds_error what=\"creating the reply publisher of client {}\" error={}",
+                  client_id, dds_strretcode(publisher));
     slot->id[0] = '\0';
     return nullptr;
   }
   slot->publisher = dds::Entity(publisher);
-  dds_entity_t writer = dds_create_writer(publisher, reply_topic.get(), dds::request_reply_qos().get(), nullptr);
+  dds_entity_t writer =
+      dds_create_writer(publisher, reply_topic.get(), dds::request_reply_qos().get(), nullptr);
   if (writer < 0) {
-    spdlog::error("event=dds_error what=\"creating the reply writer of client {}\" error={}", client_id,
-                  dds_strretcode(writer));
+    spdlog::error("event=dds_error what=\"creating the reply writer of client {}\" error={}",
+                  client_id, dds_strretcode(writer));
     slot->publisher.reset();
     slot->id[0] = '\0';
     return nullptr;
@@ -318,13 +332,15 @@ void Service::Impl::discover_clients() {
   for (dds_return_t i = 0; i < n; ++i) {
     if (!infos[i].valid_data || infos[i].instance_state != DDS_IST_ALIVE) continue;
     const auto* endpoint = static_cast<const dds_builtintopic_endpoint_t*>(samples[i]);
-    if (endpoint->topic_name == nullptr || std::strcmp(endpoint->topic_name, dds::kReplyTopic) != 0) continue;
+    if (endpoint->topic_name == nullptr || std::strcmp(endpoint->topic_name, dds::kReplyTopic) != 0)
+      continue;
     std::uint32_t count = 0;
     char** names = nullptr;
     if (!dds_qget_partition(endpoint->qos, &count, &names)) continue;
     for (std::uint32_t p = 0; p < count; ++p) {
       const std::string_view name(names[p]);
-      if (name.starts_with(dds::kReplyPartitionPrefix) && name.size() > dds::kReplyPartitionPrefix.size() &&
+      if (name.starts_with(dds::kReplyPartitionPrefix) &&
+          name.size() > dds::kReplyPartitionPrefix.size() &&
           name.size() - dds::kReplyPartitionPrefix.size() < 64)
         client_writer(names[p] + dds::kReplyPartitionPrefix.size());
       dds_free(names[p]);
@@ -337,10 +353,11 @@ void Service::Impl::discover_clients() {
 RequestStatus Service::Impl::solve(const palpate_ConstraintRequest& request, ServedModel*& served) {
   served = nullptr;
   for (const auto& candidate : models)
-    if (std::strncmp(candidate->model.id.c_str(), request.model_id, sizeof request.model_id) == 0) served = candidate.get();
+    if (std::strncmp(candidate->model.id.c_str(), request.model_id, sizeof request.model_id) == 0)
+      served = candidate.get();
   if (served == nullptr) {
-    std::snprintf(reply.message, sizeof reply.message, "model '%s' is not served here; served: %s", request.model_id,
-                  served_ids.c_str());
+    std::snprintf(reply.message, sizeof reply.message, "model '%s' is not served here; served: %s",
+                  request.model_id, served_ids.c_str());
     return RequestStatus::kUnknownModel;
   }
   ConstraintSolver& solver = *served->solver;
@@ -390,10 +407,15 @@ RequestStatus Service::Impl::solve(const palpate_ConstraintRequest& request, Ser
   return RequestStatus::kOk;
 }
 
-void Service::Impl::handle(const palpate_ConstraintRequest& request, const dds_sample_info_t& info) {
+void Service::Impl::handle(const palpate_ConstraintRequest& request,
+                           const dds_sample_info_t& info) {
   const auto start = Clock::now();
-  copy_bounded(reply.client_id, std::string_view(request.client_id, strnlen(request.client_id, sizeof request.client_id)));
-  copy_bounded(reply.model_id, std::string_view(request.model_id, strnlen(request.model_id, sizeof request.model_id)));
+  copy_bounded(
+      reply.client_id,
+      std::string_view(request.client_id, strnlen(request.client_id, sizeof request.client_id)));
+  copy_bounded(
+      reply.model_id,
+      std::string_view(request.model_id, strnlen(request.model_id, sizeof request.model_id)));
   reply.request_id = request.request_id;
   reply.message[0] = '\0';
   reply.condition_estimate = 1;
@@ -413,17 +435,21 @@ void Service::Impl::handle(const palpate_ConstraintRequest& request, const dds_s
     reply.results._length = 0;
     reply.surface_displacement._length = 0;
     errors.fetch_add(1, std::memory_order_relaxed);
-    spdlog::debug("event=request_refused client={} request={} status={} message=\"{}\"", reply.client_id,
-                  request.request_id, status_name(status), reply.message);
+    spdlog::debug("event=request_refused client={} request={} status={} message=\"{}\"",
+                  reply.client_id, request.request_id, status_name(status), reply.message);
   }
 
   ClientWriter* client = client_writer(reply.client_id);
-  reply.solve_ns = static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count());
+  reply.solve_ns = static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count());
   if (client == nullptr) {
-    spdlog::warn("event=reply_dropped client=\"{}\" request={} reason=\"no reply writer for this client id\"",
-                 reply.client_id, request.request_id);
+    spdlog::warn(
+        "event=reply_dropped client=\"{}\" request={} reason=\"no reply writer for this client "
+        "id\"",
+        reply.client_id, request.request_id);
   } else if (const dds_return_t rc = dds_write(client->writer.get(), &reply); rc < 0) {
-    spdlog::error("event=dds_error what=\"writing a reply\" client={} error={}", reply.client_id, dds_strretcode(rc));
+    spdlog::error("event=dds_error what=\"writing a reply\" client={} error={}", reply.client_id,
+                  dds_strretcode(rc));
   }
   requests_served.fetch_add(1, std::memory_order_relaxed);
   const double solve_us = static_cast<double>(reply.solve_ns) * 1e-3;
@@ -433,7 +459,8 @@ void Service::Impl::handle(const palpate_ConstraintRequest& request, const dds_s
 
 void Service::Impl::serve_requests() {
   for (;;) {
-    const dds_return_t n = dds_take(request_reader.get(), request_pointers.data(), request_infos.data(), kBatch, kBatch);
+    const dds_return_t n = dds_take(request_reader.get(), request_pointers.data(),
+                                    request_infos.data(), kBatch, kBatch);
     if (n < 0) throw SystemError(std::string("taking requests: ") + dds_strretcode(n));
     for (dds_return_t i = 0; i < n; ++i)
       if (request_infos[i].valid_data) handle(requests[i], request_infos[i]);
@@ -457,23 +484,26 @@ void Service::Impl::publish_surfaces() {
       std::copy_n(served->shown_total_force, 3, sample.total_force);
     }
     // u_S = G_SC f_C, off the request path.
-    surface_displacement(served->model.G, {served->stream_indices.data(), static_cast<std::size_t>(count)},
+    surface_displacement(served->model.G,
+                         {served->stream_indices.data(), static_cast<std::size_t>(count)},
                          served->stream_forces.data(), served->displacement);
     copy_bounded(sample.model_id, served->model.id);
     ++sample.sequence_number;
     sample.displacement._buffer = served->displacement.data();
-    sample.displacement._length = sample.displacement._maximum = static_cast<std::uint32_t>(served->displacement.size());
+    sample.displacement._length = sample.displacement._maximum =
+        static_cast<std::uint32_t>(served->displacement.size());
     sample.displacement._release = false;
     if (const dds_return_t rc = dds_write(surface_writer.get(), &sample); rc < 0)
-      spdlog::error("event=dds_error what=\"writing the surface of {}\" error={}", served->model.id, dds_strretcode(rc));
+      spdlog::error("event=dds_error what=\"writing the surface of {}\" error={}", served->model.id,
+                    dds_strretcode(rc));
     else
       surface_samples.fetch_add(1, std::memory_order_relaxed);
   }
 }
 
 void Service::Impl::publish_status(double interval_s, std::uint64_t served_in_interval,
-                                   std::uint64_t surfaces_in_interval, std::vector<double>& solve_us,
-                                   std::vector<double>& reply_us) {
+                                   std::uint64_t surfaces_in_interval,
+                                   std::vector<double>& solve_us, std::vector<double>& reply_us) {
   const std::size_t n = latencies.drain(solve_us, reply_us);
   palpate_DaemonStatus status{};
   copy_bounded(status.daemon_id, config.daemon_id);
@@ -493,8 +523,10 @@ void Service::Impl::publish_status(double interval_s, std::uint64_t served_in_in
 
 void Service::Impl::stream_loop() {
   using namespace std::chrono;
-  const auto surface_period = duration_cast<Clock::duration>(duration<double>(1.0 / config.surface_rate_hz));
-  const auto status_period = duration_cast<Clock::duration>(duration<double>(1.0 / config.status_rate_hz));
+  const auto surface_period =
+      duration_cast<Clock::duration>(duration<double>(1.0 / config.surface_rate_hz));
+  const auto status_period =
+      duration_cast<Clock::duration>(duration<double>(1.0 / config.status_rate_hz));
   auto next_surface = Clock::now();
   auto next_status = Clock::now() + status_period;
   auto last_status = Clock::now();
@@ -502,7 +534,8 @@ void Service::Impl::stream_loop() {
   std::vector<double> solve_us(LatencyLog::kCapacity), reply_us(LatencyLog::kCapacity);
   std::unique_lock lock(stream_mutex);
   while (!stopping.load()) {
-    stream_wake.wait_until(lock, std::min(next_surface, next_status), [&] { return stopping.load(); });
+    stream_wake.wait_until(lock, std::min(next_surface, next_status),
+                           [&] { return stopping.load(); });
     if (stopping.load()) break;
     const auto now = Clock::now();
     if (now >= next_surface) {
@@ -511,8 +544,8 @@ void Service::Impl::stream_loop() {
     }
     if (now >= next_status) {
       const std::uint64_t s = requests_served.load(), f = surface_samples.load();
-      publish_status(duration<double>(now - last_status).count(), s - last_served, f - last_surfaces, solve_us,
-                     reply_us);
+      publish_status(duration<double>(now - last_status).count(), s - last_served,
+                     f - last_surfaces, solve_us, reply_us);
       last_served = s;
       last_surfaces = f;
       last_status = now;
@@ -550,7 +583,8 @@ void Service::run() {
     throw;
   }
   stream.join();
-  spdlog::info("event=stopped requests_served={} error_replies={}", s.requests_served.load(), s.errors.load());
+  spdlog::info("event=stopped requests_served={} error_replies={}", s.requests_served.load(),
+               s.errors.load());
 }
 
 void Service::request_stop() { impl_->stop(); }

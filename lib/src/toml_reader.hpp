@@ -2,14 +2,14 @@
 // Private to the library: typed access to a parsed TOML file whose every
 // failure names the file, the line, the key and what is accepted.
 
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
 #include <algorithm>
 #include <filesystem>
 #include <initializer_list>
 #include <string>
 #include <string_view>
-
-#include <fmt/format.h>
-#include <toml++/toml.h>
 
 #include "palpate/eigen.hpp"
 #include "palpate/error.hpp"
@@ -20,7 +20,8 @@ class TomlReader {
  public:
   explicit TomlReader(std::string file) : file_(std::move(file)) {}
 
-  [[noreturn]] void fail(const toml::node* node, const std::string& key, const std::string& what) const {
+  [[noreturn]] void fail(const toml::node* node, const std::string& key,
+                         const std::string& what) const {
     const auto line = node ? node->source().begin.line : 0;
     throw InputError(line ? fmt::format("{}:{}: {}: {}", file_, line, key, what)
                           : fmt::format("{}: {}: {}", file_, key, what));

@@ -6,7 +6,8 @@
 
 namespace palpate::testing {
 
-PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name, int cells, double young_modulus_pa) {
+PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name, int cells,
+                      double young_modulus_pa) {
   const int side = std::max(2, cells / 2);
   write_msh22(box_mesh(0.1, 0.05, 0.04, cells, side, side), dir / (name + ".msh"));
   PrecomputeJob job;
@@ -18,7 +19,8 @@ PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name,
   return job;
 }
 
-std::filesystem::path write_box_compliance(const std::filesystem::path& dir, const std::string& name, int cells,
+std::filesystem::path write_box_compliance(const std::filesystem::path& dir,
+                                           const std::string& name, int cells,
                                            double young_modulus_pa) {
   const PrecomputeJob job = box_job(dir, name, cells, young_modulus_pa);
   run_precompute(job, {});

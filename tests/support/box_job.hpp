@@ -11,11 +11,12 @@ namespace palpate::testing {
 
 /// The job for box mesh `<dir>/<name>.msh` (written here) → `<dir>/<name>.h5`.
 /// @param cells cubes along x (y and z get half as many, at least 2)
-PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name = "box", int cells = 4,
-                      double young_modulus_pa = 85e3);
+PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name = "box",
+                      int cells = 4, double young_modulus_pa = 85e3);
 
 /// Runs box_job and returns the compliance file.
-std::filesystem::path write_box_compliance(const std::filesystem::path& dir, const std::string& name = "box",
-                                           int cells = 4, double young_modulus_pa = 85e3);
+std::filesystem::path write_box_compliance(const std::filesystem::path& dir,
+                                           const std::string& name = "box", int cells = 4,
+                                           double young_modulus_pa = 85e3);
 
 }  // namespace palpate::testing

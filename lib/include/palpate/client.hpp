@@ -19,9 +19,9 @@
 namespace palpate {
 
 struct ClientOptions {
-  std::string client_id;      ///< unique per client; [A-Za-z0-9_.-], 1..63 characters
+  std::string client_id;  ///< unique per client; [A-Za-z0-9_.-], 1..63 characters
   std::uint32_t domain_id = 0;
-  std::string dds_config;     ///< as palpated's dds.config; empty: loopback (or CYCLONEDDS_URI)
+  std::string dds_config;  ///< as palpated's dds.config; empty: loopback (or CYCLONEDDS_URI)
   bool subscribe_surface = false;  ///< also read the surface stream
   bool subscribe_status = false;   ///< also read the status heartbeat
 };
@@ -48,7 +48,8 @@ struct ConstraintSpec {
   static ConstraintSpec displacement(std::uint32_t vertex, std::array<double, 3> displacement_m) {
     return {vertex, ConstraintKind::kDisplacement, displacement_m, {}};
   }
-  static ConstraintSpec normal_displacement(std::uint32_t vertex, std::array<double, 3> normal, double depth_m) {
+  static ConstraintSpec normal_displacement(std::uint32_t vertex, std::array<double, 3> normal,
+                                            double depth_m) {
     return {vertex, ConstraintKind::kNormalDisplacement, {depth_m, 0, 0}, normal};
   }
 };
@@ -107,7 +108,8 @@ class Client {
   /// Requests sent before may be lost. @returns false on timeout.
   bool wait_for_service(std::chrono::milliseconds timeout);
   /// The description of @p model_id (late joiners get it too). std::nullopt on timeout.
-  std::optional<ModelInfo> wait_for_model(const std::string& model_id, std::chrono::milliseconds timeout);
+  std::optional<ModelInfo> wait_for_model(const std::string& model_id,
+                                          std::chrono::milliseconds timeout);
 
   /// Sends a request; returns its id.
   std::uint64_t send(const std::string& model_id, std::span<const ConstraintSpec> constraints,
@@ -118,13 +120,15 @@ class Client {
   /// should make this 0; the tests check it).
   std::uint64_t foreign_replies() const;
   /// send + wait_reply. @throws SystemError on timeout.
-  Reply request(const std::string& model_id, std::span<const ConstraintSpec> constraints, bool want_surface = false,
-                bool update_state = true, std::chrono::milliseconds timeout = std::chrono::seconds(5));
+  Reply request(const std::string& model_id, std::span<const ConstraintSpec> constraints,
+                bool want_surface = false, bool update_state = true,
+                std::chrono::milliseconds timeout = std::chrono::seconds(5));
 
   /// The first surface sample of @p model_id with sequence_number ≥ @p min_sequence
   /// and (when non-zero) source_request_id == @p request_id. Needs subscribe_surface.
   std::optional<SurfaceSample> wait_surface(const std::string& model_id, std::uint64_t min_sequence,
-                                            std::uint64_t request_id, std::chrono::milliseconds timeout);
+                                            std::uint64_t request_id,
+                                            std::chrono::milliseconds timeout);
   /// The next status heartbeat. Needs subscribe_status.
   std::optional<StatusSample> wait_status(std::chrono::milliseconds timeout);
 

@@ -77,7 +77,8 @@ class ConstraintSolver {
   RequestStatus begin(std::size_t count);
   /// Adds constraint j (in order): checks the vertex id, duplicates and
   /// values. @p kind is a ConstraintKind number; @p value, @p normal are 3 doubles.
-  RequestStatus add(std::uint32_t vertex_id, std::int32_t kind, const double* value, const double* normal);
+  RequestStatus add(std::uint32_t vertex_id, std::int32_t kind, const double* value,
+                    const double* normal);
   /// Solves the request built by begin/add.
   RequestStatus solve();
 
@@ -85,12 +86,14 @@ class ConstraintSolver {
   /// is accepted); empty after success.
   const char* message() const { return message_.data(); }
 
-  int size() const { return count_; }                        ///< k
+  int size() const { return count_; }  ///< k
   std::span<const int> indices() const { return {index_.data(), static_cast<std::size_t>(count_)}; }
   /// Force on each constrained vertex, 3k, N (the force the tool exerts).
   Eigen::Map<const Eigen::VectorXd> forces() const { return {force_.data(), 3 * count_}; }
   /// Displacement of each constrained vertex, 3k, m.
-  Eigen::Map<const Eigen::VectorXd> displacements() const { return {displacement_.data(), 3 * count_}; }
+  Eigen::Map<const Eigen::VectorXd> displacements() const {
+    return {displacement_.data(), 3 * count_};
+  }
   Eigen::Vector3d total_force() const;                      ///< Σ forces, N
   double condition_estimate() const { return condition_; }  ///< of Bᵀ G_CC B (1 when m = 0)
   bool reused_factorization() const { return reused_; }
@@ -109,11 +112,11 @@ class ConstraintSolver {
   SolverLimits limits_;
   int count_ = 0;
   int added_ = 0;
-  std::vector<int> index_;                 // compliance index per constraint
+  std::vector<int> index_;  // compliance index per constraint
   std::vector<ConstraintKind> kind_;
-  std::vector<double> value_;              // 3 per constraint
-  std::vector<double> normal_;             // 3 per constraint, unit
-  std::vector<std::uint32_t> seen_;        // per compliance vertex: epoch of the request naming it
+  std::vector<double> value_;        // 3 per constraint
+  std::vector<double> normal_;       // 3 per constraint, unit
+  std::vector<std::uint32_t> seen_;  // per compliance vertex: epoch of the request naming it
   std::uint32_t epoch_ = 0;
   std::vector<Slot> slots_;
   std::uint64_t clock_ = 0;
@@ -128,7 +131,7 @@ class ConstraintSolver {
 /// on the vertices @p indices (brief.md, "Run time"). 3N_S × 3k flops × 2.
 /// @param forces_n 3 per index, N
 /// @param u_m receives 3N_S displacements, m
-void surface_displacement(const Eigen::MatrixXd& G, std::span<const int> indices, const double* forces_n,
-                          Eigen::Ref<Eigen::VectorXd> u_m);
+void surface_displacement(const Eigen::MatrixXd& G, std::span<const int> indices,
+                          const double* forces_n, Eigen::Ref<Eigen::VectorXd> u_m);
 
 }  // namespace palpate

@@ -14,19 +14,19 @@ namespace palpate {
 
 /// One compliance file to serve.
 struct ModelEntry {
-  std::string id;                 ///< what requests name; 1..63 characters [A-Za-z0-9_.-]
-  std::filesystem::path file;     ///< compliance file (HDF5)
+  std::string id;              ///< what requests name; 1..63 characters [A-Za-z0-9_.-]
+  std::filesystem::path file;  ///< compliance file (HDF5)
 };
 
 struct DaemonConfig {
-  std::string daemon_id = "palpated";     ///< key of the status topic
-  std::string log_level = "info";         ///< trace, debug, info, warn, error
-  std::uint32_t domain_id = 0;            ///< DDS domain
-  std::string dds_config;                 ///< Cyclone XML file, file:// URI or fragment; empty: loopback
-  double surface_rate_hz = 60;            ///< surface stream, at most this many samples per model per second
-  double status_rate_hz = 1;              ///< status heartbeat
-  SolverLimits limits;                    ///< constraints per request, cache, condition
-  int max_clients = 64;                   ///< reply writers kept at once
+  std::string daemon_id = "palpated";  ///< key of the status topic
+  std::string log_level = "info";      ///< trace, debug, info, warn, error
+  std::uint32_t domain_id = 0;         ///< DDS domain
+  std::string dds_config;       ///< Cyclone XML file, file:// URI or fragment; empty: loopback
+  double surface_rate_hz = 60;  ///< surface stream, at most this many samples per model per second
+  double status_rate_hz = 1;    ///< status heartbeat
+  SolverLimits limits;          ///< constraints per request, cache, condition
+  int max_clients = 64;         ///< reply writers kept at once
   std::vector<ModelEntry> models;
 };
 

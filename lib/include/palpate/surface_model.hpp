@@ -21,17 +21,18 @@ enum class VertexRole : std::int8_t {
 /// One organ as palpated serves it. Immutable once loaded; shared read-only by
 /// the request thread and the stream thread.
 struct SurfaceModel {
-  std::string id;                 ///< model id clients name in requests
-  std::filesystem::path path;     ///< the compliance file it came from
-  Eigen::MatrixXd G;              ///< 3N_S × 3N_S surface compliance, m/N, compliance order
-  std::string material_summary;   ///< from the file
-  std::string input_hash;         ///< "sha256:<hex>", from the file
+  std::string id;                ///< model id clients name in requests
+  std::filesystem::path path;    ///< the compliance file it came from
+  Eigen::MatrixXd G;             ///< 3N_S × 3N_S surface compliance, m/N, compliance order
+  std::string material_summary;  ///< from the file
+  std::string input_hash;        ///< "sha256:<hex>", from the file
 
   /// Drawn vertices: the N_S compliance vertices first (compliance order),
   /// then the fixed vertices of the surface.
-  std::vector<std::uint32_t> drawn_vertex_ids;    ///< mesh vertex id of each drawn vertex
-  std::vector<double> drawn_rest_positions_m;      ///< 3 per drawn vertex, m
-  std::vector<std::uint32_t> drawn_triangles;      ///< 3 per surface triangle, into drawn vertices, outward
+  std::vector<std::uint32_t> drawn_vertex_ids;  ///< mesh vertex id of each drawn vertex
+  std::vector<double> drawn_rest_positions_m;   ///< 3 per drawn vertex, m
+  std::vector<std::uint32_t>
+      drawn_triangles;  ///< 3 per surface triangle, into drawn vertices, outward
 
   /// For each mesh vertex id: its compliance index (≥ 0), or a VertexRole.
   std::vector<std::int32_t> compliance_index_of_vertex;
