@@ -124,7 +124,8 @@ struct Service::Impl {
   dds::Entity model_writer, request_reader, surface_writer, status_writer, subscriptions_reader;
   dds::Entity reply_topic;
   dds::Entity waitset, stop_condition;
-  dds_entity_t request_condition = 0, subscriptions_condition = 0;
+  dds_entity_t subscriptions_condition = 0;
+  std::mutex clients_mutex;  // discovery (service thread) and requests (listener) both add clients
   std::vector<ClientWriter> clients;
 
   // Request thread buffers, sized once.
@@ -148,6 +149,7 @@ struct Service::Impl {
   ~Impl();
   void publish_descriptions();
   void serve_requests();
+  static void on_requests(dds_entity_t reader, void* arg);
   void handle(const palpate_ConstraintRequest& request, const dds_sample_info_t& info);
   RequestStatus solve(const palpate_ConstraintRequest& request, ServedModel*& served);
   void discover_clients();
@@ -214,9 +216,6 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   model_writer = dds::Entity(
       dds::check(dds_create_writer(participant.get(), model_topic, dds::model_qos().get(), nullptr),
                  "creating the model writer"));
-  request_reader = dds::Entity(dds::check(
-      dds_create_reader(participant.get(), request_topic, dds::request_reply_qos().get(), nullptr),
-      "creating the request reader"));
   surface_writer = dds::Entity(dds::check(
       dds_create_writer(participant.get(), surface_topic, dds::surface_qos().get(), nullptr),
       "creating the surface writer"));
@@ -230,15 +229,31 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   waitset = dds::Entity(dds::check(dds_create_waitset(participant.get()), "creating the waitset"));
   stop_condition = dds::Entity(
       dds::check(dds_create_guardcondition(participant.get()), "creating the guard condition"));
-  request_condition =
-      dds::check(dds_create_readcondition(request_reader.get(), DDS_ANY_STATE), "read condition");
   subscriptions_condition = dds::check(
       dds_create_readcondition(subscriptions_reader.get(), DDS_ANY_STATE), "read condition");
   dds::check(dds_waitset_attach(waitset.get(), stop_condition.get(), 0), "waitset");
-  dds::check(dds_waitset_attach(waitset.get(), request_condition, 1), "waitset");
-  dds::check(dds_waitset_attach(waitset.get(), subscriptions_condition, 2), "waitset");
+  dds::check(dds_waitset_attach(waitset.get(), subscriptions_condition, 1), "waitset");
 
   publish_descriptions();
+
+  // Requests are served from Cyclone's receive thread, in the reader's
+  // data-available listener: no wake-up of another thread between the
+  // request's arrival and its reply. Cyclone calls one reader's listener
+  // from one thread at a time. Made last: it may fire at once.
+  dds_listener_t* listener = dds_create_listener(this);
+  dds_lset_data_available(listener, &Impl::on_requests);
+  const dds_entity_t reader =
+      dds_create_reader(participant.get(), request_topic, dds::request_reply_qos().get(), listener);
+  dds_delete_listener(listener);
+  request_reader = dds::Entity(dds::check(reader, "creating the request reader"));
+}
+
+void Service::Impl::on_requests(dds_entity_t, void* arg) {
+  try {
+    static_cast<Impl*>(arg)->serve_requests();
+  } catch (const std::exception& e) {
+    spdlog::error("event=requests_failed error=\"{}\"", e.what());
+  }
 }
 
 Service::Impl::~Impl() {
@@ -269,6 +284,7 @@ void Service::Impl::publish_descriptions() {
 }
 
 ClientWriter* Service::Impl::client_writer(const char* client_id) {
+  // Called with clients_mutex held.
   for (auto& client : clients)
     if (std::strcmp(client.id, client_id) == 0) return &client;
   // A client id names a partition: no wildcards.
@@ -341,8 +357,10 @@ void Service::Impl::discover_clients() {
       const std::string_view name(names[p]);
       if (name.starts_with(dds::kReplyPartitionPrefix) &&
           name.size() > dds::kReplyPartitionPrefix.size() &&
-          name.size() - dds::kReplyPartitionPrefix.size() < 64)
+          name.size() - dds::kReplyPartitionPrefix.size() < 64) {
+        const std::lock_guard lock(clients_mutex);
         client_writer(names[p] + dds::kReplyPartitionPrefix.size());
+      }
       dds_free(names[p]);
     }
     dds_free(names);
@@ -439,6 +457,7 @@ void Service::Impl::handle(const palpate_ConstraintRequest& request,
                   reply.client_id, request.request_id, status_name(status), reply.message);
   }
 
+  const std::lock_guard lock(clients_mutex);
   ClientWriter* client = client_writer(reply.client_id);
   reply.solve_ns = static_cast<std::uint64_t>(
       std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count());
@@ -516,7 +535,10 @@ void Service::Impl::publish_status(double interval_s, std::uint64_t served_in_in
   status.solve = percentiles(solve_us, n);
   status.request_to_reply = percentiles(reply_us, n);
   status.models = static_cast<std::uint32_t>(models.size());
-  status.clients = static_cast<std::uint32_t>(clients.size());
+  {
+    const std::lock_guard lock(clients_mutex);
+    status.clients = static_cast<std::uint32_t>(clients.size());
+  }
   if (const dds_return_t rc = dds_write(status_writer.get(), &status); rc < 0)
     spdlog::error("event=dds_error what=\"writing the status\" error={}", dds_strretcode(rc));
 }
@@ -569,13 +591,14 @@ void Service::run() {
   });
   spdlog::info("event=serving models={} domain={}", s.models.size(), s.config.domain_id);
   try {
-    dds_attach_t triggered[3];
+    // This thread follows client discovery; requests are served by the
+    // request reader's listener.
+    dds_attach_t triggered[2];
     while (!s.stopping.load()) {
-      const dds_return_t n = dds_waitset_wait(s.waitset.get(), triggered, 3, DDS_INFINITY);
-      if (n < 0) throw SystemError(std::string("waiting for requests: ") + dds_strretcode(n));
+      const dds_return_t n = dds_waitset_wait(s.waitset.get(), triggered, 2, DDS_INFINITY);
+      if (n < 0) throw SystemError(std::string("waiting for discovery: ") + dds_strretcode(n));
       if (s.stopping.load()) break;
       s.discover_clients();
-      s.serve_requests();
     }
   } catch (...) {
     request_stop();

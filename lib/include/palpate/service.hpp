@@ -2,9 +2,11 @@
 /// @file
 /// palpated's service: the loaded models served over DDS (docs/dds.md).
 ///
-/// Threads: the caller of run() serves requests (take, validate, solve,
-/// reply) and client discovery; a second thread publishes the surface stream
-/// at the visual rate and the status heartbeat. The request path allocates
+/// Threads: requests are served (take, validate, solve, reply) in the request
+/// reader's listener, on Cyclone's receive thread, so that no thread wakes up
+/// between a request and its reply; the caller of run() follows client
+/// discovery; a third thread publishes the surface stream at the visual rate
+/// and the status heartbeat. The request path allocates
 /// nothing of its own and never throws: every failure is an error reply.
 
 #include <memory>
