@@ -12,7 +12,8 @@
 #
 # 1. palpated serves MODEL.h5 as "liver"; palpate_rtt_bench measures the
 #    request→reply round trip at 1 kHz for k = 1 and k = 20 (force only,
-#    reused constraint set), 2 s warm-up then SECONDS (default 10) measured;
+#    reused constraint set), its client waiting on a waitset and polling
+#    (--busy-wait), 2 s warm-up then SECONDS (default 10) measured;
 #    palpated is stopped with SIGTERM.
 # 2. ddsperf ping-pong (two processes, like client and daemon) at 1000 Hz with
 #    the mean of our request and reply sizes as payload, for each k, in its
@@ -69,13 +70,17 @@ trap 'rm -rf "$work"' EXIT
 CYCLONEDDS_URI="$LOOPBACK_URI" "$BUILD/server/palpated" --model "liver=$MODEL" --log-level warn 2>"$work/palpated.log" &
 daemon=$!
 for k in 1 20; do
-  if ! CYCLONEDDS_URI="$LOOPBACK_URI" "$BUILD/bench/palpate_rtt_bench" --model-id liver -k "$k" --rate-hz "$RATE" \
-      --seconds "$SECONDS_MEASURED" --warmup-seconds "$WARMUP" --json >"$work/rtt-$k.json"; then
-    echo "dds_roundtrip: palpate_rtt_bench -k $k failed; palpated said:" >&2
-    cat "$work/palpated.log" >&2
-    kill -TERM "$daemon"
-    exit 1
-  fi
+  for wait in waitset busy; do
+    flag=""
+    [ "$wait" = busy ] && flag="--busy-wait"
+    if ! CYCLONEDDS_URI="$LOOPBACK_URI" "$BUILD/bench/palpate_rtt_bench" --model-id liver -k "$k" --rate-hz "$RATE" \
+        --seconds "$SECONDS_MEASURED" --warmup-seconds "$WARMUP" $flag --json >"$work/rtt-$k-$wait.json"; then
+      echo "dds_roundtrip: palpate_rtt_bench -k $k $flag failed; palpated said:" >&2
+      cat "$work/palpated.log" >&2
+      kill -TERM "$daemon"
+      exit 1
+    fi
+  done
 done
 kill -TERM "$daemon"
 wait "$daemon" || { echo "dds_roundtrip: palpated exited with status $?" >&2; cat "$work/palpated.log" >&2; exit 1; }
@@ -85,7 +90,7 @@ wait "$daemon" || { echo "dds_roundtrip: palpated exited with status $?" >&2; ca
 #    from Cyclone's receive thread) and waitset (an application thread wakes
 #    up, as in palpated and palpate's client).
 for k in 1 20; do
-  size=$(/usr/bin/python3 -c 'import json,sys; r=json.load(open(sys.argv[1])); print((r["request_bytes"]+r["reply_bytes"])//2)' "$work/rtt-$k.json")
+  size=$(/usr/bin/python3 -c 'import json,sys; r=json.load(open(sys.argv[1])); print((r["request_bytes"]+r["reply_bytes"])//2)' "$work/rtt-$k-waitset.json")
   duration=$((SECONDS_MEASURED + WARMUP))
   for mode in listener waitset; do
     CYCLONEDDS_URI="$LOOPBACK_URI" ddsperf -D $((duration + 3)) pong "$mode" >"$work/pong-$k-$mode.txt" 2>&1 &
@@ -122,23 +127,26 @@ def ddsperf(k, mode):
 
 results = []
 print("DDS round trip, loopback only, 1 kHz (µs); ddsperf: median over 1-s intervals of its 50% / 99%")
-print(f"{'k':>3} {'bytes':>6} | {'palpated p50':>12} {'p99':>8} {'p99.9':>8} {'max':>8} | "
-      f"{'ddsperf':>8} {'p50':>7} {'p99':>7} {'p99.9':>5} {'max':>8} | {'ratio p50':>9} {'p99':>6}")
+print("palpated's client waits for the reply on a waitset (as ddsperf's waitset mode) or polls (busy)")
+print(f"{'k':>3} {'bytes':>6} {'client':>8} | {'palpated p50':>12} {'p99':>7} {'p99.9':>7} {'max':>7} | "
+      f"{'ddsperf':>8} {'p50':>6} {'p99':>6} {'max':>7} | {'ratio p50':>9} {'p99':>5}")
 for k in (1, 20):
-    ours = json.load(open(f"{work}/rtt-{k}.json"))
-    rt = ours["round_trip"]
-    for mode in ("listener", "waitset"):
-        theirs = ddsperf(k, mode)
-        r50, r99 = rt["p50_us"] / theirs["p50_us"], rt["p99_us"] / theirs["p99_us"]
-        print(f"{k:>3} {theirs['size']:>6} | {rt['p50_us']:>12.1f} {rt['p99_us']:>8.1f} {rt['p999_us']:>8.1f} "
-              f"{rt['max_us']:>8.1f} | {mode:>8} {theirs['p50_us']:>7.1f} {theirs['p99_us']:>7.1f} {'n/a':>5} "
-              f"{theirs['max_us']:>8.1f} | {r50:>9.2f} {r99:>6.2f}")
-        results.append({"k": k, "palpated": ours, "ddsperf": theirs, "ratio_p50": r50, "ratio_p99": r99})
-for r in results:
-    solve, d = r["palpated"]["daemon_solve"], r["ddsperf"]
-    print(f"k={r['k']} {d['mode']}: palpated {r['palpated']['samples']} round trips (daemon solve p50 "
-          f"{solve['p50_us']:.1f} µs); ddsperf {d['samples']} round trips, worst 1-s p99 "
-          f"{d['worst_second_p99_us']:.1f} µs: {d['command']}")
+    theirs = {mode: ddsperf(k, mode) for mode in ("listener", "waitset")}
+    for wait in ("waitset", "busy"):
+        ours = json.load(open(f"{work}/rtt-{k}-{wait}.json"))
+        rt = ours["round_trip"]
+        for mode in ("listener", "waitset"):
+            t = theirs[mode]
+            r50, r99 = rt["p50_us"] / t["p50_us"], rt["p99_us"] / t["p99_us"]
+            print(f"{k:>3} {t['size']:>6} {wait:>8} | {rt['p50_us']:>12.1f} {rt['p99_us']:>7.1f} {rt['p999_us']:>7.1f} "
+                  f"{rt['max_us']:>7.1f} | {mode:>8} {t['p50_us']:>6.1f} {t['p99_us']:>6.1f} {t['max_us']:>7.1f} | "
+                  f"{r50:>9.2f} {r99:>5.2f}")
+            results.append({"k": k, "client_wait": wait, "palpated": ours, "ddsperf": t, "ratio_p50": r50,
+                            "ratio_p99": r99})
+for k in (1, 20):
+    r = next(x for x in results if x["k"] == k)
+    print(f"k={k}: daemon solve p50 {r['palpated']['daemon_solve']['p50_us']:.1f} µs; ddsperf commands: "
+          + "; ".join(x["ddsperf"]["command"] for x in results if x["k"] == k and x["client_wait"] == "waitset"))
 print("target: palpated ≤ 1.5 × ddsperf at p50 and p99")
 print("JSON " + json.dumps(results))
 EOF

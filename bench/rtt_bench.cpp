@@ -97,12 +97,15 @@ int main(int argc, char** argv) try {
   app.add_option("--warmup-seconds", warmup_seconds, "unmeasured requests first")->check(CLI::NonNegativeNumber);
   app.add_flag("--update-state", update_state, "requests change the model's shown state (the stream then runs)");
   app.add_option("--domain", domain, "DDS domain id");
+  bool busy_wait = false;
+  app.add_flag("--busy-wait", busy_wait, "poll for the reply instead of sleeping on a waitset (ClientOptions::busy_wait)");
   app.add_flag("--json", json, "print one JSON object instead of text");
   CLI11_PARSE(app, argc, argv);
 
   palpate::ClientOptions options;
   options.client_id = "rtt-bench-" + std::to_string(getpid());
   options.domain_id = domain;
+  options.busy_wait = busy_wait;
   palpate::Client client(options);
   const auto model = client.wait_for_model(model_id, 20s);
   if (!model) throw palpate::SystemError("no description of model '" + model_id + "' within 20 s: is palpated up?");
@@ -161,6 +164,7 @@ int main(int argc, char** argv) try {
                           {"timeouts", timeouts},
                           {"errors", errors},
                           {"update_state", update_state},
+                          {"busy_wait", busy_wait},
                           {"request_bytes", req_bytes},
                           {"reply_bytes", rep_bytes},
                           {"round_trip", to_json(rtt)},

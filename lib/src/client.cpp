@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <sched.h>
+
 #include <cctype>
 #include <cstring>
 #include <map>
@@ -43,6 +45,8 @@ struct WaitableReader {
 
   /// Takes samples and hands each valid one to @p accept until it returns
   /// true (then true) or the deadline passes (then false).
+  bool busy_wait = false;  // poll instead of sleeping on the waitset
+
   template <typename Sample, typename Accept>
   bool take_until(Clock::time_point deadline, Accept accept) {
     for (;;) {
@@ -58,6 +62,10 @@ struct WaitableReader {
       if (n == 16) continue;
       const auto now = Clock::now();
       if (now >= deadline) return false;
+      if (busy_wait) {
+        sched_yield();
+        continue;
+      }
       dds_attach_t triggered;
       dds_waitset_wait(
           waitset.get(), &triggered, 1,
@@ -118,6 +126,7 @@ Client::Client(const ClientOptions& options) : impl_(std::make_unique<Impl>()) {
       dds_create_subscriber(p, subscriber_qos.get(), nullptr), "creating the reply subscriber");
   c.replies = WaitableReader(p, subscriber, topic(&palpate_ConstraintReply_desc, dds::kReplyTopic),
                              dds::request_reply_qos().get(), "creating the reply reader");
+  c.replies.busy_wait = options.busy_wait;
   if (options.subscribe_surface)
     c.surfaces = WaitableReader(p, p, topic(&palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic),
                                 dds::surface_qos().get(), "creating the surface reader");

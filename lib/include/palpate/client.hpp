@@ -24,6 +24,10 @@ struct ClientOptions {
   std::string dds_config;  ///< as palpated's dds.config; empty: loopback (or CYCLONEDDS_URI)
   bool subscribe_surface = false;  ///< also read the surface stream
   bool subscribe_status = false;   ///< also read the status heartbeat
+  /// Wait for replies by polling (yielding the CPU between polls) instead of
+  /// sleeping on a waitset: saves the wake-up of the waiting thread, costs
+  /// its core while waiting. What a 1 kHz haptic loop does anyway.
+  bool busy_wait = false;
 };
 
 /// A model as ModelDescription gives it.
