@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "palpate/daemon_config.hpp"
+#include "palpate/dds.hpp"
 #include "palpate/error.hpp"
 #include "palpate/service.hpp"
 #include "palpate/surface_model.hpp"
@@ -99,16 +100,18 @@ int run(int argc, char** argv) {
 
   spdlog::info("event=starting version={} daemon_id={} blas=\"{}\"", PALPATE_VERSION,
                config.daemon_id, palpate::blas_description());
-  palpate::Service service(config);
   // SIGINT and SIGTERM post a semaphore (async-signal-safe); a thread
   // waits on it and stops the service. A handler rather than sigwait because
   // libraries start threads before main (OpenBLAS) whose masks we do not set.
+  // Installed before the models load: a signal during loading stops the
+  // daemon as soon as it is up, with exit 0.
   sem_init(&stop_semaphore, 0, 0);
   struct sigaction action {};
   action.sa_handler = on_stop_signal;
   sigemptyset(&action.sa_mask);
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
+  palpate::Service service(config);
   std::thread signal_thread([&] {
     while (sem_wait(&stop_semaphore) != 0) {
     }

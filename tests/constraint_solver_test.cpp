@@ -250,10 +250,10 @@ TEST_F(ConstraintSolverTest, EveryBadRequestGetsItsStatusAndMessage) {
        RequestStatus::kNonFiniteValue,
        "normal[0]"},
       {{{vertex(1), ConstraintKind::kNormalDisplacement, push, {0, 0, 0}}},
-       RequestStatus::kBadNormal,
+       RequestStatus::kBadConstraint,
        "no direction"},
       {{{vertex(1), static_cast<ConstraintKind>(7), push}},
-       RequestStatus::kBadNormal,
+       RequestStatus::kBadConstraint,
        "unknown kind 7"},
       {std::vector<Request>(5, {vertex(1), ConstraintKind::kForce, push}),
        RequestStatus::kTooManyConstraints, "at most 4"},
@@ -263,6 +263,7 @@ TEST_F(ConstraintSolverTest, EveryBadRequestGetsItsStatusAndMessage) {
     EXPECT_NE(std::string(solver.message()).find(c.fragment), std::string::npos)
         << solver.message();
     EXPECT_STRNE(status_name(c.status), "unknown_status");
+    EXPECT_EQ(solver.condition_estimate(), 1.0) << "no system was solved: no stale estimate";
     // The solver is usable after every refusal.
     ASSERT_EQ(run(solver, {{vertex(1), ConstraintKind::kDisplacement, push}}), RequestStatus::kOk);
     EXPECT_STREQ(solver.message(), "");

@@ -355,7 +355,7 @@ TEST_F(PalpatedTest, EveryBadRequestGetsItsErrorAndTheDaemonKeepsServing) {
        "value[0]"},
       {"box",
        {ConstraintSpec::normal_displacement(v, {0, 0, 0}, -0.001)},
-       RequestStatus::kBadNormal,
+       RequestStatus::kBadConstraint,
        "no direction"},
       {"box", std::vector<ConstraintSpec>(9, push), RequestStatus::kTooManyConstraints,
        "at most 8"},

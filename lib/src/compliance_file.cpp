@@ -1,5 +1,9 @@
 #include "palpate/compliance_file.hpp"
 
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+
 #include <hdf5.h>
 
 #include <fmt/format.h>
@@ -245,6 +249,10 @@ ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::M
   silence_hdf5();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw InputError(fmt::format("{}: no such file", path.string()));
+  if (std::FILE* f = std::fopen(path.c_str(), "rb"))
+    std::fclose(f);
+  else
+    throw InputError(fmt::format("{}: cannot be read: {}", path.string(), std::strerror(errno)));
   if (H5Fis_hdf5(path.c_str()) <= 0)
     throw InputError(fmt::format("{}: not an HDF5 file (truncated or of another kind); expected a "
                                  "palpate compliance file written by palpate-precompute",

@@ -34,8 +34,8 @@ const char* status_name(RequestStatus status) {
       return "duplicate_vertex";
     case RequestStatus::kNonFiniteValue:
       return "non_finite_value";
-    case RequestStatus::kBadNormal:
-      return "bad_normal";
+    case RequestStatus::kBadConstraint:
+      return "bad_constraint";
     case RequestStatus::kTooManyConstraints:
       return "too_many_constraints";
     case RequestStatus::kIllConditioned:
@@ -112,6 +112,7 @@ RequestStatus ConstraintSolver::fail(RequestStatus status, const char* format, .
 RequestStatus ConstraintSolver::begin(std::size_t count) {
   message_[0] = '\0';
   solved_ = false;
+  condition_ = 1;
   count_ = 0;
   added_ = 0;
   if (count > static_cast<std::size_t>(limits_.max_constraints))
@@ -154,7 +155,7 @@ RequestStatus ConstraintSolver::add(std::uint32_t vertex_id, std::int32_t kind, 
   seen_[static_cast<std::size_t>(index)] = epoch_;
 
   if (kind < 0 || kind > 2)
-    return fail(RequestStatus::kBadNormal,
+    return fail(RequestStatus::kBadConstraint,
                 "constraint %d (vertex %u): unknown kind %d; accepted: 0 force, "
                 "1 displacement, 2 normal displacement",
                 j, vertex_id, kind);
@@ -179,7 +180,7 @@ RequestStatus ConstraintSolver::add(std::uint32_t vertex_id, std::int32_t kind, 
         std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
     // Below this a direction is noise; the solve would divide by it.
     if (!(length > 1e-12))
-      return fail(RequestStatus::kBadNormal,
+      return fail(RequestStatus::kBadConstraint,
                   "constraint %d (vertex %u): normal (%g, %g, %g) has no direction; "
                   "a normal displacement needs a non-zero normal",
                   j, vertex_id, normal[0], normal[1], normal[2]);

@@ -100,6 +100,8 @@ void validate(const DaemonConfig& config) {
   if (!levels.contains(config.log_level))
     throw InputError("daemon.log_level '" + config.log_level +
                      "': expected trace, debug, info, warn or error");
+  if (config.domain_id > 232)
+    throw InputError(fmt::format("dds.domain {}: expected a DDS domain id in [0, 232]", config.domain_id));
   if (!(config.surface_rate_hz > 0 && config.surface_rate_hz <= 1000))
     throw InputError(fmt::format("rates.surface_hz {}: expected a rate in (0, 1000] Hz",
                                  config.surface_rate_hz));

@@ -141,6 +141,7 @@ struct Service::Impl {
   LatencyLog latencies;
   std::atomic<std::uint64_t> requests_served{0}, errors{0}, surface_samples{0};
   std::atomic<bool> stopping{false};
+  std::string stream_failure;  // set by the stream thread before it stops the service
   std::mutex stream_mutex;
   std::condition_variable stream_wake;
   Clock::time_point started = Clock::now();
@@ -176,6 +177,7 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
     served->stream_indices.resize(k);
     served->stream_forces.resize(3 * k);
     served->displacement = Eigen::VectorXd::Zero(m.G.rows());
+    served->version = 1;  // the rest state: a late viewer gets a surface before any request
     max_surface = std::max(max_surface, static_cast<std::size_t>(m.G.rows()));
     spdlog::info(
         "event=model_loaded model={} file={} compliance_vertices={} mesh_vertices={} triangles={} "
@@ -200,7 +202,12 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   const dds::DomainConfig dds_config = dds::resolve_domain_config(config.dds_config);
   spdlog::info("event=dds_domain domain={} configuration=\"{}\"", config.domain_id,
                dds_config.origin);
-  domain = dds::acquire_domain(config.domain_id, dds_config);
+  try {
+    domain = dds::acquire_domain(config.domain_id, dds_config);
+  } catch (const SystemError& e) {
+    if (dds_config.origin == "built-in loopback") throw;
+    throw InputError(std::string(e.what()) + "; check the Cyclone DDS configuration (" + dds_config.origin + ")");
+  }
   participant = dds::Entity(dds::check(dds_create_participant(config.domain_id, nullptr, nullptr),
                                        "creating the DDS participant"));
   auto topic = [&](const dds_topic_descriptor_t* type, const char* name) {
@@ -441,6 +448,13 @@ void Service::Impl::handle(const palpate_ConstraintRequest& request,
   reply.results._length = 0;
   reply.surface_displacement._length = 0;
 
+  // A request that cannot be answered (no valid reply partition) changes nothing.
+  if (reply.client_id[0] == '\0' || std::strpbrk(reply.client_id, "*?[]\\") != nullptr) {
+    errors.fetch_add(1, std::memory_order_relaxed);
+    spdlog::warn("event=request_ignored client=\"{}\" request={} reason=\"client id cannot name a reply partition\"",
+                 reply.client_id, request.request_id);
+    return;
+  }
   ServedModel* served = nullptr;
   RequestStatus status = RequestStatus::kInternalError;
   try {
@@ -586,6 +600,7 @@ void Service::run() {
       s.stream_loop();
     } catch (const std::exception& e) {
       spdlog::critical("event=stream_thread_failed error=\"{}\"", e.what());
+      s.stream_failure = e.what();
       s.stop();
     }
   });
@@ -606,6 +621,7 @@ void Service::run() {
     throw;
   }
   stream.join();
+  if (!s.stream_failure.empty()) throw SystemError("the surface stream failed: " + s.stream_failure);
   spdlog::info("event=stopped requests_served={} error_replies={}", s.requests_served.load(),
                s.errors.load());
 }

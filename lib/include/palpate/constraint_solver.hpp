@@ -32,7 +32,7 @@ enum class RequestStatus : std::int32_t {
   kVertexFixed,
   kDuplicateVertex,
   kNonFiniteValue,
-  kBadNormal,
+  kBadConstraint,
   kTooManyConstraints,
   kIllConditioned,
   kInternalError,
