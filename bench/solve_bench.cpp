@@ -120,10 +120,12 @@ void BM_force_new_set(benchmark::State& state) {
   state.counters["reused"] = static_cast<double>(reused) / static_cast<double>(std::max<std::uint64_t>(i, 1));
 }
 
+/// range(0) = k, range(1) = threads for the surface product (1 or 2: palpated's
+/// default on a machine with two cores or more).
 void BM_full_field(benchmark::State& state) {
   const auto k = static_cast<int>(state.range(0));
   const Patch patch = fixture->patch(k);
-  ConstraintSolver solver(fixture->model, palpate::SolverLimits{});
+  ConstraintSolver solver(fixture->model, palpate::SolverLimits{.surface_threads = static_cast<int>(state.range(1))});
   Eigen::VectorXd u(fixture->model.G.rows());
   std::uint64_t i = 0;
   for (auto _ : state) {
@@ -216,9 +218,15 @@ int main(int argc, char** argv) {
   benchmark::RegisterBenchmark("BM_read_G_SC", BM_read_G_SC)->Arg(20)->Unit(benchmark::kMicrosecond)->UseRealTime();
   benchmark::RegisterBenchmark("BM_read_G_all", BM_read_G_all)->Unit(benchmark::kMillisecond)->UseRealTime();
   for (auto* b : {benchmark::RegisterBenchmark("BM_force_reused", BM_force_reused),
-                  benchmark::RegisterBenchmark("BM_force_new_set", BM_force_new_set),
-                  benchmark::RegisterBenchmark("BM_full_field", BM_full_field)})
+                  benchmark::RegisterBenchmark("BM_force_new_set", BM_force_new_set)})
     for (int k : kPatchSizes) b->Arg(k)->Unit(benchmark::kMicrosecond)->UseRealTime();
+  for (int threads : {1, 2})
+    for (int k : kPatchSizes)
+      benchmark::RegisterBenchmark("BM_full_field", BM_full_field)
+          ->Args({k, threads})
+          ->ArgNames({"k", "threads"})
+          ->Unit(benchmark::kMicrosecond)
+          ->UseRealTime();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
 }

@@ -93,8 +93,9 @@ int run(int argc, char** argv) {
                   entry.file.c_str(), model.compliance_vertex_count(),
                   model.material_summary.c_str());
     }
-    std::printf("configuration OK: %zu model(s), domain %u\n", config.models.size(),
-                config.domain_id);
+    const auto dds = palpate::dds::resolve_domain_config(config.dds_config);
+    std::printf("configuration OK: %zu model(s), domain %u, DDS configuration: %s\n",
+                config.models.size(), config.domain_id, dds.origin.c_str());
     return 0;
   }
 

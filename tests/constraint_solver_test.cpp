@@ -290,7 +290,9 @@ TEST_F(ConstraintSolverTest, RefusesSystemsAboveTheConditionLimit) {
 TEST_F(ConstraintSolverTest, AllocatesNothingPerRequest) {
   // The daemon's request path: begin/add/solve and the surface field, with
   // factorizations reused and rebuilt, and refused requests.
-  ConstraintSolver solver(model(), {.max_constraints = 8, .cache_slots = 2, .max_condition = 1e12});
+  ConstraintSolver solver(
+      model(),
+      {.max_constraints = 8, .cache_slots = 2, .max_condition = 1e12, .surface_threads = 2});
   Eigen::VectorXd u(model().G.rows());
   auto request = [&](int first, double depth) {
     const std::vector<Request> patch{
@@ -319,6 +321,26 @@ TEST_F(ConstraintSolverTest, AllocatesNothingPerRequest) {
   std::vector<double> one(static_cast<std::size_t>(u.size()), 1.0);
   EXPECT_EQ(testing::allocations() - before, 1u);
   EXPECT_EQ(one.back(), 1.0);
+}
+
+TEST_F(ConstraintSolverTest, SplitsTheSurfaceFieldOverTwoThreadsBitForBit) {
+  // Each row is the same sum in the same order on either thread.
+  ConstraintSolver one(model(), {.surface_threads = 1});
+  ConstraintSolver two(model(), {.surface_threads = 2});
+  Eigen::VectorXd u1(model().G.rows()), u2(model().G.rows());
+  for (int first : {0, 7, 15, 7}) {
+    const std::vector<Request> patch{
+        {vertex(first), ConstraintKind::kDisplacement, {0, 0, -0.002}},
+        {vertex(first + 3), ConstraintKind::kForce, {0.1, 0, 0}},
+        {vertex(first + 9), ConstraintKind::kNormalDisplacement, {0.001, 0, 0}, {0, 1, 0}}};
+    ASSERT_EQ(run(one, patch), RequestStatus::kOk);
+    ASSERT_EQ(run(two, patch), RequestStatus::kOk);
+    one.surface_displacement(u1);
+    u2.setConstant(std::nan(""));
+    two.surface_displacement(u2);
+    EXPECT_EQ(u1, u2) << "first " << first;
+    EXPECT_LT(relative(u2, full_field(two)), kRelativeTolerance);
+  }
 }
 
 TEST_F(ConstraintSolverTest, AnEmptyRequestIsTheRestState) {

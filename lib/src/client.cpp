@@ -1,7 +1,6 @@
 #include "palpate/client.hpp"
 
 #include <fmt/format.h>
-
 #include <sched.h>
 
 #include <cctype>

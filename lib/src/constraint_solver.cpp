@@ -85,6 +85,8 @@ struct ConstraintSolver::Slot {
 ConstraintSolver::ConstraintSolver(const SurfaceModel& model, const SolverLimits& limits)
     : model_(model), limits_(limits) {
   PALPATE_DEMAND(limits.max_constraints > 0 && limits.cache_slots > 0);
+  PALPATE_DEMAND(limits.surface_threads == 1 || limits.surface_threads == 2);
+  if (limits.surface_threads == 2) split_ = std::make_unique<SplitSurfaceProduct>();
   const auto k = static_cast<std::size_t>(limits.max_constraints);
   index_.resize(k);
   kind_.resize(k);
@@ -345,18 +347,16 @@ Eigen::Vector3d ConstraintSolver::total_force() const {
 
 void ConstraintSolver::surface_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const {
   PALPATE_DEMAND(solved_);
-  palpate::surface_displacement(model_.G, indices(), force_.data(), u_m);
+  if (split_)
+    (*split_)(model_.G, indices(), force_.data(), u_m);
+  else
+    palpate::surface_displacement(model_.G, indices(), force_.data(), u_m);
 }
 
 void surface_displacement(const Eigen::MatrixXd& G, std::span<const int> indices,
                           const double* forces_n, Eigen::Ref<Eigen::VectorXd> u_m) {
-  PALPATE_DEMAND(u_m.size() == G.rows());
-  u_m.setZero();
-  // G is symmetric and column-major: the three columns of vertex c are
-  // contiguous, so G_SC f_C reads k panels of 3N_S × 3 once each.
-  for (std::size_t j = 0; j < indices.size(); ++j)
-    u_m.noalias() +=
-        G.middleCols<3>(3 * indices[j]) * Eigen::Map<const Eigen::Vector3d>(forces_n + 3 * j);
+  PALPATE_DEMAND(u_m.size() == G.rows() && u_m.innerStride() == 1);
+  surface_displacement_rows(G, indices, forces_n, 0, G.rows(), u_m.data());
 }
 
 }  // namespace palpate

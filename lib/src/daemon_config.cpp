@@ -56,7 +56,9 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
   }
   if (const auto* n = root.get("limits")) {
     const auto& t = r.table(*n, "limits");
-    r.only_keys(t, "limits", {"max_constraints", "max_condition", "cache_slots", "max_clients"});
+    r.only_keys(
+        t, "limits",
+        {"max_constraints", "max_condition", "cache_slots", "max_clients", "surface_threads"});
     if (const auto* v = t.get("max_constraints"))
       config.limits.max_constraints =
           static_cast<int>(integer(*v, "limits.max_constraints", 1, 1024));
@@ -64,6 +66,8 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
       config.limits.max_condition = positive(*v, "limits.max_condition");
     if (const auto* v = t.get("cache_slots"))
       config.limits.cache_slots = static_cast<int>(integer(*v, "limits.cache_slots", 1, 256));
+    if (const auto* v = t.get("surface_threads"))
+      config.limits.surface_threads = static_cast<int>(integer(*v, "limits.surface_threads", 1, 2));
     if (const auto* v = t.get("max_clients"))
       config.max_clients = static_cast<int>(integer(*v, "limits.max_clients", 1, 4096));
   }
@@ -101,7 +105,8 @@ void validate(const DaemonConfig& config) {
     throw InputError("daemon.log_level '" + config.log_level +
                      "': expected trace, debug, info, warn or error");
   if (config.domain_id > 232)
-    throw InputError(fmt::format("dds.domain {}: expected a DDS domain id in [0, 232]", config.domain_id));
+    throw InputError(
+        fmt::format("dds.domain {}: expected a DDS domain id in [0, 232]", config.domain_id));
   if (!(config.surface_rate_hz > 0 && config.surface_rate_hz <= 1000))
     throw InputError(fmt::format("rates.surface_hz {}: expected a rate in (0, 1000] Hz",
                                  config.surface_rate_hz));
@@ -117,6 +122,9 @@ void validate(const DaemonConfig& config) {
   if (config.limits.cache_slots < 1 || config.limits.cache_slots > 256)
     throw InputError(
         fmt::format("limits.cache_slots {}: expected 1 to 256", config.limits.cache_slots));
+  if (config.limits.surface_threads != 1 && config.limits.surface_threads != 2)
+    throw InputError(
+        fmt::format("limits.surface_threads {}: expected 1 or 2", config.limits.surface_threads));
   if (config.max_clients < 1 || config.max_clients > 4096)
     throw InputError(fmt::format("limits.max_clients {}: expected 1 to 4096", config.max_clients));
   if (config.models.empty())

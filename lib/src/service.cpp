@@ -206,7 +206,8 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
     domain = dds::acquire_domain(config.domain_id, dds_config);
   } catch (const SystemError& e) {
     if (dds_config.origin == "built-in loopback") throw;
-    throw InputError(std::string(e.what()) + "; check the Cyclone DDS configuration (" + dds_config.origin + ")");
+    throw InputError(std::string(e.what()) + "; check the Cyclone DDS configuration (" +
+                     dds_config.origin + ")");
   }
   participant = dds::Entity(dds::check(dds_create_participant(config.domain_id, nullptr, nullptr),
                                        "creating the DDS participant"));
@@ -451,8 +452,10 @@ void Service::Impl::handle(const palpate_ConstraintRequest& request,
   // A request that cannot be answered (no valid reply partition) changes nothing.
   if (reply.client_id[0] == '\0' || std::strpbrk(reply.client_id, "*?[]\\") != nullptr) {
     errors.fetch_add(1, std::memory_order_relaxed);
-    spdlog::warn("event=request_ignored client=\"{}\" request={} reason=\"client id cannot name a reply partition\"",
-                 reply.client_id, request.request_id);
+    spdlog::warn(
+        "event=request_ignored client=\"{}\" request={} reason=\"client id cannot name a reply "
+        "partition\"",
+        reply.client_id, request.request_id);
     return;
   }
   ServedModel* served = nullptr;
@@ -621,7 +624,8 @@ void Service::run() {
     throw;
   }
   stream.join();
-  if (!s.stream_failure.empty()) throw SystemError("the surface stream failed: " + s.stream_failure);
+  if (!s.stream_failure.empty())
+    throw SystemError("the surface stream failed: " + s.stream_failure);
   spdlog::info("event=stopped requests_served={} error_replies={}", s.requests_served.load(),
                s.errors.load());
 }

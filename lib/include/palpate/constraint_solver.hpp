@@ -7,11 +7,13 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
 #include "palpate/eigen.hpp"
 #include "palpate/surface_model.hpp"
+#include "palpate/surface_product.hpp"
 
 namespace palpate {
 
@@ -46,6 +48,8 @@ struct SolverLimits {
   int max_constraints = 64;     ///< constrained vertices per request
   int cache_slots = 8;          ///< factorizations kept for reuse
   double max_condition = 1e12;  ///< 1-norm condition estimate above which a system is refused
+  int surface_threads =
+      1;  ///< 1, or 2: the surface field split over two cores (SplitSurfaceProduct)
 };
 
 /// Solves constraint sets on one model. One instance per model and thread.
@@ -98,7 +102,8 @@ class ConstraintSolver {
   double condition_estimate() const { return condition_; }  ///< of Bᵀ G_CC B (1 when m = 0)
   bool reused_factorization() const { return reused_; }
 
-  /// Displacement of every compliance vertex after the last successful solve, 3N_S, m.
+  /// Displacement of every compliance vertex after the last successful solve,
+  /// 3N_S, m; on two threads when `limits.surface_threads` is 2.
   void surface_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const;
 
   const SurfaceModel& model() const { return model_; }
@@ -125,6 +130,7 @@ class ConstraintSolver {
   bool reused_ = false;
   bool solved_ = false;
   std::array<char, 256> message_{};
+  std::unique_ptr<SplitSurfaceProduct> split_;  // when surface_threads is 2
 };
 
 /// u_S = G_SC f_C: the displacement of every compliance vertex under forces

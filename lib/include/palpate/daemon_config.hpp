@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "palpate/constraint_solver.hpp"
@@ -25,8 +26,10 @@ struct DaemonConfig {
   std::string dds_config;       ///< Cyclone XML file, file:// URI or fragment; empty: loopback
   double surface_rate_hz = 60;  ///< surface stream, at most this many samples per model per second
   double status_rate_hz = 1;    ///< status heartbeat
-  SolverLimits limits;          ///< constraints per request, cache, condition
-  int max_clients = 64;         ///< reply writers kept at once
+  /// Constraints per request, cache, condition; the surface field of replies
+  /// on two threads when the machine has two cores or more.
+  SolverLimits limits{.surface_threads = std::thread::hardware_concurrency() >= 2 ? 2 : 1};
+  int max_clients = 64;  ///< reply writers kept at once
   std::vector<ModelEntry> models;
 };
 
