@@ -42,23 +42,25 @@ struct WaitableReader {
     dds::check(dds_waitset_attach(waitset.get(), condition, 0), what);
   }
 
-  /// Takes samples and hands each valid one to @p accept until it returns
-  /// true (then true) or the deadline passes (then false).
   bool busy_wait = false;  // poll instead of sleeping on the waitset
 
+  /// Takes samples and hands each valid one to @p accept until it returns
+  /// true (then true) or the deadline passes (then false).
   template <typename Sample, typename Accept>
   bool take_until(Clock::time_point deadline, Accept accept) {
     for (;;) {
-      void* samples[16] = {};
-      dds_sample_info_t infos[16];
-      const dds_return_t n = dds_take(reader.get(), samples, infos, 16, 16);
+      // One sample at a time: a batch would lose the samples after the
+      // accepted one (two model descriptions arriving together, say).
+      void* sample = nullptr;
+      dds_sample_info_t info;
+      const dds_return_t n = dds_take(reader.get(), &sample, &info, 1, 1);
       if (n < 0) throw SystemError(std::string("taking samples: ") + dds_strretcode(n));
-      bool done = false;
-      for (dds_return_t i = 0; i < n && !done; ++i)
-        if (infos[i].valid_data) done = accept(*static_cast<const Sample*>(samples[i]));
-      if (n > 0) dds_return_loan(reader.get(), samples, n);
-      if (done) return true;
-      if (n == 16) continue;
+      if (n > 0) {
+        const bool done = info.valid_data && accept(*static_cast<const Sample*>(sample));
+        dds_return_loan(reader.get(), &sample, n);
+        if (done) return true;
+        continue;
+      }
       const auto now = Clock::now();
       if (now >= deadline) return false;
       if (busy_wait) {
