@@ -7,21 +7,12 @@
 #include <Eigen/Dense>
 
 #include "palpate/dense.hpp"
+#include "common.hpp"
 #include "palpate/system_info.hpp"
 
 namespace {
 
-void BM_dgemm(benchmark::State& state) {
-  const auto n = state.range(0);
-  const Eigen::MatrixXd A = Eigen::MatrixXd::Random(n, n), B = Eigen::MatrixXd::Random(n, n);
-  Eigen::MatrixXd C(n, n);
-  for (auto _ : state) {
-    palpate::blas_gemm(A, B, C);
-    benchmark::DoNotOptimize(C.data());
-  }
-  state.counters["GFLOP/s"] = benchmark::Counter(2.0 * n * n * n * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
-}
-BENCHMARK(BM_dgemm)->Arg(2000)->Arg(4000)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(palpate::bench::BM_dgemm)->Name("BM_dgemm")->Arg(2000)->Arg(4000)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_spd_inverse_from_cholesky(benchmark::State& state) {
   const auto n = state.range(0);

@@ -36,6 +36,7 @@
 #include "palpate/dense.hpp"
 #include "palpate/surface_model.hpp"
 #include "palpate/system_info.hpp"
+#include "common.hpp"
 #include "patch.hpp"
 
 namespace {
@@ -140,18 +141,6 @@ void BM_full_field(benchmark::State& state) {
                                                     benchmark::Counter::kIsIterationInvariantRate);
 }
 
-/// The machine's dense rate (as bench/dense_bench.cpp), the yardstick of the ratios.
-void BM_dgemm(benchmark::State& state) {
-  const auto n = state.range(0);
-  const Eigen::MatrixXd A = Eigen::MatrixXd::Random(n, n), B = Eigen::MatrixXd::Random(n, n);
-  Eigen::MatrixXd C(n, n);
-  for (auto _ : state) {
-    palpate::blas_gemm(A, B, C);
-    benchmark::DoNotOptimize(C.data());
-  }
-  state.counters["GFLOP/s"] = benchmark::Counter(2.0 * n * n * n * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
-}
-
 /// Plain read (a sum) of the k panels of 3 columns of G the full field of
 /// the main patch reads: the bandwidth bound of full_field for that k.
 void BM_read_G_SC(benchmark::State& state) {
@@ -180,25 +169,11 @@ void BM_read_G_all(benchmark::State& state) {
                                               benchmark::Counter::kIsIterationInvariantRate);
 }
 
-/// The model path: the first argument that is not a --flag, else
-/// PALPATE_BENCH_MODEL. Removes it from argv for benchmark::Initialize.
-std::string take_model_path(int& argc, char** argv) {
-  for (int a = 1; a < argc; ++a) {
-    if (argv[a][0] == '-') continue;
-    std::string path = argv[a];
-    for (int b = a; b + 1 < argc; ++b) argv[b] = argv[b + 1];
-    --argc;
-    return path;
-  }
-  const char* env = std::getenv("PALPATE_BENCH_MODEL");
-  return env != nullptr ? env : "";
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   palpate::ensure_optimized_blas(argv);
-  const std::string path = take_model_path(argc, argv);
+  const std::string path = palpate::bench::take_model_path(argc, argv);
   if (path.empty() || !std::filesystem::exists(path)) {
     std::fprintf(stderr,
                  "palpate_solve_bench: skipped: no compliance file%s%s; give MODEL.h5 or PALPATE_BENCH_MODEL "
@@ -214,7 +189,7 @@ int main(int argc, char** argv) {
   benchmark::AddCustomContext("model", path);
   benchmark::AddCustomContext("compliance_vertices", std::to_string(loaded.model.compliance_vertex_count()));
   benchmark::Initialize(&argc, argv);
-  benchmark::RegisterBenchmark("BM_dgemm", BM_dgemm)->Arg(1000)->Unit(benchmark::kMillisecond)->UseRealTime();
+  benchmark::RegisterBenchmark("BM_dgemm", palpate::bench::BM_dgemm)->Arg(1000)->Unit(benchmark::kMillisecond)->UseRealTime();
   benchmark::RegisterBenchmark("BM_read_G_SC", BM_read_G_SC)->Arg(20)->Unit(benchmark::kMicrosecond)->UseRealTime();
   benchmark::RegisterBenchmark("BM_read_G_all", BM_read_G_all)->Unit(benchmark::kMillisecond)->UseRealTime();
   for (auto* b : {benchmark::RegisterBenchmark("BM_force_reused", BM_force_reused),

@@ -54,6 +54,7 @@
 #include "palpate/constraint_solver.hpp"
 #include "palpate/surface_model.hpp"
 #include "palpate/system_info.hpp"
+#include "common.hpp"
 #include "patch.hpp"
 
 extern "C" void dgemv_(const char* trans, const int* m, const int* n, const double* alpha, const double* a,
@@ -332,23 +333,11 @@ void BM_huge_pages(benchmark::State& state) {
   });
 }
 
-std::string take_model_path(int& argc, char** argv) {
-  for (int a = 1; a < argc; ++a) {
-    if (argv[a][0] == '-') continue;
-    std::string path = argv[a];
-    for (int b = a; b + 1 < argc; ++b) argv[b] = argv[b + 1];
-    --argc;
-    return path;
-  }
-  const char* env = std::getenv("PALPATE_BENCH_MODEL");
-  return env != nullptr ? env : "";
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   palpate::ensure_optimized_blas(argv);
-  const std::string path = take_model_path(argc, argv);
+  const std::string path = palpate::bench::take_model_path(argc, argv);
   if (path.empty() || !std::filesystem::exists(path)) {
     std::fprintf(stderr, "palpate_surface_field_bench: skipped: no compliance file%s%s; give MODEL.h5 or "
                  "PALPATE_BENCH_MODEL\n", path.empty() ? "" : " at ", path.c_str());
