@@ -17,6 +17,7 @@
 
 #include "palpate/client.hpp"
 #include "palpate/error.hpp"
+#include "palpate/statistics.hpp"
 
 namespace {
 
@@ -107,9 +108,8 @@ std::vector<std::array<double, 3>> vertex_normals(const palpate::ModelInfo& m) {
 }
 
 double percentile(std::vector<double> values, double q) {
-  if (values.empty()) return 0;
   std::sort(values.begin(), values.end());
-  return values[static_cast<std::size_t>(q * static_cast<double>(values.size() - 1) + 0.5)];
+  return palpate::sorted_percentile(values, q);
 }
 
 /// Press the top of the organ, pinch a triangle, slide along the surface,

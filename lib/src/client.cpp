@@ -3,11 +3,11 @@
 #include <fmt/format.h>
 #include <sched.h>
 
-#include <cctype>
 #include <cstring>
 #include <map>
 
 #include "palpate.h"
+#include "palpate/daemon_config.hpp"
 #include "palpate/dds.hpp"
 #include "palpate/error.hpp"
 
@@ -76,10 +76,7 @@ struct WaitableReader {
 };
 
 void check_client_id(const std::string& id) {
-  bool ok = !id.empty() && id.size() <= 63;
-  for (char c : id)
-    ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.');
-  if (!ok)
+  if (!is_valid_id(id))
     throw InputError("client id '" + id +
                      "': expected 1 to 63 characters among A-Z a-z 0-9 _ - . (it names the "
                      "reply partition)");

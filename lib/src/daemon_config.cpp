@@ -89,15 +89,16 @@ ModelEntry parse_model_flag(const std::string& text) {
   return {text.substr(0, eq), std::filesystem::path(text.substr(eq + 1))};
 }
 
+bool is_valid_id(std::string_view id) {
+  if (id.empty() || id.size() > 63) return false;
+  for (char c : id)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.'))
+      return false;
+  return true;
+}
+
 void validate(const DaemonConfig& config) {
-  auto valid_id = [](const std::string& id) {
-    if (id.empty() || id.size() > 63) return false;
-    for (char c : id)
-      if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.'))
-        return false;
-    return true;
-  };
-  if (!valid_id(config.daemon_id))
+  if (!is_valid_id(config.daemon_id))
     throw InputError("daemon.id '" + config.daemon_id +
                      "': expected 1 to 63 characters among A-Z a-z 0-9 _ - .");
   static const std::set<std::string> levels{"trace", "debug", "info", "warn", "error"};
@@ -133,7 +134,7 @@ void validate(const DaemonConfig& config) {
         "ID=PATH");
   std::set<std::string> ids;
   for (const auto& model : config.models) {
-    if (!valid_id(model.id))
+    if (!is_valid_id(model.id))
       throw InputError("model id '" + model.id +
                        "': expected 1 to 63 characters among A-Z a-z 0-9 _ - .");
     if (!ids.insert(model.id).second)

@@ -15,6 +15,7 @@
 #include "palpate/constraint_solver.hpp"
 #include "palpate/dds.hpp"
 #include "palpate/error.hpp"
+#include "palpate/statistics.hpp"
 #include "palpate/surface_model.hpp"
 
 namespace palpate {
@@ -38,14 +39,18 @@ void copy_bounded(char (&destination)[N], std::string_view text) {
   destination[n] = '\0';
 }
 
+/// A client id names its reply partition: not empty, no partition wildcards.
+bool names_a_partition(const char* client_id) {
+  return client_id[0] != '\0' && std::strpbrk(client_id, "*?[]\\") == nullptr;
+}
+
 /// Nearest-rank percentiles of the latencies of one heartbeat interval.
 palpate_Latency percentiles(std::vector<double>& values_us, std::size_t count) {
   palpate_Latency latency{};
   if (count == 0) return latency;
   std::sort(values_us.begin(), values_us.begin() + static_cast<std::ptrdiff_t>(count));
-  auto at = [&](double q) {
-    return values_us[static_cast<std::size_t>(q * static_cast<double>(count - 1) + 0.5)];
-  };
+  const std::span<const double> sorted(values_us.data(), count);
+  auto at = [&](double q) { return sorted_percentile(sorted, q); };
   latency.p50_us = at(0.50);
   latency.p99_us = at(0.99);
   latency.p999_us = at(0.999);
@@ -295,8 +300,7 @@ ClientWriter* Service::Impl::client_writer(const char* client_id) {
   // Called with clients_mutex held.
   for (auto& client : clients)
     if (std::strcmp(client.id, client_id) == 0) return &client;
-  // A client id names a partition: no wildcards.
-  if (client_id[0] == '\0' || std::strpbrk(client_id, "*?[]\\") != nullptr) return nullptr;
+  if (!names_a_partition(client_id)) return nullptr;
   ClientWriter* slot = nullptr;
   if (clients.size() < clients.capacity()) {
     slot = &clients.emplace_back();
@@ -450,7 +454,7 @@ void Service::Impl::handle(const palpate_ConstraintRequest& request,
   reply.surface_displacement._length = 0;
 
   // A request that cannot be answered (no valid reply partition) changes nothing.
-  if (reply.client_id[0] == '\0' || std::strpbrk(reply.client_id, "*?[]\\") != nullptr) {
+  if (!names_a_partition(reply.client_id)) {
     errors.fetch_add(1, std::memory_order_relaxed);
     spdlog::warn(
         "event=request_ignored client=\"{}\" request={} reason=\"client id cannot name a reply "

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -32,6 +33,10 @@ struct DaemonConfig {
   int max_clients = 64;  ///< reply writers kept at once
   std::vector<ModelEntry> models;
 };
+
+/// 1 to 63 characters among A-Z a-z 0-9 _ - . : the rule for model, daemon
+/// and client ids (a client id also names its reply partition).
+bool is_valid_id(std::string_view id);
 
 /// Reads @p file (TOML). Relative model paths are taken from its directory.
 /// @throws InputError naming the file, line and key.
