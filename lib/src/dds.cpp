@@ -76,5 +76,14 @@ Qos request_reply_qos() {
 }
 Qos surface_qos() { return make_qos(DDS_DURABILITY_TRANSIENT_LOCAL, 1); }
 Qos status_qos() { return make_qos(DDS_DURABILITY_VOLATILE, 1); }
+Qos tool_stream_qos() {
+  Qos qos(dds_create_qos());
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+  dds_qset_durability(qos.get(), DDS_DURABILITY_VOLATILE);
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_latency_budget(qos.get(), 0);
+  return qos;
+}
+Qos tool_event_qos() { return make_qos(DDS_DURABILITY_VOLATILE, 64); }
 
 }  // namespace palpate::dds

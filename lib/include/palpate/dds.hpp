@@ -79,6 +79,9 @@ inline constexpr const char* kRequestTopic = "palpate_request";
 inline constexpr const char* kReplyTopic = "palpate_reply";
 inline constexpr const char* kSurfaceTopic = "palpate_surface";
 inline constexpr const char* kStatusTopic = "palpate_status";
+inline constexpr const char* kToolPoseTopic = "palpate_tool_pose";
+inline constexpr const char* kToolFeedbackTopic = "palpate_tool_feedback";
+inline constexpr const char* kToolEventTopic = "palpate_tool_event";
 
 /// Partition of the replies to client @p client_id.
 std::string reply_partition(std::string_view client_id);
@@ -92,5 +95,10 @@ Qos request_reply_qos();
 Qos surface_qos();
 /// Status heartbeat: reliable, volatile, keep-last 1.
 Qos status_qos();
+/// Tool poses and feedback, the 1 kHz loop: best effort, volatile, keep-last
+/// 1 per tool, no latency budget. A lost sample is superseded by the next.
+Qos tool_stream_qos();
+/// Tool events (grasp, release, ...): reliable, volatile, keep-last 64 per tool.
+Qos tool_event_qos();
 
 }  // namespace palpate::dds
