@@ -1,1 +1,3 @@
-// placeholder
+#include <benchmark/benchmark.h>
+// placeholder: being written
+BENCHMARK_MAIN();
