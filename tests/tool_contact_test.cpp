@@ -1,1 +1,445 @@
-// placeholder: being written
+// Tools on an organ (docs/tools.md) against the direct solves of brief.md on
+// the G of a real compliance file: probing, gliding, grasping, two tools,
+// the force limits, the watchdog and refused poses.
+
+#include "palpate/tool_contact.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <set>
+
+#include "support/allocation_counter.hpp"
+#include "support/box_job.hpp"
+#include "support/test_meshes.hpp"
+
+namespace palpate {
+namespace {
+
+using Eigen::Vector3d;
+
+// Forces come from small SPD solves on G (entries ~1e-4 m/N): they agree
+// with the direct dense solves to ~1e-12 relative; 1e-9 leaves margin.
+constexpr double kRelativeTolerance = 1e-9;
+constexpr double kTick = 0.001;  // s, the haptic rate
+constexpr double kSticks = INFINITY;  // friction that never lets a contact slide
+
+class ToolContactTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new testing::TempDir;
+    // A 100 × 50 × 40 mm box clamped on x = 0, 12.5 mm cubes.
+    model_ = new SurfaceModel(
+        load_surface_model("box", testing::write_box_compliance(dir_->path(), "box", 8)));
+  }
+  static void TearDownTestSuite() {
+    delete model_;
+    delete dir_;
+  }
+  static const SurfaceModel& model() { return *model_; }
+
+  /// The compliance vertex of the top face (z = 40 mm) nearest (x, y) in mm.
+  static int top_vertex(double x_mm, double y_mm) {
+    int best = -1;
+    double best_d = 1e9;
+    for (int j = 0; j < model().compliance_vertex_count(); ++j) {
+      const Vector3d p = rest(j);
+      if (std::abs(p.z() - 0.040) > 1e-9) continue;
+      const double d = std::hypot(p.x() - x_mm * 1e-3, p.y() - y_mm * 1e-3);
+      if (d < best_d) best_d = d, best = j;
+    }
+    return best;
+  }
+  static Vector3d rest(int j) {
+    return Eigen::Map<const Vector3d>(&model().drawn_rest_positions_m[3 * static_cast<std::size_t>(j)]);
+  }
+  static Eigen::Matrix3d G_block(int a, int b) { return model().G.block<3, 3>(3 * a, 3 * b); }
+
+  static ToolGeometry probe(const std::string& id, double friction, double radius_m = 0.002) {
+    ToolGeometry g;
+    g.id = id;
+    g.tip = TipShape::kSphere;
+    g.tip_radius_m = radius_m;
+    g.tip_length_m = 0;
+    g.friction = friction;
+    g.jaw_length_m = 0;
+    g.force_limit_n = 100;
+    g.max_force_rate_n_per_s = 1e6;
+    return g;
+  }
+
+  /// Pointing down: the tool's +z is the model's −z.
+  static ToolPoseInput pose_at(const Vector3d& hinge, double jaw = 0) {
+    ToolPoseInput pose;
+    pose.position_m = hinge;
+    pose.orientation = Eigen::Quaterniond(0, 1, 0, 0);
+    pose.jaw_angle_rad = jaw;
+    return pose;
+  }
+
+  /// Moves tool @p t in straight steps of at most @p step_m from its current
+  /// hinge to @p to, one tick per step; returns the last status.
+  struct Driver {
+    ToolContactEngine& engine;
+    std::vector<ToolPoseInput> poses;
+    double now = 0;
+    std::vector<ToolOutput> log;  // every output of every tick, in order
+    std::vector<int> log_tool;
+
+    Driver(ToolContactEngine& e, int tools) : engine(e), poses(static_cast<std::size_t>(tools)) {}
+
+    void tick(int t) {
+      ToolPoseInput& p = poses[static_cast<std::size_t>(t)];
+      ++p.sequence;
+      ToolPoseInput checked = p;
+      ASSERT_EQ(engine.check(t, checked), PoseProblem::kNone);
+      ASSERT_EQ(engine.update(t, checked, now), RequestStatus::kOk) << engine.solver_message();
+      log.push_back(engine.output(t));
+      log_tool.push_back(t);
+    }
+    void tick_all() {
+      for (int t = 0; t < static_cast<int>(poses.size()); ++t) tick(t);
+      now += kTick;
+    }
+    void move(int t, const Vector3d& to, double jaw, double step_m = 5e-5,
+              double jaw_step = degrees(1)) {
+      ToolPoseInput& p = poses[static_cast<std::size_t>(t)];
+      const Vector3d from = p.position_m;
+      const double jaw_from = p.jaw_angle_rad;
+      const int n = std::max(1, static_cast<int>(std::ceil(std::max(
+                                    (to - from).norm() / step_m, std::abs(jaw - jaw_from) / jaw_step))));
+      for (int i = 1; i <= n; ++i) {
+        p.position_m = from + (to - from) * (static_cast<double>(i) / n);
+        p.jaw_angle_rad = jaw_from + (jaw - jaw_from) * (static_cast<double>(i) / n);
+        tick_all();
+      }
+    }
+    void hold(int ticks) {
+      for (int i = 0; i < ticks; ++i) tick_all();
+    }
+    const ToolOutput& last(int t) const { return engine.output(t); }
+    bool saw(int t, ToolEventKind kind) const {
+      for (std::size_t i = 0; i < log.size(); ++i)
+        if (log_tool[i] == t)
+          for (int e = 0; e < log[i].event_count; ++e)
+            if (log[i].events[static_cast<std::size_t>(e)] == kind) return true;
+      return false;
+    }
+  };
+
+  static void start(Driver& driver, int t, const Vector3d& hinge, double jaw = 0) {
+    driver.poses[static_cast<std::size_t>(t)] = pose_at(hinge, jaw);
+  }
+
+  inline static testing::TempDir* dir_ = nullptr;
+  inline static SurfaceModel* model_ = nullptr;
+};
+
+TEST_F(ToolContactTest, PressingToADepthGivesTheDirectImposedDisplacementForce) {
+  // A probe pressed along the normal at vertex v to depth d imposes
+  // u_v = −d e_z on v alone (its neighbours are 12.5 mm away, the tip 2 mm):
+  // brief.md's G_vv f_v = u_v.
+  const int v = top_vertex(75, 25);
+  const double d = 0.003, r = 0.002;
+  ToolContactEngine engine(model(), {probe("probe", kSticks, r)}, {}, {});
+  Driver driver(engine, 1);
+  start(driver, 0, rest(v) + Vector3d(0, 0, r + 0.002));
+  driver.move(0, rest(v) + Vector3d(0, 0, r - d), 0);
+  driver.hold(5);
+
+  ASSERT_EQ(engine.contact_indices().size(), 1u);
+  EXPECT_EQ(engine.contact_indices()[0], v);
+  const Vector3d expected = G_block(v, v).ldlt().solve(Vector3d(0, 0, -d));  // on the organ
+  const Vector3d felt = driver.last(0).force_n;                              // on the tool
+  EXPECT_LT((felt + expected).norm(), kRelativeTolerance * expected.norm());
+  EXPECT_GT(felt.z(), 0.1) << "the organ pushes the probe back up";
+  EXPECT_EQ(driver.last(0).state, ToolState::kTouching);
+  EXPECT_TRUE(driver.saw(0, ToolEventKind::kTouch));
+}
+
+TEST_F(ToolContactTest, PressingAFrictionlessProbeGivesTheDirectNormalDisplacementForce) {
+  // Frictionless: only the component along the organ's normal n = e_z is
+  // imposed, f = −λ e_z with no tangential force; u = G_vv f. The box bends
+  // under the press so v also moves sideways, and it settles where the tip's
+  // surface is: |x_v − c| = r.
+  const int v = top_vertex(75, 25);
+  const double d = 0.003, r = 0.002;
+  ToolContactEngine engine(model(), {probe("probe", 0.0, r)}, {}, {});
+  Driver driver(engine, 1);
+  start(driver, 0, rest(v) + Vector3d(0, 0, r + 0.002));
+  const Vector3d c = rest(v) + Vector3d(0, 0, r - d);
+  driver.move(0, c, 0);
+  driver.hold(50);
+
+  ASSERT_EQ(engine.contact_indices().size(), 1u);
+  const Vector3d f = Eigen::Map<const Vector3d>(engine.contact_forces().data());
+  const Vector3d u = G_block(v, v) * f;
+  EXPECT_LT(f.head<2>().norm(), 1e-12 * f.norm()) << "no tangential force";
+  EXPECT_NEAR((rest(v) + u - c).norm(), r, 1e-9) << "v rests on the tip's surface";
+  EXPECT_NEAR(-f.z(), -u.z() / G_block(v, v)(2, 2), kRelativeTolerance * f.norm());
+  EXPECT_LT(u.z(), -0.9 * d) << "pressed nearly d deep";
+  EXPECT_LT((driver.last(0).force_n + f).norm(), kRelativeTolerance * f.norm());
+}
+
+TEST_F(ToolContactTest, ForceGrowsWithDepthAndVanishesWhenWithdrawn) {
+  ToolGeometry g;  // the default capsule grasper, pointing down
+  g.id = "grasper";
+  g.force_limit_n = 100;
+  ToolContactEngine engine(model(), {g}, {}, {});
+  Driver driver(engine, 1);
+  const Vector3d surface = rest(top_vertex(75, 25));
+  const Vector3d above = surface + Vector3d(0, 0, g.tip_length_m + g.tip_radius_m + 0.002);
+  start(driver, 0, above);
+  double previous = 0;
+  for (const double depth : {0.002, 0.004, 0.006}) {
+    driver.move(0, above - Vector3d(0, 0, 0.002 + depth), 0);
+    driver.hold(20);
+    const double f = driver.last(0).force_n.norm();
+    EXPECT_GT(f, previous * 1.2) << "depth " << depth;
+    previous = f;
+  }
+  driver.move(0, above, 0);
+  driver.hold(20);
+  EXPECT_EQ(driver.last(0).force_n.norm(), 0.0);
+  EXPECT_EQ(driver.last(0).contacts, 0);
+  EXPECT_EQ(driver.last(0).state, ToolState::kFree);
+  EXPECT_TRUE(engine.contact_indices().empty());
+  EXPECT_TRUE(driver.saw(0, ToolEventKind::kLeave));
+}
+
+TEST_F(ToolContactTest, GlidingMovesTheContactSetAndKeepsEachForceNormal) {
+  ToolContactEngine engine(model(), {probe("probe", 0.0, 0.008)}, {}, {});
+  Driver driver(engine, 1);
+  const Vector3d a = rest(top_vertex(50, 25));
+  start(driver, 0, a + Vector3d(0, 0, 0.010));
+  driver.move(0, a + Vector3d(0, 0, 0.008 - 0.004), 0);
+  driver.hold(10);
+  const std::set<int> before(engine.contact_indices().begin(), engine.contact_indices().end());
+  ASSERT_FALSE(before.empty());
+  double worst_tangential = 0;
+  std::set<int> touched = before;
+  for (int i = 1; i <= 500; ++i) {  // 25 mm along x at 0.05 mm per tick
+    driver.poses[0].position_m.x() += 5e-5;
+    driver.tick_all();
+    const auto f = engine.contact_forces();
+    const auto n = engine.contact_normals();
+    for (std::size_t c = 0; c < engine.contact_indices().size(); ++c) {
+      const Vector3d fc = Eigen::Map<const Vector3d>(&f[3 * c]);
+      const Vector3d nc = Eigen::Map<const Vector3d>(&n[3 * c]);
+      ASSERT_NEAR(nc.norm(), 1.0, 1e-12);
+      worst_tangential = std::max(worst_tangential, (fc - fc.dot(nc) * nc).norm() / fc.norm());
+      EXPECT_GE(fc.dot(nc), 0.0) << "a contact pulls the tissue (adhesion not released)";
+      touched.insert(engine.contact_indices()[c]);
+    }
+    ASSERT_GT(driver.last(0).contacts, 0) << "lost contact at tick " << i;
+  }
+  const std::set<int> after(engine.contact_indices().begin(), engine.contact_indices().end());
+  EXPECT_NE(before, after);
+  EXPECT_GT(touched.size(), before.size());
+  EXPECT_LT(worst_tangential, 1e-12);
+  // On a flat face the net force stays mostly along the face's normal.
+  const Vector3d f = driver.last(0).force_n;
+  EXPECT_GT(f.z(), 0.8 * f.norm());
+}
+
+TEST_F(ToolContactTest, GraspAndPullOpposesThePullAndReleaseReturnsTheOrganToRest) {
+  ToolGeometry g;
+  g.id = "grasper";
+  g.force_limit_n = 100;
+  ToolContactEngine engine(model(), {g}, {}, {});
+  Driver driver(engine, 1);
+  const Vector3d surface = rest(top_vertex(75, 25));
+  const double reach = g.tip_length_m + g.tip_radius_m;
+  const Vector3d above = surface + Vector3d(0, 0, reach + 0.002);
+  start(driver, 0, above, degrees(40));
+  const Vector3d in = surface + Vector3d(0, 0, reach - 0.003);
+  driver.move(0, in, degrees(40));         // jaws open around the tissue
+  driver.move(0, in, 0.0);                 // close
+  ASSERT_TRUE(driver.saw(0, ToolEventKind::kGrasp));
+  ASSERT_EQ(driver.last(0).state, ToolState::kGrasping);
+  EXPECT_GT(driver.last(0).held, 0);
+  driver.move(0, in + Vector3d(0, 0, 0.008), 0.0);  // pull 8 mm up
+  driver.hold(20);
+  const Vector3d pulled = driver.last(0).force_n;
+  EXPECT_LT(pulled.z(), -0.05) << "the organ holds the tool back";
+  // The box is a cantilever: held rigidly, the tissue also pulls sideways.
+  EXPECT_GT(-pulled.z(), 0.6 * pulled.norm());
+  driver.move(0, in + Vector3d(0, 0, 0.008), degrees(40));  // open
+  EXPECT_TRUE(driver.saw(0, ToolEventKind::kRelease));
+  driver.move(0, above, degrees(40));
+  driver.hold(20);
+  EXPECT_TRUE(engine.contact_indices().empty()) << "the organ is back at rest";
+  EXPECT_EQ(driver.last(0).force_n.norm(), 0.0);
+  EXPECT_EQ(driver.last(0).state, ToolState::kFree);
+}
+
+TEST_F(ToolContactTest, TwoToolsAreSolvedTogether) {
+  // Two sticking probes 25 mm apart across the box press together: the joint
+  // 6 × 6 solve G_CC f_C = u_C, not two separate 3 × 3 ones.
+  const int a = top_vertex(75, 12.5), b = top_vertex(75, 37.5);
+  ASSERT_NE(a, b);
+  const double d = 0.003, r = 0.002;
+  ToolContactEngine engine(
+      model(), {probe("left", kSticks, r), probe("right", kSticks, r)}, {}, {});
+  Driver driver(engine, 2);
+  start(driver, 0, rest(a) + Vector3d(0, 0, r + 0.001));
+  start(driver, 1, rest(b) + Vector3d(0, 0, r + 0.001));
+  for (int i = 0; i < 80; ++i) {  // both down 4 mm, 0.05 mm per tick
+    driver.poses[0].position_m.z() -= 5e-5;
+    driver.poses[1].position_m.z() -= 5e-5;
+    driver.tick_all();
+  }
+  driver.hold(5);
+  // Each contact's imposed displacement as the engine set it (the first
+  // press moved b sideways before the second tool reached it).
+  ASSERT_EQ(engine.contact_indices().size(), 2u);
+  Eigen::Matrix<double, 6, 1> u;
+  for (int c = 0; c < 2; ++c)
+    u.segment<3>(3 * c) =
+        Eigen::Map<const Vector3d>(&engine.contact_positions()[3 * static_cast<std::size_t>(c)]) -
+        rest(engine.contact_indices()[static_cast<std::size_t>(c)]);
+  ASSERT_EQ(engine.contact_indices()[0], a);
+  EXPECT_LT(u(2), -0.5 * d);
+  Eigen::Matrix<double, 6, 6> G_CC;
+  G_CC << G_block(a, a), G_block(a, b), G_block(b, a), G_block(b, b);
+  const Eigen::Matrix<double, 6, 1> f = G_CC.ldlt().solve(u);
+  EXPECT_LT((driver.last(0).force_n + f.head<3>()).norm(), kRelativeTolerance * f.norm());
+  EXPECT_LT((driver.last(1).force_n + f.tail<3>()).norm(), kRelativeTolerance * f.norm());
+  // Coupled through G: each alone would feel something else.
+  const Vector3d separate = G_block(a, a).ldlt().solve(Vector3d(u.head<3>()));
+  EXPECT_GT((f.head<3>() - separate).norm(), 0.005 * separate.norm());
+}
+
+TEST_F(ToolContactTest, TheForceNeverExceedsTheDeviceLimitNorJumpsFasterThanTheRate) {
+  ToolGeometry g;
+  g.id = "grasper";
+  g.force_limit_n = 1.0;
+  g.max_force_rate_n_per_s = 200;  // 0.2 N per tick
+  ToolContactEngine engine(model(), {g}, {}, {});
+  Driver driver(engine, 1);
+  const Vector3d surface = rest(top_vertex(75, 25));
+  const Vector3d above = surface + Vector3d(0, 0, g.tip_length_m + g.tip_radius_m + 0.001);
+  start(driver, 0, above);
+  driver.move(0, above - Vector3d(0, 0, 0.010), 0, 0.0005);  // fast: 0.5 mm per tick
+  driver.hold(20);
+  driver.move(0, above, 0, 0.002);  // and out faster still
+  driver.hold(10);
+  bool limited = false;
+  Vector3d previous = Vector3d::Zero();
+  for (const auto& out : driver.log) {
+    EXPECT_LE(out.force_n.norm(), g.force_limit_n * (1 + 1e-12));
+    EXPECT_LE((out.force_n - previous).norm(), g.max_force_rate_n_per_s * kTick * (1 + 1e-9));
+    limited |= out.force_limited;
+    previous = out.force_n;
+  }
+  EXPECT_TRUE(limited);
+  EXPECT_NEAR(driver.log[driver.log.size() - 5].force_n.norm(), 0.0, 1e-12)
+      << "withdrawn: back to zero at the rate limit";
+}
+
+TEST_F(ToolContactTest, TheWatchdogRampsAToolOutWhenItsPosesStop) {
+  ToolGeometry g;
+  g.id = "grasper";
+  g.force_limit_n = 100;
+  ContactSettings settings;
+  settings.watchdog_timeout_s = 0.05;
+  settings.watchdog_ramp_s = 0.2;
+  ToolContactEngine engine(model(), {g}, settings, {});
+  Driver driver(engine, 1);
+  const Vector3d surface = rest(top_vertex(75, 25));
+  const Vector3d above = surface + Vector3d(0, 0, g.tip_length_m + g.tip_radius_m + 0.001);
+  start(driver, 0, above);
+  driver.move(0, above - Vector3d(0, 0, 0.005), 0);
+  driver.hold(10);
+  const double pressed = driver.last(0).force_n.norm();
+  ASSERT_GT(pressed, 0.1);
+
+  const double silent_from = driver.now - kTick;
+  EXPECT_EQ(engine.watchdog(silent_from + 0.049), 0u) << "within the timeout: nothing";
+  double previous = pressed;
+  bool saw_watchdog = false;
+  for (double t = silent_from + 0.050; t < silent_from + 0.30; t += kTick) {
+    if (engine.watchdog(t) & 1) {
+      const ToolOutput& out = engine.output(0);
+      for (int e = 0; e < out.event_count; ++e)
+        saw_watchdog |= out.events[static_cast<std::size_t>(e)] == ToolEventKind::kWatchdog;
+      EXPECT_TRUE(out.watchdog || out.state == ToolState::kFree);
+      EXPECT_LE(out.force_n.norm(), previous * (1 + 1e-9) + 1e-12);
+      previous = out.force_n.norm();
+    }
+  }
+  EXPECT_TRUE(saw_watchdog);
+  EXPECT_EQ(previous, 0.0);
+  EXPECT_TRUE(engine.contact_indices().empty());
+  EXPECT_EQ(engine.watchdog(silent_from + 1.0), 0u) << "a tool ramped out is forgotten";
+
+  driver.now = silent_from + 1.0;
+  driver.tick_all();
+  EXPECT_TRUE(driver.saw(0, ToolEventKind::kResumed));
+  EXPECT_GT(driver.last(0).contacts, 0) << "back where it was, pressing again";
+}
+
+TEST_F(ToolContactTest, AbsurdPosesAreRefusedWithTheirReason) {
+  ToolContactEngine engine(model(), {ToolGeometry{.id = "grasper"}}, {}, {});
+  const Vector3d above = rest(top_vertex(75, 25)) + Vector3d(0, 0, 0.05);
+  auto check = [&](ToolPoseInput p) { return engine.check(0, p); };
+  ToolPoseInput good = pose_at(above);
+  good.sequence = 1;
+  EXPECT_EQ(check(good), PoseProblem::kNone);
+
+  ToolPoseInput p = good;
+  p.position_m.x() = std::nan("");
+  EXPECT_EQ(check(p), PoseProblem::kNonFinite);
+  p = good;
+  p.jaw_angle_rad = INFINITY;
+  EXPECT_EQ(check(p), PoseProblem::kNonFinite);
+  p = good;
+  p.orientation = Eigen::Quaterniond(2, 0, 0, 0);
+  EXPECT_EQ(check(p), PoseProblem::kBadQuaternion);
+  p = good;
+  p.orientation = Eigen::Quaterniond(0, 1.05, 0, 0);
+  EXPECT_EQ(engine.check(0, p), PoseProblem::kNone);
+  EXPECT_NEAR(p.orientation.norm(), 1.0, 1e-15) << "a nearly unit quaternion is normalized";
+  p = good;
+  p.jaw_angle_rad = -0.01;
+  EXPECT_EQ(check(p), PoseProblem::kBadJawAngle);
+  p.jaw_angle_rad = degrees(80);
+  EXPECT_EQ(check(p), PoseProblem::kBadJawAngle);
+  p = good;
+  p.position_m.z() += 2.0;
+  EXPECT_EQ(check(p), PoseProblem::kOutOfWorkspace);
+
+  ASSERT_EQ(engine.update(0, good, 0), RequestStatus::kOk);
+  EXPECT_EQ(check(good), PoseProblem::kStale) << "the same sequence again";
+  good.sequence = 2;
+  EXPECT_EQ(check(good), PoseProblem::kNone);
+}
+
+TEST_F(ToolContactTest, ATickAllocatesNothing) {
+  ToolGeometry g;
+  g.id = "left";
+  ToolGeometry h = g;
+  h.id = "right";
+  ToolContactEngine engine(model(), {g, h}, {}, {});
+  Driver driver(engine, 2);
+  const Vector3d a = rest(top_vertex(75, 12.5)), b = rest(top_vertex(75, 37.5));
+  const double reach = g.tip_length_m + g.tip_radius_m;
+  start(driver, 0, a + Vector3d(0, 0, reach + 0.001));
+  start(driver, 1, b + Vector3d(0, 0, reach + 0.001));
+  driver.log.reserve(1000);
+  driver.log_tool.reserve(1000);
+  const auto before = testing::allocations();
+  for (int i = 0; i < 200; ++i) {  // both 3 mm deep
+    driver.poses[0].position_m.z() -= 2e-5;
+    driver.poses[1].position_m.z() -= 2e-5;
+    driver.tick_all();
+  }
+  engine.watchdog(driver.now + 0.1);
+  EXPECT_EQ(testing::allocations() - before, 0u);
+  EXPECT_GT(driver.last(0).contacts, 0);
+  EXPECT_GT(driver.last(1).contacts, 0);
+}
+
+}  // namespace
+}  // namespace palpate

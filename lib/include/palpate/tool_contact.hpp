@@ -16,11 +16,13 @@
 ///     release_angle (hysteresis).
 ///  3. Tip contacts: vertices inside the tip (a sphere or a capsule of radius
 ///     r around the segment hinge → hinge + tip_length·z) are put back on its
-///     surface: along the contact normal only ("slide": tangential motion
-///     free) or fully ("stick").
-///  4. One ConstraintSolver solve for all tools; a tip contact whose solved
-///     force pulls the tissue towards the tool (adhesion) is released and the
-///     set solved again (at most max_iterations solves).
+///     surface along the contact normal: fully while friction holds it
+///     ("stick"), along the normal only once it slides (tangential motion
+///     free: the tool glides).
+///  4. One ConstraintSolver solve for all tools. A tip contact whose solved
+///     force pulls the tissue towards the tool (adhesion) is released; one
+///     whose tangential force exceeds friction × normal force slides; the
+///     set is solved again (at most max_iterations solves).
 ///  5. Feedback: the force on the tool is minus the sum of its contact
 ///     forces, clamped to the device's force limit and moved towards that
 ///     value at most max_force_rate·Δt per tick; torque about the hinge;
@@ -39,6 +41,8 @@
 #include <string_view>
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "palpate/constraint_solver.hpp"
 #include "palpate/eigen.hpp"
 #include "palpate/surface_model.hpp"
@@ -50,10 +54,6 @@ constexpr double millimetres(double mm) { return mm * 1e-3; }
 constexpr double degrees(double deg) { return deg * 3.14159265358979323846 / 180; }
 
 enum class TipShape : std::int8_t { kSphere, kCapsule };
-enum class TipContact : std::int8_t {
-  kSlide,  ///< normal-only constraints: the tool glides (frictionless)
-  kStick,  ///< full displacement onto the tool surface (probe)
-};
 
 /// One tool, from the configuration's [[tools]] tables (SI).
 struct ToolGeometry {
@@ -61,7 +61,11 @@ struct ToolGeometry {
   TipShape tip = TipShape::kCapsule;
   double tip_radius_m = 0.004;      ///< sphere or capsule radius
   double tip_length_m = 0.015;      ///< capsule: segment hinge → hinge + length·z; sphere: 0
-  TipContact contact = TipContact::kSlide;
+  /// Coulomb friction between tip and tissue: a tip contact sticks (its
+  /// vertex fully put back on the tip's surface) while its tangential force
+  /// stays within friction × its normal force, and slides (normal-only
+  /// constraint) beyond. 0: frictionless gliding; infinity: always sticks.
+  double friction = 0.3;
   double jaw_length_m = 0.015;      ///< 0: a probe that cannot grasp
   double jaw_width_m = 0.005;
   double grasp_angle_rad = degrees(15);    ///< jaws closing below this grasp
@@ -77,7 +81,7 @@ struct ContactSettings {
   double watchdog_ramp_s = 0.25;     ///< from full to no contact
   double search_margin_m = 0.01;     ///< vertices this far beyond the tip are examined
   int max_contacts_per_tool = 24;    ///< deepest tip contacts kept
-  int max_iterations = 4;            ///< solves per tick (adhesion release)
+  int max_iterations = 4;            ///< solves per tick (adhesion release, sliding)
   double workspace_margin_m = 0.5;   ///< poses farther from the organ's bounding box are refused
 };
 
@@ -163,6 +167,11 @@ class ToolContactEngine {
   std::span<const int> contact_indices() const;
   std::span<const double> contact_forces() const;
   std::span<const int> contact_tools() const;
+  /// Per contact: the unit normal of a sliding tip contact (its force is
+  /// along it), zero for a held vertex or a sticking tip; 3 per contact.
+  std::span<const double> contact_normals() const;
+  /// Deformed position of each contact, 3 per contact, m.
+  std::span<const double> contact_positions() const;
   /// Solves since construction, and those that reused a cached factorization.
   std::uint64_t solves() const;
 
