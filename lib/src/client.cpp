@@ -1,11 +1,10 @@
 #include "palpate/client.hpp"
 
 #include <fmt/format.h>
-#include <sched.h>
 
 #include <cstring>
-#include <map>
 
+#include "client_common.hpp"
 #include "palpate.h"
 #include "palpate/daemon_config.hpp"
 #include "palpate/dds.hpp"
@@ -15,65 +14,10 @@ namespace palpate {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-std::string bounded(const char* text, std::size_t size) { return {text, strnlen(text, size)}; }
-
-template <typename T, std::size_t N>
-std::array<T, N> to_array(const T (&values)[N]) {
-  std::array<T, N> a;
-  std::copy_n(values, N, a.begin());
-  return a;
-}
-
-/// A reader and the waitset that wakes on its data.
-struct WaitableReader {
-  dds::Entity reader;
-  dds::Entity waitset;
-
-  WaitableReader() = default;
-  /// A reader of @p topic under @p parent (the participant or a subscriber).
-  WaitableReader(dds_entity_t participant, dds_entity_t parent, dds_entity_t topic,
-                 const dds_qos_t* qos, const char* what) {
-    reader = dds::Entity(dds::check(dds_create_reader(parent, topic, qos, nullptr), what));
-    waitset = dds::Entity(dds::check(dds_create_waitset(participant), what));
-    const dds_entity_t condition =
-        dds::check(dds_create_readcondition(reader.get(), DDS_ANY_STATE), what);
-    dds::check(dds_waitset_attach(waitset.get(), condition, 0), what);
-  }
-
-  bool busy_wait = false;  // poll instead of sleeping on the waitset
-
-  /// Takes samples and hands each valid one to @p accept until it returns
-  /// true (then true) or the deadline passes (then false).
-  template <typename Sample, typename Accept>
-  bool take_until(Clock::time_point deadline, Accept accept) {
-    for (;;) {
-      // One sample at a time: a batch would lose the samples after the
-      // accepted one (two model descriptions arriving together, say).
-      void* sample = nullptr;
-      dds_sample_info_t info;
-      const dds_return_t n = dds_take(reader.get(), &sample, &info, 1, 1);
-      if (n < 0) throw SystemError(std::string("taking samples: ") + dds_strretcode(n));
-      if (n > 0) {
-        const bool done = info.valid_data && accept(*static_cast<const Sample*>(sample));
-        dds_return_loan(reader.get(), &sample, n);
-        if (done) return true;
-        continue;
-      }
-      const auto now = Clock::now();
-      if (now >= deadline) return false;
-      if (busy_wait) {
-        sched_yield();
-        continue;
-      }
-      dds_attach_t triggered;
-      dds_waitset_wait(
-          waitset.get(), &triggered, 1,
-          std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - now).count());
-    }
-  }
-};
+using Clock = detail::ClientClock;
+using detail::bounded;
+using detail::to_array;
+using detail::WaitableReader;
 
 void check_client_id(const std::string& id) {
   if (!is_valid_id(id))
@@ -89,8 +33,8 @@ struct Client::Impl {
   std::shared_ptr<dds::Entity> domain;
   dds::Entity participant;
   dds_entity_t request_writer = 0;
-  WaitableReader models, replies, surfaces, statuses;
-  std::map<std::string, ModelInfo> known_models;
+  detail::ModelDescriptions models;
+  WaitableReader replies, surfaces, statuses;
   std::uint64_t next_request_id = 1;
   std::uint64_t foreign_replies = 0;
   palpate_ConstraintRequest request{};
@@ -109,8 +53,7 @@ Client::Client(const ClientOptions& options) : impl_(std::make_unique<Impl>()) {
     return dds::check(dds_create_topic(p, type, name, nullptr, nullptr),
                       fmt::format("creating topic {}", name));
   };
-  c.models = WaitableReader(p, p, topic(&palpate_ModelDescription_desc, dds::kModelTopic),
-                            dds::model_qos().get(), "creating the model reader");
+  c.models = detail::ModelDescriptions(p);
   c.request_writer =
       dds::check(dds_create_writer(p, topic(&palpate_ConstraintRequest_desc, dds::kRequestTopic),
                                    dds::request_reply_qos().get(), nullptr),
@@ -153,29 +96,7 @@ bool Client::wait_for_service(std::chrono::milliseconds timeout) {
 
 std::optional<ModelInfo> Client::wait_for_model(const std::string& model_id,
                                                 std::chrono::milliseconds timeout) {
-  Impl& c = *impl_;
-  auto known = [&]() -> std::optional<ModelInfo> {
-    if (auto it = c.known_models.find(model_id); it != c.known_models.end()) return it->second;
-    return std::nullopt;
-  };
-  if (auto m = known()) return m;
-  c.models.take_until<palpate_ModelDescription>(
-      Clock::now() + timeout, [&](const palpate_ModelDescription& d) {
-        ModelInfo info;
-        info.model_id = bounded(d.model_id, sizeof d.model_id);
-        info.units = bounded(d.units, sizeof d.units);
-        info.material_summary = bounded(d.material_summary, sizeof d.material_summary);
-        info.input_hash = bounded(d.input_hash, sizeof d.input_hash);
-        info.compliance_vertex_count = static_cast<int>(d.compliance_vertex_count);
-        info.vertex_ids.assign(d.vertex_ids._buffer, d.vertex_ids._buffer + d.vertex_ids._length);
-        info.rest_positions_m.assign(d.rest_positions._buffer,
-                                     d.rest_positions._buffer + d.rest_positions._length);
-        info.triangles.assign(d.triangles._buffer, d.triangles._buffer + d.triangles._length);
-        const bool wanted = info.model_id == model_id;
-        c.known_models[info.model_id] = std::move(info);
-        return wanted;
-      });
-  return known();
+  return impl_->models.wait_for(model_id, Clock::now() + timeout);
 }
 
 std::uint64_t Client::send(const std::string& model_id, std::span<const ConstraintSpec> constraints,
