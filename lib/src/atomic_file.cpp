@@ -61,15 +61,19 @@ AtomicOutput::~AtomicOutput() {
 }
 
 void AtomicOutput::commit() {
-  fsync_path(temp_, O_RDONLY);
-  std::error_code ec;
-  std::filesystem::rename(temp_, final_, ec);
-  if (ec)
-    throw SystemError(fmt::format("cannot move '{}' to '{}': {}", temp_.string(), final_.string(),
-                                  ec.message()));
+  durable_rename(temp_, final_);
   committed_ = true;
   g_has_pending = 0;
-  fsync_path(final_.has_parent_path() ? final_.parent_path() : ".", O_RDONLY | O_DIRECTORY);
+}
+
+void durable_rename(const std::filesystem::path& from, const std::filesystem::path& to) {
+  fsync_path(from, O_RDONLY);
+  std::error_code ec;
+  std::filesystem::rename(from, to, ec);
+  if (ec)
+    throw SystemError(fmt::format("cannot move '{}' to '{}': {}", from.string(), to.string(),
+                                  ec.message()));
+  fsync_path(to.has_parent_path() ? to.parent_path() : ".", O_RDONLY | O_DIRECTORY);
 }
 
 void install_interrupt_cleanup() {

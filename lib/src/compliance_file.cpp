@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 
+#include "hdf5_support.hpp"
 #include "palpate/atomic_file.hpp"
 #include "palpate/error.hpp"
 
@@ -15,31 +16,12 @@ namespace palpate {
 
 namespace {
 
-// An HDF5 identifier closed by its own function on scope exit.
-class Handle {
- public:
-  Handle(hid_t id, herr_t (*close)(hid_t), const std::string& what) : id_(id), close_(close) {
-    if (id_ < 0) throw SystemError(fmt::format("HDF5: cannot {}", what));
-  }
-  ~Handle() {
-    if (id_ >= 0) close_(id_);
-  }
-  Handle(Handle&& other) noexcept : id_(other.id_), close_(other.close_) { other.id_ = -1; }
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  Handle& operator=(Handle&&) = delete;
-  operator hid_t() const { return id_; }
-
- private:
-  hid_t id_;
-  herr_t (*close_)(hid_t);
-};
-
-void check(herr_t status, const std::string& what) {
-  if (status < 0) throw SystemError(fmt::format("HDF5: cannot {}", what));
-}
-
-void silence_hdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+using hdf5::check;
+using hdf5::Handle;
+using hdf5::silence_hdf5;
+using hdf5::string_type;
+using hdf5::write_int_attribute;
+using hdf5::write_string_attribute;
 
 // Row-major [rows, cols] dataset from a column-major Eigen matrix: the file
 // holds the transpose of Eigen's memory layout, so write Mᵀ's storage.
@@ -65,29 +47,6 @@ void write_vector(hid_t parent, const char* name, const Vector& v, hid_t mem_typ
   if (v.size() > 0)
     check(H5Dwrite(set, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()),
           fmt::format("write dataset {}", name));
-}
-
-Handle string_type() {
-  Handle type(H5Tcopy(H5T_C_S1), H5Tclose, "copy the string type");
-  check(H5Tset_size(type, H5T_VARIABLE), "make a variable-length string type");
-  check(H5Tset_cset(type, H5T_CSET_UTF8), "set UTF-8");
-  return type;
-}
-
-void write_string_attribute(hid_t object, const char* name, const std::string& value) {
-  Handle type = string_type();
-  Handle space(H5Screate(H5S_SCALAR), H5Sclose, "create a scalar dataspace");
-  Handle attr(H5Acreate2(object, name, type, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
-              fmt::format("create attribute {}", name));
-  const char* data = value.c_str();
-  check(H5Awrite(attr, type, &data), fmt::format("write attribute {}", name));
-}
-
-void write_int_attribute(hid_t object, const char* name, int value) {
-  Handle space(H5Screate(H5S_SCALAR), H5Sclose, "create a scalar dataspace");
-  Handle attr(H5Acreate2(object, name, H5T_STD_I32LE, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
-              fmt::format("create attribute {}", name));
-  check(H5Awrite(attr, H5T_NATIVE_INT, &value), fmt::format("write attribute {}", name));
 }
 
 void write_strings(hid_t parent, const char* name, const std::vector<std::string>& values) {

@@ -30,6 +30,11 @@ class AtomicOutput {
   bool committed_ = false;
 };
 
+/// Flushes @p from to disk, renames it to @p to (replacing it) and flushes
+/// the directory, so that after a crash one of the two names holds the whole
+/// file. @throws SystemError if the file system refuses.
+void durable_rename(const std::filesystem::path& from, const std::filesystem::path& to);
+
 /// Checks that @p final_path names a file in an existing directory.
 /// @throws InputError otherwise, naming the missing directory.
 void require_output_directory(const std::filesystem::path& final_path);
