@@ -55,6 +55,9 @@ int run(int argc, char** argv) {
   app.add_option("--max-condition", overrides.limits.max_condition,
                  "largest accepted condition estimate");
   app.add_option("--log-level", overrides.log_level, "trace, debug, info, warn or error");
+  std::string record_directory;
+  app.add_option("--record", record_directory,
+                 "record tool sessions (poses, forces, contacts) to HDF5 files in this directory");
   app.add_flag("--check-config", check_only,
                "check the configuration and the compliance files, then exit");
   try {
@@ -76,6 +79,7 @@ int run(int argc, char** argv) {
     config.limits.max_constraints = overrides.limits.max_constraints;
   if (app.count("--max-condition")) config.limits.max_condition = overrides.limits.max_condition;
   if (app.count("--log-level")) config.log_level = overrides.log_level;
+  if (app.count("--record")) config.record_directory = record_directory;
   for (const auto& flag : model_flags) config.models.push_back(palpate::parse_model_flag(flag));
   palpate::validate(config);
 

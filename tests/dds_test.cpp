@@ -21,63 +21,20 @@
 #include "palpate/client.hpp"
 #include "palpate/compliance_file.hpp"
 #include "support/box_job.hpp"
+#include "support/daemon_process.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {
 namespace {
 
 using namespace std::chrono_literals;
+using testing::Daemon;
 using testing::TempDir;
 
 // Small well-conditioned systems on G of order 1e-4 m/N: the daemon and the
 // dense reference agree to ~1e-13 relative; 1e-9 leaves margin.
 constexpr double kRelativeTolerance = 1e-9;
 constexpr auto kTimeout = 10s;
-
-/// palpated as a child process, its stderr in a file.
-class Daemon {
- public:
-  Daemon(const std::vector<std::string>& args, const std::filesystem::path& log) : log_(log) {
-    pid_ = fork();
-    if (pid_ == 0) {
-      std::FILE* err = std::freopen(log.c_str(), "w", stderr);
-      (void)err;
-      std::vector<char*> argv{const_cast<char*>(PALPATED_PATH)};
-      for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-      argv.push_back(nullptr);
-      execv(PALPATED_PATH, argv.data());
-      _exit(127);
-    }
-  }
-  ~Daemon() {
-    if (pid_ > 0 && !exited_) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-  }
-  /// Sends @p signal (0: none) and returns the exit code, -1 if it had to be killed.
-  int stop(int signal) {
-    if (signal != 0) kill(pid_, signal);
-    int status = 0;
-    for (int i = 0; i < 1000; ++i) {
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        exited_ = true;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-      }
-      std::this_thread::sleep_for(10ms);
-    }
-    return -1;
-  }
-  std::string log() const {
-    std::ifstream in(log_);
-    return {std::istreambuf_iterator<char>(in), {}};
-  }
-
- private:
-  std::filesystem::path log_;
-  pid_t pid_ = -1;
-  bool exited_ = false;
-};
 
 /// G and the compliance order of a file, for the dense references.
 struct Reference {

@@ -2,6 +2,7 @@
 
 #include <cctype>
 #include <cmath>
+#include <numbers>
 #include <set>
 
 #include "toml_reader.hpp"
@@ -13,7 +14,8 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
   const detail::TomlReader r(file.string());
   const auto base = std::filesystem::absolute(file).parent_path();
   DaemonConfig config;
-  r.only_keys(root, "", {"daemon", "dds", "rates", "limits", "model"});
+  r.only_keys(root, "",
+              {"daemon", "dds", "rates", "limits", "model", "tools", "contact", "recording"});
 
   auto integer = [&](const toml::node& node, const std::string& key, std::int64_t lo,
                      std::int64_t hi) {
@@ -79,7 +81,93 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
                                detail::relative_to(base, r.string(*m.get("file"), "model.file"))});
     });
   }
+  auto non_negative = [&](const toml::node& node, const std::string& key) {
+    const double v = r.number(node, key);
+    if (!(v >= 0) || !std::isfinite(v)) r.fail(&node, key, "expected a number ≥ 0");
+    return v;
+  };
+  if (const auto* n = root.get("tools")) {
+    config.tools.clear();
+    r.each_table(*n, "tools", [&](const toml::table& t) {
+      r.only_keys(t, "tools",
+                  {"id", "tip", "tip_radius_mm", "tip_length_mm", "friction", "jaw_length_mm",
+                   "jaw_width_mm", "grasp_angle_deg", "release_angle_deg", "max_jaw_angle_deg",
+                   "force_limit_n", "max_force_rate_n_per_s"});
+      ToolGeometry g;
+      if (!t.get("id")) r.fail(&t, "tools", "needs an id");
+      g.id = r.string(*t.get("id"), "tools.id");
+      const std::string key = "tools." + g.id + ".";
+      if (const auto* v = t.get("tip")) {
+        const std::string tip = r.string(*v, key + "tip");
+        if (tip == "sphere") {
+          g.tip = TipShape::kSphere;
+          g.tip_length_m = 0;
+        } else if (tip != "capsule") {
+          r.fail(v, key + "tip", "expected \"sphere\" or \"capsule\"");
+        }
+      }
+      if (const auto* v = t.get("tip_radius_mm"))
+        g.tip_radius_m = millimetres(positive(*v, key + "tip_radius_mm"));
+      if (const auto* v = t.get("tip_length_mm")) {
+        if (g.tip == TipShape::kSphere)
+          r.fail(v, key + "tip_length_mm", "a sphere tip has no length (use tip = \"capsule\")");
+        g.tip_length_m = millimetres(non_negative(*v, key + "tip_length_mm"));
+      }
+      if (const auto* v = t.get("friction")) g.friction = non_negative(*v, key + "friction");
+      if (const auto* v = t.get("jaw_length_mm"))
+        g.jaw_length_m = millimetres(non_negative(*v, key + "jaw_length_mm"));
+      if (const auto* v = t.get("jaw_width_mm"))
+        g.jaw_width_m = millimetres(non_negative(*v, key + "jaw_width_mm"));
+      if (const auto* v = t.get("grasp_angle_deg"))
+        g.grasp_angle_rad = degrees(positive(*v, key + "grasp_angle_deg"));
+      if (const auto* v = t.get("release_angle_deg"))
+        g.release_angle_rad = degrees(positive(*v, key + "release_angle_deg"));
+      if (const auto* v = t.get("max_jaw_angle_deg"))
+        g.max_jaw_angle_rad = degrees(positive(*v, key + "max_jaw_angle_deg"));
+      if (const auto* v = t.get("force_limit_n"))
+        g.force_limit_n = positive(*v, key + "force_limit_n");
+      if (const auto* v = t.get("max_force_rate_n_per_s"))
+        g.max_force_rate_n_per_s = positive(*v, key + "max_force_rate_n_per_s");
+      config.tools.push_back(std::move(g));
+    });
+  }
+  if (const auto* n = root.get("contact")) {
+    const auto& t = r.table(*n, "contact");
+    r.only_keys(t, "contact",
+                {"watchdog_timeout_ms", "watchdog_ramp_ms", "search_margin_mm",
+                 "max_contacts_per_tool", "max_iterations", "workspace_margin_mm"});
+    auto& c = config.contact;
+    if (const auto* v = t.get("watchdog_timeout_ms"))
+      c.watchdog_timeout_s = 1e-3 * positive(*v, "contact.watchdog_timeout_ms");
+    if (const auto* v = t.get("watchdog_ramp_ms"))
+      c.watchdog_ramp_s = 1e-3 * positive(*v, "contact.watchdog_ramp_ms");
+    if (const auto* v = t.get("search_margin_mm"))
+      c.search_margin_m = millimetres(non_negative(*v, "contact.search_margin_mm"));
+    if (const auto* v = t.get("max_contacts_per_tool"))
+      c.max_contacts_per_tool =
+          static_cast<int>(integer(*v, "contact.max_contacts_per_tool", 1, 1024));
+    if (const auto* v = t.get("max_iterations"))
+      c.max_iterations = static_cast<int>(integer(*v, "contact.max_iterations", 1, 16));
+    if (const auto* v = t.get("workspace_margin_mm"))
+      c.workspace_margin_m = millimetres(positive(*v, "contact.workspace_margin_mm"));
+  }
+  if (const auto* n = root.get("recording")) {
+    const auto& t = r.table(*n, "recording");
+    r.only_keys(t, "recording", {"directory"});
+    if (const auto* v = t.get("directory")) {
+      const std::string dir = r.string(*v, "recording.directory");
+      if (!dir.empty()) config.record_directory = detail::relative_to(base, dir);
+    }
+  }
   return config;
+}
+
+std::vector<ToolGeometry> DaemonConfig::default_tools() {
+  ToolGeometry left;
+  left.id = "left";
+  ToolGeometry right = left;
+  right.id = "right";
+  return {left, right};
 }
 
 ModelEntry parse_model_flag(const std::string& text) {
@@ -128,6 +216,37 @@ void validate(const DaemonConfig& config) {
         fmt::format("limits.surface_threads {}: expected 1 or 2", config.limits.surface_threads));
   if (config.max_clients < 1 || config.max_clients > 4096)
     throw InputError(fmt::format("limits.max_clients {}: expected 1 to 4096", config.max_clients));
+  if (config.tools.empty() || config.tools.size() > 64)
+    throw InputError(fmt::format("{} tools configured: expected 1 to 64 [[tools]] tables",
+                                 config.tools.size()));
+  std::set<std::string> tool_ids;
+  for (const auto& g : config.tools) {
+    if (!is_valid_id(g.id))
+      throw InputError("tool id '" + g.id +
+                       "': expected 1 to 63 characters among A-Z a-z 0-9 _ - .");
+    if (!tool_ids.insert(g.id).second) throw InputError("tool id '" + g.id + "' is given twice");
+    if (!(g.grasp_angle_rad < g.release_angle_rad && g.release_angle_rad <= g.max_jaw_angle_rad &&
+          g.max_jaw_angle_rad < std::numbers::pi))
+      throw InputError(fmt::format(
+          "tool '{}': jaw angles grasp {:.1f}°, release {:.1f}°, max {:.1f}°: expected grasp < "
+          "release ≤ max < 180° (the hysteresis between grasp and release keeps a grip stable)",
+          g.id, g.grasp_angle_rad * 180 / std::numbers::pi,
+          g.release_angle_rad * 180 / std::numbers::pi,
+          g.max_jaw_angle_rad * 180 / std::numbers::pi));
+    if (!(g.tip_radius_m > 0 && g.force_limit_n > 0 && g.max_force_rate_n_per_s > 0 &&
+          g.friction >= 0 && g.tip_length_m >= 0 && g.jaw_length_m >= 0 && g.jaw_width_m >= 0))
+      throw InputError("tool '" + g.id +
+                       "': radius, force limit and force rate must be positive; lengths, width "
+                       "and friction ≥ 0");
+  }
+  if (config.limits.max_constraints < static_cast<int>(config.tools.size()))
+    throw InputError(fmt::format(
+        "limits.max_constraints {} is below the number of tools ({}): every tool needs room for "
+        "its contacts in the joint solve",
+        config.limits.max_constraints, config.tools.size()));
+  if (!config.record_directory.empty() && !std::filesystem::is_directory(config.record_directory))
+    throw InputError("recording.directory " + config.record_directory.string() +
+                     " is not a directory (create it, or leave the key empty to not record)");
   if (config.models.empty())
     throw InputError(
         "no model to serve: add a [[model]] table (id, file) to the configuration or --model "

@@ -4,10 +4,12 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
+#include <ctime>
 #include <mutex>
 #include <thread>
 
@@ -15,8 +17,10 @@
 #include "palpate/constraint_solver.hpp"
 #include "palpate/dds.hpp"
 #include "palpate/error.hpp"
+#include "palpate/session_recorder.hpp"
 #include "palpate/statistics.hpp"
 #include "palpate/surface_model.hpp"
+#include "palpate/tool_contact.hpp"
 
 namespace palpate {
 
@@ -26,6 +30,8 @@ static_assert(static_cast<int>(RequestStatus::kIllConditioned) == palpate_STATUS
 static_assert(static_cast<int>(RequestStatus::kInternalError) == palpate_STATUS_INTERNAL_ERROR);
 static_assert(static_cast<int>(ConstraintKind::kNormalDisplacement) ==
               palpate_CONSTRAINT_NORMAL_DISPLACEMENT);
+static_assert(static_cast<int>(ToolState::kGrasping) == palpate_TOOL_GRASPING);
+static_assert(static_cast<int>(ToolEventKind::kResumed) == palpate_TOOL_EVENT_RESUMED);
 
 namespace {
 
@@ -103,12 +109,46 @@ struct ServedModel {
   std::uint64_t shown_request = 0;
   double shown_total_force[3] = {};
 
+  // Tools: the pose listener and the watchdog (stream thread) take turns.
+  std::mutex tool_mutex;
+  std::unique_ptr<ToolContactEngine> tools;
+  std::unique_ptr<SessionRecorder> recorder;  // made at the first pose when recording
+  bool recorder_failed = false;
+  std::vector<std::uint32_t> record_vertices;  // one tool's contacts, for the recorder
+  std::vector<double> record_forces;
+
   // Stream thread only.
   palpate_SurfaceDisplacement sample{};  // its buffer is `displacement`
   std::uint64_t published_version = 0;
   std::vector<int> stream_indices;
   std::vector<double> stream_forces;
   Eigen::VectorXd displacement;
+};
+
+/// Logs a repeated warning at most once per second per reason, with the
+/// number of occurrences folded into it.
+class WarningLimiter {
+ public:
+  template <typename... Args>
+  void warn(int reason, fmt::format_string<Args...> format, Args&&... args) {
+    const auto now = Clock::now();
+    Slot& slot = slots_[static_cast<std::size_t>(reason) % slots_.size()];
+    ++slot.count;
+    if (slot.logged && now - slot.last < std::chrono::seconds(1)) return;
+    spdlog::warn("{} occurrences={}", fmt::format(format, std::forward<Args>(args)...),
+                 slot.count);
+    slot.count = 0;
+    slot.logged = true;
+    slot.last = now;
+  }
+
+ private:
+  struct Slot {
+    std::uint64_t count = 0;
+    bool logged = false;
+    Clock::time_point last{};
+  };
+  std::array<Slot, 16> slots_{};
 };
 
 struct ClientWriter {
@@ -142,7 +182,19 @@ struct Service::Impl {
   std::vector<palpate_ConstraintResult> reply_results;
   std::vector<double> reply_surface;
 
+  // Tools.
+  dds::Entity pose_reader, feedback_writer, event_writer;
+  palpate_ToolPose pose_samples[8];
+  void* pose_pointers[8] = {};
+  dds_sample_info_t pose_infos[8];
+  std::mutex pose_mutex;  // warnings and counters of the pose path
+  WarningLimiter pose_warnings;
+  LatencyLog tool_latencies;
+  std::atomic<std::uint64_t> tool_poses{0}, tool_poses_refused{0};
+
   // Counters and the stream/status thread.
+  std::vector<double> tool_us = std::vector<double>(LatencyLog::kCapacity),
+                      tool_us_unused = std::vector<double>(LatencyLog::kCapacity);
   LatencyLog latencies;
   std::atomic<std::uint64_t> requests_served{0}, errors{0}, surface_samples{0};
   std::atomic<bool> stopping{false};
@@ -160,6 +212,15 @@ struct Service::Impl {
   RequestStatus solve(const palpate_ConstraintRequest& request, ServedModel*& served);
   void discover_clients();
   ClientWriter* client_writer(const char* client_id);
+  static void on_poses(dds_entity_t reader, void* arg);
+  void serve_poses();
+  void take_pose(const palpate_ToolPose& pose);
+  void publish_tool(ServedModel& served, int tool, std::uint64_t compute_ns, bool record);
+  void run_watchdogs();
+  void close_recorders();
+  double seconds_since_start() const {
+    return std::chrono::duration<double>(Clock::now() - started).count();
+  }
   void stream_loop();
   void stop();
   void publish_surfaces();
@@ -182,6 +243,10 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
     served->stream_indices.resize(k);
     served->stream_forces.resize(3 * k);
     served->displacement = Eigen::VectorXd::Zero(m.G.rows());
+    served->tools =
+        std::make_unique<ToolContactEngine>(m, config.tools, config.contact, config.limits);
+    served->record_vertices.resize(k);
+    served->record_forces.resize(3 * k);
     served->version = 1;  // the rest state: a late viewer gets a surface before any request
     max_surface = std::max(max_surface, static_cast<std::size_t>(m.G.rows()));
     spdlog::info(
@@ -225,6 +290,9 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   reply_topic = dds::Entity(topic(&palpate_ConstraintReply_desc, dds::kReplyTopic));
   const dds_entity_t surface_topic = topic(&palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic);
   const dds_entity_t status_topic = topic(&palpate_DaemonStatus_desc, dds::kStatusTopic);
+  const dds_entity_t pose_topic = topic(&palpate_ToolPose_desc, dds::kToolPoseTopic);
+  const dds_entity_t feedback_topic = topic(&palpate_ToolFeedback_desc, dds::kToolFeedbackTopic);
+  const dds_entity_t event_topic = topic(&palpate_ToolEvent_desc, dds::kToolEventTopic);
 
   model_writer = dds::Entity(
       dds::check(dds_create_writer(participant.get(), model_topic, dds::model_qos().get(), nullptr),
@@ -235,6 +303,12 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   status_writer = dds::Entity(dds::check(
       dds_create_writer(participant.get(), status_topic, dds::status_qos().get(), nullptr),
       "creating the status writer"));
+  feedback_writer = dds::Entity(dds::check(
+      dds_create_writer(participant.get(), feedback_topic, dds::tool_stream_qos().get(), nullptr),
+      "creating the tool feedback writer"));
+  event_writer = dds::Entity(dds::check(
+      dds_create_writer(participant.get(), event_topic, dds::tool_event_qos().get(), nullptr),
+      "creating the tool event writer"));
   subscriptions_reader = dds::Entity(dds::check(
       dds_create_reader(participant.get(), DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION, nullptr, nullptr),
       "creating the discovery reader"));
@@ -259,6 +333,15 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
       dds_create_reader(participant.get(), request_topic, dds::request_reply_qos().get(), listener);
   dds_delete_listener(listener);
   request_reader = dds::Entity(dds::check(reader, "creating the request reader"));
+
+  // Poses too are served in their reader's listener.
+  for (int i = 0; i < 8; ++i) pose_pointers[i] = &pose_samples[i];
+  dds_listener_t* pose_listener = dds_create_listener(this);
+  dds_lset_data_available(pose_listener, &Impl::on_poses);
+  const dds_entity_t poses = dds_create_reader(participant.get(), pose_topic,
+                                               dds::tool_stream_qos().get(), pose_listener);
+  dds_delete_listener(pose_listener);
+  pose_reader = dds::Entity(dds::check(poses, "creating the tool pose reader"));
 }
 
 void Service::Impl::on_requests(dds_entity_t, void* arg) {
@@ -270,6 +353,9 @@ void Service::Impl::on_requests(dds_entity_t, void* arg) {
 }
 
 Service::Impl::~Impl() {
+  pose_reader.reset();  // no listener call after this
+  request_reader.reset();
+  close_recorders();
   // Request samples own the constraint buffers Cyclone allocated into them.
   for (auto& r : requests) dds_sample_free(&r, &palpate_ConstraintRequest_desc, DDS_FREE_CONTENTS);
   participant.reset();  // deletes every entity of the participant
@@ -508,6 +594,236 @@ void Service::Impl::serve_requests() {
   }
 }
 
+void Service::Impl::on_poses(dds_entity_t, void* arg) {
+  try {
+    static_cast<Impl*>(arg)->serve_poses();
+  } catch (const std::exception& e) {
+    spdlog::error("event=poses_failed error=\"{}\"", e.what());
+  }
+}
+
+void Service::Impl::serve_poses() {
+  for (;;) {
+    const dds_return_t n = dds_take(pose_reader.get(), pose_pointers, pose_infos, 8, 8);
+    if (n < 0) throw SystemError(std::string("taking tool poses: ") + dds_strretcode(n));
+    for (dds_return_t i = 0; i < n; ++i)
+      if (pose_infos[i].valid_data) take_pose(pose_samples[i]);
+    if (n < 8) return;
+  }
+}
+
+namespace {
+enum PoseWarning { kUnknownModel, kUnknownTool, kBadPose, kSolveFailed };
+}
+
+void Service::Impl::take_pose(const palpate_ToolPose& pose) {
+  const auto start = Clock::now();
+  const std::string_view tool_id(pose.tool_id, strnlen(pose.tool_id, sizeof pose.tool_id));
+  const std::string_view model_id(pose.model_id, strnlen(pose.model_id, sizeof pose.model_id));
+  ServedModel* served = nullptr;
+  for (const auto& candidate : models)
+    if (candidate->model.id == model_id) served = candidate.get();
+  if (served == nullptr) {
+    tool_poses_refused.fetch_add(1, std::memory_order_relaxed);
+    pose_warnings.warn(kUnknownModel,
+                       "event=pose_ignored tool=\"{}\" model=\"{}\" reason=unknown_model "
+                       "served=\"{}\"",
+                       tool_id, model_id, served_ids);
+    return;
+  }
+  const int tool = served->tools->tool_index(tool_id);
+  if (tool < 0) {
+    tool_poses_refused.fetch_add(1, std::memory_order_relaxed);
+    pose_warnings.warn(kUnknownTool,
+                       "event=pose_ignored tool=\"{}\" model={} reason=unknown_tool "
+                       "hint=\"tools are configured in [[tools]]\"",
+                       tool_id, model_id);
+    return;
+  }
+  ToolPoseInput input;
+  input.sequence = pose.pose_sequence;
+  input.send_time_ns = pose.send_time_ns;
+  input.position_m = Eigen::Vector3d(pose.position[0], pose.position[1], pose.position[2]);
+  input.orientation = Eigen::Quaterniond(pose.orientation[0], pose.orientation[1],
+                                         pose.orientation[2], pose.orientation[3]);
+  input.jaw_angle_rad = pose.jaw_angle;
+  const std::lock_guard lock(served->tool_mutex);
+  ToolContactEngine& engine = *served->tools;
+  if (const PoseProblem problem = engine.check(tool, input); problem != PoseProblem::kNone) {
+    tool_poses_refused.fetch_add(1, std::memory_order_relaxed);
+    pose_warnings.warn(kBadPose + static_cast<int>(problem) * 4,
+                       "event=pose_ignored tool={} model={} sequence={} reason={} "
+                       "position=[{:g},{:g},{:g}] jaw_angle={:g}",
+                       tool_id, model_id, pose.pose_sequence, pose_problem_name(problem),
+                       pose.position[0], pose.position[1], pose.position[2], pose.jaw_angle);
+    return;
+  }
+  const RequestStatus status = engine.update(tool, input, seconds_since_start());
+  if (status != RequestStatus::kOk)
+    pose_warnings.warn(kSolveFailed, "event=tool_solve_failed tool={} model={} status={} message=\"{}\"",
+                       tool_id, model_id, status_name(status), engine.solver_message());
+  tool_poses.fetch_add(1, std::memory_order_relaxed);
+  publish_tool(*served, tool,
+               static_cast<std::uint64_t>(
+                   std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start)
+                       .count()),
+               true);
+}
+
+void Service::Impl::publish_tool(ServedModel& served, int tool, std::uint64_t compute_ns,
+                                 bool record) {
+  // Called with served.tool_mutex held.
+  const ToolContactEngine& engine = *served.tools;
+  const ToolOutput& out = engine.output(tool);
+  const ToolGeometry& geometry = engine.tool(tool);
+  palpate_ToolFeedback feedback{};
+  copy_bounded(feedback.tool_id, geometry.id);
+  copy_bounded(feedback.model_id, served.model.id);
+  feedback.pose_sequence = out.sequence;
+  feedback.send_time_ns = out.send_time_ns;
+  for (int d = 0; d < 3; ++d) {
+    feedback.force[d] = out.force_n[d];
+    feedback.torque[d] = out.torque_nm[d];
+  }
+  feedback.grip_force = out.grip_n;
+  feedback.contacts = static_cast<std::uint32_t>(out.contacts);
+  feedback.state = static_cast<palpate_ToolState>(out.state);
+  feedback.force_limited = out.force_limited;
+  feedback.watchdog = out.watchdog;
+  feedback.compute_ns = compute_ns;
+  if (const dds_return_t rc = dds_write(feedback_writer.get(), &feedback); rc < 0)
+    spdlog::error("event=dds_error what=\"writing tool feedback\" tool={} error={}", geometry.id,
+                  dds_strretcode(rc));
+  const double compute_us = static_cast<double>(compute_ns) * 1e-3;
+  tool_latencies.record(compute_us, compute_us);
+
+  const double now_s = seconds_since_start();
+  for (int e = 0; e < out.event_count; ++e) {
+    const ToolEventKind kind = out.events[static_cast<std::size_t>(e)];
+    palpate_ToolEvent event{};
+    copy_bounded(event.tool_id, geometry.id);
+    copy_bounded(event.model_id, served.model.id);
+    event.kind = static_cast<palpate_ToolEventKind>(kind);
+    event.pose_sequence = out.sequence;
+    event.held_vertices = static_cast<std::uint32_t>(out.held);
+    event.daemon_time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+    if (const dds_return_t rc = dds_write(event_writer.get(), &event); rc < 0)
+      spdlog::error("event=dds_error what=\"writing a tool event\" tool={} error={}",
+                    geometry.id, dds_strretcode(rc));
+    spdlog::info("event=tool_{} tool={} model={} sequence={} held={}", tool_event_name(kind),
+                 geometry.id, served.model.id, out.sequence, out.held);
+  }
+
+  // The tools' contacts become the model's shown state.
+  const auto indices = engine.contact_indices();
+  const auto forces = engine.contact_forces();
+  {
+    const std::lock_guard lock(served.mutex);
+    const std::size_t k = std::min(indices.size(), served.shown_indices.size());
+    served.shown_count = static_cast<int>(k);
+    std::copy_n(indices.begin(), k, served.shown_indices.begin());
+    std::copy_n(forces.begin(), 3 * k, served.shown_forces.begin());
+    copy_bounded(served.shown_client, "tool:" + geometry.id);
+    served.shown_request = out.sequence;
+    Eigen::Vector3d total = Eigen::Vector3d::Zero();
+    for (std::size_t c = 0; c < k; ++c) total += Eigen::Map<const Eigen::Vector3d>(&forces[3 * c]);
+    for (int d = 0; d < 3; ++d) served.shown_total_force[d] = total[d];
+    ++served.version;
+  }
+
+  if (!record || config.record_directory.empty() || served.recorder_failed) return;
+  if (!served.recorder) {
+    try {
+      SessionInfo info;
+      info.model_id = served.model.id;
+      info.model_file = served.model.path.string();
+      info.input_hash = served.model.input_hash;
+      info.daemon_id = config.daemon_id;
+      info.tools = config.tools;
+      info.contact = config.contact;
+      const auto wall = std::chrono::system_clock::now();
+      info.start_unix_ns =
+          std::chrono::duration_cast<std::chrono::nanoseconds>(wall.time_since_epoch()).count();
+      const std::time_t seconds = std::chrono::system_clock::to_time_t(wall);
+      std::tm utc{};
+      gmtime_r(&seconds, &utc);
+      char stamp[32];
+      std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
+      const auto file =
+          config.record_directory / fmt::format("session-{}-{}.h5", served.model.id, stamp);
+      served.recorder = std::make_unique<SessionRecorder>(file, info);
+      spdlog::info("event=recording_started model={} file={}", served.model.id, file.string());
+    } catch (const std::exception& e) {
+      served.recorder_failed = true;
+      spdlog::error("event=recording_failed model={} error=\"{}\"", served.model.id, e.what());
+      return;
+    }
+  }
+  ToolTickRecord tick;
+  tick.time_s = now_s;
+  tick.tool = tool;
+  tick.sequence = out.sequence;
+  tick.send_time_ns = out.send_time_ns;
+  const ToolPoseInput& pose = engine.pose(tool);
+  for (int d = 0; d < 3; ++d) {
+    tick.position_m[d] = pose.position_m[d];
+    tick.force_n[d] = out.force_n[d];
+    tick.torque_nm[d] = out.torque_nm[d];
+  }
+  tick.orientation_wxyz[0] = pose.orientation.w();
+  tick.orientation_wxyz[1] = pose.orientation.x();
+  tick.orientation_wxyz[2] = pose.orientation.y();
+  tick.orientation_wxyz[3] = pose.orientation.z();
+  tick.jaw_angle_rad = pose.jaw_angle_rad;
+  tick.grip_n = out.grip_n;
+  tick.state = out.state;
+  tick.watchdog = out.watchdog;
+  tick.force_limited = out.force_limited;
+  tick.held = static_cast<std::uint32_t>(out.held);
+  tick.compute_ns = compute_ns;
+  const auto tools_of = engine.contact_tools();
+  std::size_t m = 0;
+  for (std::size_t c = 0; c < indices.size() && m < served.record_vertices.size(); ++c) {
+    if (tools_of[c] != tool) continue;
+    served.record_vertices[m] =
+        served.model.drawn_vertex_ids[static_cast<std::size_t>(indices[c])];
+    std::copy_n(&forces[3 * c], 3, &served.record_forces[3 * m]);
+    ++m;
+  }
+  served.recorder->record(tick, {served.record_vertices.data(), m},
+                          {served.record_forces.data(), 3 * m});
+  for (int e = 0; e < out.event_count; ++e)
+    served.recorder->record_event(now_s, tool, out.events[static_cast<std::size_t>(e)],
+                                  out.sequence);
+}
+
+void Service::Impl::run_watchdogs() {
+  for (const auto& served : models) {
+    const std::lock_guard lock(served->tool_mutex);
+    const std::uint64_t changed = served->tools->watchdog(seconds_since_start());
+    for (int t = 0; t < served->tools->tool_count(); ++t)
+      if (changed >> t & 1) publish_tool(*served, t, 0, true);
+  }
+}
+
+void Service::Impl::close_recorders() {
+  for (const auto& served : models) {
+    const std::lock_guard lock(served->tool_mutex);
+    if (!served->recorder) continue;
+    try {
+      served->recorder->close();
+      spdlog::info("event=recording_closed model={} file={} ticks={} dropped={}", served->model.id,
+                   served->recorder->path().string(), served->recorder->recorded(),
+                   served->recorder->dropped());
+    } catch (const std::exception& e) {
+      spdlog::error("event=recording_failed model={} error=\"{}\"", served->model.id, e.what());
+    }
+    served->recorder.reset();
+  }
+}
+
 void Service::Impl::publish_surfaces() {
   for (const auto& served : models) {
     palpate_SurfaceDisplacement& sample = served->sample;
@@ -560,6 +876,12 @@ void Service::Impl::publish_status(double interval_s, std::uint64_t served_in_in
     const std::lock_guard lock(clients_mutex);
     status.clients = static_cast<std::uint32_t>(clients.size());
   }
+  status.tool_poses = tool_poses.load(std::memory_order_relaxed);
+  status.tool_poses_refused = tool_poses_refused.load(std::memory_order_relaxed);
+  {
+    const std::size_t m = tool_latencies.drain(tool_us, tool_us_unused);
+    status.tool_compute = percentiles(tool_us, m);
+  }
   if (const dds_return_t rc = dds_write(status_writer.get(), &status); rc < 0)
     spdlog::error("event=dds_error what=\"writing the status\" error={}", dds_strretcode(rc));
 }
@@ -572,15 +894,23 @@ void Service::Impl::stream_loop() {
       duration_cast<Clock::duration>(duration<double>(1.0 / config.status_rate_hz));
   auto next_surface = Clock::now();
   auto next_status = Clock::now() + status_period;
+  // The tools' watchdog: a few milliseconds of resolution on its timeout.
+  const auto watchdog_period = duration_cast<Clock::duration>(milliseconds(5));
+  auto next_watchdog = Clock::now() + watchdog_period;
   auto last_status = Clock::now();
   std::uint64_t last_served = 0, last_surfaces = 0;
   std::vector<double> solve_us(LatencyLog::kCapacity), reply_us(LatencyLog::kCapacity);
   std::unique_lock lock(stream_mutex);
   while (!stopping.load()) {
-    stream_wake.wait_until(lock, std::min(next_surface, next_status),
+    stream_wake.wait_until(lock, std::min({next_surface, next_status, next_watchdog}),
                            [&] { return stopping.load(); });
     if (stopping.load()) break;
-    const auto now = Clock::now();
+    auto now = Clock::now();
+    if (now >= next_watchdog) {
+      run_watchdogs();
+      next_watchdog = std::max(next_watchdog + watchdog_period, now);
+      now = Clock::now();
+    }
     if (now >= next_surface) {
       publish_surfaces();
       next_surface = std::max(next_surface + surface_period, now);

@@ -655,6 +655,9 @@ std::uint64_t ToolContactEngine::watchdog(double now_s) {
 const ToolOutput& ToolContactEngine::output(int t) const {
   return impl_->tools.at(static_cast<std::size_t>(t)).out;
 }
+const ToolPoseInput& ToolContactEngine::pose(int t) const {
+  return impl_->tools.at(static_cast<std::size_t>(t)).pose;
+}
 const char* ToolContactEngine::solver_message() const { return impl_->message; }
 std::span<const int> ToolContactEngine::contact_indices() const {
   return {impl_->indices.data(), static_cast<std::size_t>(impl_->count)};

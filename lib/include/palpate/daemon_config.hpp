@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "palpate/constraint_solver.hpp"
+#include "palpate/tool_contact.hpp"
 
 namespace palpate {
 
@@ -32,6 +33,13 @@ struct DaemonConfig {
   SolverLimits limits{.surface_threads = std::thread::hardware_concurrency() >= 2 ? 2 : 1};
   int max_clients = 64;  ///< reply writers kept at once
   std::vector<ModelEntry> models;
+  /// Haptic tools ([[tools]]); "left" and "right" with the default geometry
+  /// when the configuration names none.
+  std::vector<ToolGeometry> tools = default_tools();
+  ContactSettings contact;                  ///< [contact]
+  std::filesystem::path record_directory;  ///< [recording] directory; empty: no recording
+
+  static std::vector<ToolGeometry> default_tools();
 };
 
 /// 1 to 63 characters among A-Z a-z 0-9 _ - . : the rule for model, daemon

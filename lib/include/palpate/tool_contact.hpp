@@ -160,6 +160,8 @@ class ToolContactEngine {
   std::uint64_t watchdog(double now_s);
 
   const ToolOutput& output(int tool) const;
+  /// The last pose taken of @p tool.
+  const ToolPoseInput& pose(int tool) const;
   const char* solver_message() const;
 
   /// The contacts of the last solve, all tools: compliance indices, the

@@ -1,0 +1,331 @@
+// Haptic tools end to end: the real palpated, real Cyclone DDS on loopback
+// (CTest runs this binary in a private network namespace), poses sent by a
+// ToolClient at the haptic rate, feedback checked against the direct solves
+// of brief.md on G read from the compliance file.
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <chrono>
+#include <fstream>
+#include <thread>
+
+#include "palpate.h"
+#include "palpate/compliance_file.hpp"
+#include "palpate/dds.hpp"
+#include "palpate/tool_client.hpp"
+#include "support/box_job.hpp"
+#include "support/daemon_process.hpp"
+#include "support/test_meshes.hpp"
+
+namespace palpate {
+namespace {
+
+using namespace std::chrono_literals;
+using Eigen::Vector3d;
+
+constexpr auto kTimeout = 10s;
+constexpr double kRelativeTolerance = 1e-9;
+const std::array<double, 4> kPointingDown{0, 1, 0, 0};  // tool +z along the model's −z
+
+class ToolsOverDdsTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new testing::TempDir;
+    box_ = testing::write_box_compliance(dir_->path(), "box", 8, 85e3);
+    std::filesystem::create_directory(dir_->path() / "sessions");
+    std::ofstream(dir_->path() / "palpated.toml")
+        << "[daemon]\nid = \"tools-daemon\"\nlog_level = \"info\"\n"
+           "[[model]]\nid = \"box\"\nfile = \"box.h5\"\n"
+           "[[tools]]\nid = \"probe\"\ntip = \"sphere\"\ntip_radius_mm = 2\nfriction = 1e9\n"
+           "jaw_length_mm = 0\nforce_limit_n = 100\nmax_force_rate_n_per_s = 1e6\n"
+           "[[tools]]\nid = \"left\"\nforce_limit_n = 100\n"
+           "[[tools]]\nid = \"right\"\nforce_limit_n = 100\n"
+           "[contact]\nwatchdog_timeout_ms = 50\nwatchdog_ramp_ms = 100\n"
+           "[recording]\ndirectory = \"sessions\"\n";
+    daemon_ = new testing::Daemon({"--config", (dir_->path() / "palpated.toml").string()},
+                                  dir_->path() / "palpated.log");
+    Eigen::MatrixXd G;
+    const ComplianceModel m = read_compliance_file(box_, &G);
+    G_ = new Eigen::MatrixXd(std::move(G));
+    client_ = new ToolClient(ToolClientOptions{});
+    const auto info = client_->wait_for_model("box", kTimeout);
+    ASSERT_TRUE(info) << daemon_->log();
+    info_ = new ModelInfo(*info);
+    ASSERT_TRUE(client_->wait_for_daemon(kTimeout)) << daemon_->log();
+  }
+  static void TearDownTestSuite() {
+    delete client_;
+    EXPECT_EQ(daemon_->stop(SIGTERM), 0) << daemon_->log();
+    // The session was recorded and closed: the final file, no .partial.
+    int sessions = 0;
+    for (const auto& entry : std::filesystem::directory_iterator(dir_->path() / "sessions")) {
+      EXPECT_EQ(entry.path().extension(), ".h5") << entry.path();
+      EXPECT_GT(std::filesystem::file_size(entry.path()), 1000u);
+      ++sessions;
+    }
+    EXPECT_EQ(sessions, 1) << daemon_->log();
+    if (::testing::Test::HasFailure()) std::fprintf(stderr, "%s", daemon_->log().c_str());
+    delete daemon_;
+    delete info_;
+    delete G_;
+    delete dir_;
+  }
+
+  /// Compliance index of the top-face vertex (z = 40 mm) nearest (x, y) mm.
+  static int top_vertex(double x_mm, double y_mm) {
+    int best = -1;
+    double best_d = 1e9;
+    for (int j = 0; j < info_->compliance_vertex_count; ++j) {
+      const Vector3d p = rest(j);
+      if (std::abs(p.z() - 0.040) > 1e-9) continue;
+      const double d = std::hypot(p.x() - x_mm * 1e-3, p.y() - y_mm * 1e-3);
+      if (d < best_d) best_d = d, best = j;
+    }
+    return best;
+  }
+  static Vector3d rest(int j) {
+    return Eigen::Map<const Vector3d>(&info_->rest_positions_m[3 * static_cast<std::size_t>(j)]);
+  }
+
+  /// One tool driven at the haptic rate: a pose, then its feedback.
+  struct Hand {
+    std::string tool;
+    Vector3d at;
+    double jaw = 0;
+    std::uint64_t sequence;
+    std::optional<ToolFeedbackSample> last;
+    int answered = 0;
+
+    Hand(std::string id, const Vector3d& start, double jaw_angle = 0)
+        : tool(std::move(id)), at(start), jaw(jaw_angle), sequence(next_sequence_ += 100000) {}
+
+    void send() {
+      client_->send_pose(tool, "box", ++sequence, {at.x(), at.y(), at.z()}, kPointingDown, jaw);
+    }
+    /// Paces the caller at the haptic rate: the force's slew limit is per second.
+    void receive() {
+      std::this_thread::sleep_until(next_tick_);
+      next_tick_ = std::max(next_tick_ + 1ms, std::chrono::steady_clock::now());
+      if (auto f = client_->wait_feedback(tool, sequence, std::chrono::steady_clock::now() + 1s)) {
+        last = f;
+        ++answered;
+      }
+    }
+    void tick() {
+      send();
+      receive();
+    }
+    /// In straight steps of at most 0.05 mm and 1°.
+    void move(const Vector3d& to, double jaw_to, Hand* other = nullptr) {
+      const Vector3d from = at;
+      const double jaw_from = jaw;
+      const int n = std::max(1, static_cast<int>(std::ceil(
+                                    std::max((to - from).norm() / 5e-5,
+                                             std::abs(jaw_to - jaw_from) / degrees(1)))));
+      for (int i = 1; i <= n; ++i) {
+        at = from + (to - from) * (static_cast<double>(i) / n);
+        jaw = jaw_from + (jaw_to - jaw_from) * (static_cast<double>(i) / n);
+        send();
+        if (other) other->send();
+        receive();
+        if (other) other->receive();
+      }
+    }
+    void hold(int ticks, Hand* other = nullptr) {
+      for (int i = 0; i < ticks; ++i) {
+        send();
+        if (other) other->send();
+        receive();
+        if (other) other->receive();
+      }
+    }
+    Vector3d force() const { return last ? Vector3d(last->force_n.data()) : Vector3d::Zero(); }
+  };
+
+  static bool saw_event(const std::vector<ToolEventSample>& events, const std::string& tool,
+                        ToolEventKind kind) {
+    for (const auto& e : events)
+      if (e.tool_id == tool && e.kind == kind) return true;
+    return false;
+  }
+
+  inline static testing::TempDir* dir_ = nullptr;
+  inline static std::filesystem::path box_;
+  inline static testing::Daemon* daemon_ = nullptr;
+  inline static Eigen::MatrixXd* G_ = nullptr;
+  inline static ToolClient* client_ = nullptr;
+  inline static ModelInfo* info_ = nullptr;
+  inline static std::uint64_t next_sequence_ = 0;
+  inline static std::chrono::steady_clock::time_point next_tick_{};
+};
+
+TEST_F(ToolsOverDdsTest, PressingGivesTheDirectSolveAndWithdrawingGivesNothing) {
+  const int v = top_vertex(75, 25);
+  const double r = 0.002;
+  Hand probe("probe", rest(v) + Vector3d(0, 0, r + 0.002));
+  client_->take_events();
+  double previous = 0;
+  for (const double d : {0.001, 0.002, 0.003}) {
+    probe.move(rest(v) + Vector3d(0, 0, r - d), 0);
+    probe.hold(5);
+    ASSERT_TRUE(probe.last) << daemon_->log();
+    EXPECT_GT(probe.force().norm(), previous * 1.2) << "depth " << d;
+    previous = probe.force().norm();
+    // brief.md: G_vv f = u_v with u_v = −d e_z; the probe feels −f.
+    const Vector3d f = G_->block<3, 3>(3 * v, 3 * v).ldlt().solve(Vector3d(0, 0, -d));
+    EXPECT_LT((probe.force() + f).norm(), kRelativeTolerance * f.norm()) << "depth " << d;
+    EXPECT_EQ(probe.last->state, ToolState::kTouching);
+    EXPECT_EQ(probe.last->contacts, 1u);
+    EXPECT_EQ(probe.last->sequence, probe.sequence) << "echoed";
+    EXPECT_GT(probe.last->compute_ns, 0u);
+  }
+  probe.move(rest(v) + Vector3d(0, 0, r + 0.002), 0);
+  probe.hold(5);
+  EXPECT_EQ(probe.force().norm(), 0.0);
+  EXPECT_EQ(probe.last->state, ToolState::kFree);
+  std::this_thread::sleep_for(100ms);
+  const auto events = client_->take_events();
+  EXPECT_TRUE(saw_event(events, "probe", ToolEventKind::kTouch));
+  EXPECT_TRUE(saw_event(events, "probe", ToolEventKind::kLeave));
+  EXPECT_GT(probe.answered, 100);
+}
+
+TEST_F(ToolsOverDdsTest, GraspPullAndReleaseArriveInOrderAndReleaseRestoresTheOrgan) {
+  const int v = top_vertex(75, 25);
+  const double reach = 0.015 + 0.004;  // default capsule: 15 mm long, radius 4 mm
+  const Vector3d above = rest(v) + Vector3d(0, 0, reach + 0.002);
+  const Vector3d in = rest(v) + Vector3d(0, 0, reach - 0.003);
+  Hand left("left", above, degrees(40));
+  client_->take_events();
+  left.move(in, degrees(40));
+  left.move(in, 0);
+  ASSERT_TRUE(left.last);
+  EXPECT_EQ(left.last->state, ToolState::kGrasping) << daemon_->log();
+  left.move(in + Vector3d(0, 0, 0.008), 0);  // pull up
+  left.hold(10);
+  EXPECT_LT(left.force().z(), -0.05) << "the organ holds the pliers back";
+  left.move(in + Vector3d(0, 0, 0.008), degrees(40));  // open
+  left.move(above, degrees(40));
+  left.hold(10);
+  EXPECT_EQ(left.force().norm(), 0.0);
+  EXPECT_EQ(left.last->state, ToolState::kFree);
+  EXPECT_EQ(left.last->contacts, 0u);
+
+  // Grasp and release come reliably, in this order.
+  std::this_thread::sleep_for(100ms);
+  const auto events = client_->take_events();
+  int grasp = -1, release = -1;
+  for (int i = 0; i < static_cast<int>(events.size()); ++i) {
+    if (events[static_cast<std::size_t>(i)].tool_id != "left") continue;
+    if (events[static_cast<std::size_t>(i)].kind == ToolEventKind::kGrasp && grasp < 0) grasp = i;
+    if (events[static_cast<std::size_t>(i)].kind == ToolEventKind::kRelease) release = i;
+  }
+  ASSERT_GE(grasp, 0);
+  ASSERT_GT(release, grasp);
+  EXPECT_GT(events[static_cast<std::size_t>(grasp)].held_vertices, 0u);
+}
+
+TEST_F(ToolsOverDdsTest, TwoToolsPressingTogetherFeelEachOther) {
+  const int a = top_vertex(75, 12.5), b = top_vertex(75, 37.5);
+  const double reach = 0.015 + 0.004;
+  Hand left("left", rest(a) + Vector3d(0, 0, reach + 0.001));
+  Hand right("right", rest(b) + Vector3d(0, 0, reach + 0.001));
+  left.move(rest(a) + Vector3d(0, 0, reach - 0.003), 0, &right);  // left alone
+  left.hold(10);
+  const Vector3d alone = left.force();
+  ASSERT_GT(alone.z(), 0.05);
+  for (int i = 0; i < 120; ++i) {  // right presses too (b has dipped under the left press)
+    right.at.z() -= 5e-5;
+    left.send();
+    right.send();
+    left.receive();
+    right.receive();
+  }
+  left.hold(10, &right);
+  ASSERT_TRUE(right.last);
+  EXPECT_GT(right.last->contacts, 0u);
+  EXPECT_GT(right.force().z(), 0.05);
+  EXPECT_GT((left.force() - alone).norm(), 0.005 * alone.norm())
+      << "coupled through G: the right tool changes what the left one feels";
+  // Withdraw both.
+  for (int i = 0; i < 200; ++i) {
+    left.at.z() += 5e-5;
+    right.at.z() += 5e-5;
+    left.send();
+    right.send();
+    left.receive();
+    right.receive();
+  }
+  EXPECT_EQ(left.force().norm() + right.force().norm(), 0.0);
+}
+
+TEST_F(ToolsOverDdsTest, BadPosesAreIgnoredWithAWarningAndServingGoesOn) {
+  const Vector3d above = rest(top_vertex(50, 25)) + Vector3d(0, 0, 0.05);
+  auto no_feedback = [&](const std::string& tool, std::uint64_t sequence) {
+    return !client_->wait_feedback(tool, sequence, std::chrono::steady_clock::now() + 300ms);
+  };
+  const std::uint64_t s = next_sequence_ += 100000;
+  client_->send_pose("probe", "box", s + 1, {std::nan(""), above.y(), above.z()}, kPointingDown, 0);
+  EXPECT_TRUE(no_feedback("probe", s + 1));
+  client_->send_pose("probe", "box", s + 2, {above.x(), above.y(), above.z()}, {2, 0, 0, 0}, 0);
+  EXPECT_TRUE(no_feedback("probe", s + 2));
+  client_->send_pose("probe", "box", s + 3, {above.x(), above.y(), 1e6}, kPointingDown, 0);
+  EXPECT_TRUE(no_feedback("probe", s + 3));
+  client_->send_pose("left", "box", s + 4, {above.x(), above.y(), above.z()}, kPointingDown, 7.0);
+  EXPECT_TRUE(no_feedback("left", s + 4));
+  client_->send_pose("nobody", "box", s + 5, {above.x(), above.y(), above.z()}, kPointingDown, 0);
+  EXPECT_TRUE(no_feedback("nobody", s + 5));
+  client_->send_pose("probe", "liver", s + 6, {above.x(), above.y(), above.z()}, kPointingDown, 0);
+  EXPECT_TRUE(no_feedback("probe", s + 6));
+
+  client_->send_pose("probe", "box", s + 7, {above.x(), above.y(), above.z()}, kPointingDown, 0);
+  const auto good = client_->wait_feedback("probe", s + 7, std::chrono::steady_clock::now() + kTimeout);
+  ASSERT_TRUE(good) << daemon_->log();
+  EXPECT_EQ(good->sequence, s + 7);
+  const std::string log = daemon_->log();
+  for (const char* reason : {"reason=non_finite", "reason=bad_quaternion", "reason=out_of_workspace",
+                             "reason=bad_jaw_angle", "reason=unknown_tool", "reason=unknown_model"})
+    EXPECT_NE(log.find(reason), std::string::npos) << reason << "\n" << log;
+}
+
+TEST_F(ToolsOverDdsTest, WhenPosesStopTheWatchdogRampsTheForceToZero) {
+  const int v = top_vertex(50, 25);
+  const double reach = 0.015 + 0.004;
+  Hand right("right", rest(v) + Vector3d(0, 0, reach + 0.001));
+  right.move(rest(v) + Vector3d(0, 0, reach - 0.004), 0);
+  right.hold(10);
+  const double pressed = right.force().norm();
+  ASSERT_GT(pressed, 0.05);
+  client_->take_events();
+  // No more poses: watchdog samples come on their own, ramping down. Read
+  // them with a plain reader of the feedback topic.
+  const auto domain = dds::acquire_domain(0, dds::resolve_domain_config(""));
+  dds::Entity participant(dds::check(dds_create_participant(0, nullptr, nullptr), "participant"));
+  const dds_entity_t topic = dds::check(
+      dds_create_topic(participant.get(), &palpate_ToolFeedback_desc, dds::kToolFeedbackTopic,
+                       nullptr, nullptr),
+      "topic");
+  const dds_entity_t reader = dds::check(
+      dds_create_reader(participant.get(), topic, dds::tool_stream_qos().get(), nullptr), "reader");
+  std::this_thread::sleep_for(200ms);  // discovery; the watchdog fires 50 ms after the last pose
+  right.hold(1);  // the last pose: from here, silence
+  std::vector<double> magnitudes;
+  const auto until = std::chrono::steady_clock::now() + 1s;
+  while (std::chrono::steady_clock::now() < until) {
+    palpate_ToolFeedback sample{};
+    void* pointer = &sample;
+    dds_sample_info_t info;
+    if (dds_take(reader, &pointer, &info, 1, 1) == 1 && info.valid_data &&
+        std::string(sample.tool_id) == "right" && (sample.watchdog || sample.state == palpate_TOOL_FREE))
+      magnitudes.push_back(Vector3d(sample.force[0], sample.force[1], sample.force[2]).norm());
+    std::this_thread::sleep_for(1ms);
+  }
+  ASSERT_GE(magnitudes.size(), 3u) << daemon_->log();
+  EXPECT_LT(magnitudes.front(), pressed * 1.01);
+  EXPECT_EQ(magnitudes.back(), 0.0);
+  EXPECT_TRUE(saw_event(client_->take_events(), "right", ToolEventKind::kWatchdog));
+}
+
+}  // namespace
+}  // namespace palpate
