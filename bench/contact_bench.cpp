@@ -1,3 +1,199 @@
+// One haptic tick without transport: ToolContactEngine::update (contacts on
+// the deformed organ, one solve for every tool, feedback limits) for
+// scripted gestures on a compliance file, timed tick by tick so that the
+// tail is seen (p50 / p99 / p99.9 / max, µs per tick). Target (issue 4, on
+// openhelp-liver-h8): ≤ 100 µs p99 per tick.
+//
+//   press_glide   one grasper pressed 5 mm along the inward normal at the
+//                 main seed of bench/patch.hpp, then glided 20 mm along the
+//                 surface, then withdrawn: 4,000 ticks.
+//   two_tools     the same with a second grasper pressing 25 mm away: both
+//                 tools' constraints in one solve, two updates per tick.
+//   wide_press    press_glide with a 15 mm sphere 8 mm deep (a palpating
+//                 finger or retractor): many contacts per tick.
+//   grasp_pull    jaws open at 40°, in 3 mm, closed, pulled 10 mm, opened.
+//
+// Same-run baseline: BM_dgemm (common.hpp), the machine's dense rate.
+//
+// Usage: palpate_contact_bench MODEL.h5 [--benchmark_...]
+//        (or PALPATE_BENCH_MODEL=MODEL.h5); without a model it says so and exits 0.
+
 #include <benchmark/benchmark.h>
-// placeholder: being written
-BENCHMARK_MAIN();
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "common.hpp"
+#include "palpate/surface_model.hpp"
+#include "palpate/system_info.hpp"
+#include "palpate/tool_contact.hpp"
+#include "patch.hpp"
+
+namespace {
+
+using Eigen::Vector3d;
+using palpate::ToolContactEngine;
+using palpate::ToolPoseInput;
+
+const palpate::SurfaceModel* g_model = nullptr;
+
+palpate::bench::DrawnSurface drawn(const palpate::SurfaceModel& m) {
+  return {m.compliance_vertex_count(), m.drawn_vertex_ids, m.drawn_rest_positions_m,
+          m.drawn_triangles};
+}
+
+Vector3d rest(const palpate::SurfaceModel& m, int v) {
+  return Eigen::Map<const Vector3d>(&m.drawn_rest_positions_m[3 * static_cast<std::size_t>(v)]);
+}
+
+/// A tool pose along a straight path: the hinge at @p tip_target − reach·axis,
+/// pointing along @p inward.
+struct Path {
+  Vector3d start, inward, tangent;
+  Eigen::Quaterniond orientation;
+};
+
+Path path_at(int seed, const palpate::ToolGeometry& g) {
+  const auto& m = *g_model;
+  const auto n = palpate::bench::inward_normal(drawn(m), seed);
+  Path p;
+  p.inward = Vector3d(n[0], n[1], n[2]);
+  p.tangent = p.inward.unitOrthogonal();
+  p.orientation = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), p.inward);
+  p.start = rest(m, seed) - (g.tip_length_m + g.tip_radius_m + 0.002) * p.inward;
+  return p;
+}
+
+/// The seed of the second tool: the compliance vertex nearest 25 mm from the first along the tangent.
+int second_seed(int seed, const Path& path) {
+  const auto& m = *g_model;
+  const Vector3d want = rest(m, seed) + 0.025 * path.tangent;
+  int best = seed;
+  double best_d = 1e9;
+  for (int j = 0; j < m.compliance_vertex_count(); ++j)
+    if (const double d = (rest(m, j) - want).norm(); d < best_d) best_d = d, best = j;
+  return best;
+}
+
+struct Keyframe {
+  double depth_m, slide_m, jaw_deg;
+  int ticks;  // to reach it from the previous one
+};
+
+void run_gesture(benchmark::State& state, int tools, const std::vector<Keyframe>& keys,
+                 double sphere_radius_m = 0) {
+  const auto& m = *g_model;
+  palpate::ContactSettings settings;
+  std::vector<palpate::ToolGeometry> geometry(2);
+  geometry[0].id = "left";
+  geometry[1].id = "right";
+  if (sphere_radius_m > 0)
+    for (auto& g : geometry) {
+      g.tip = palpate::TipShape::kSphere;
+      g.tip_length_m = 0;
+      g.tip_radius_m = sphere_radius_m;
+      g.jaw_length_m = 0;
+    }
+  ToolContactEngine engine(m, geometry, settings, palpate::SolverLimits{});
+  const int seed = palpate::bench::main_seed(drawn(m));
+  std::vector<Path> paths{path_at(seed, geometry[0])};
+  paths.push_back(path_at(second_seed(seed, paths[0]), geometry[1]));
+  int total_ticks = 0;
+  for (const auto& k : keys) total_ticks += k.ticks;
+  std::vector<double> tick_us;
+  tick_us.reserve(static_cast<std::size_t>(total_ticks) * 64);
+  std::uint64_t sequence = 0, contacts = 0, failures = 0;
+  double now = 0;
+  for (auto _ : state) {
+    Keyframe from{0, 0, keys.front().jaw_deg, 0};
+    for (const auto& to : keys) {
+      for (int i = 1; i <= to.ticks; ++i) {
+        const double a = static_cast<double>(i) / to.ticks;
+        const double depth = from.depth_m + a * (to.depth_m - from.depth_m);
+        const double slide = from.slide_m + a * (to.slide_m - from.slide_m);
+        const double jaw = from.jaw_deg + a * (to.jaw_deg - from.jaw_deg);
+        ++sequence;
+        now += 1e-3;
+        for (int t = 0; t < tools; ++t) {
+          const Path& p = paths[static_cast<std::size_t>(t)];
+          ToolPoseInput pose;
+          pose.sequence = sequence;
+          pose.position_m = p.start + (0.002 + depth) * p.inward + slide * p.tangent;
+          pose.orientation = p.orientation;
+          pose.jaw_angle_rad = palpate::degrees(jaw);
+          const auto start = std::chrono::steady_clock::now();
+          if (engine.update(t, pose, now) != palpate::RequestStatus::kOk) ++failures;
+          tick_us.push_back(
+              std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
+                  .count());
+          contacts += static_cast<std::uint64_t>(engine.output(t).contacts);
+        }
+      }
+      from = to;
+    }
+  }
+  std::sort(tick_us.begin(), tick_us.end());
+  auto at = [&](double q) {
+    return tick_us[static_cast<std::size_t>(q * static_cast<double>(tick_us.size() - 1) + 0.5)];
+  };
+  state.counters["p50_us"] = at(0.5);
+  state.counters["p99_us"] = at(0.99);
+  state.counters["p999_us"] = at(0.999);
+  state.counters["max_us"] = tick_us.back();
+  state.counters["mean_contacts"] =
+      static_cast<double>(contacts) / static_cast<double>(tick_us.size());
+  state.counters["solves_per_update"] =
+      static_cast<double>(engine.solves()) / static_cast<double>(tick_us.size());
+  state.counters["failed"] = static_cast<double>(failures);
+  state.SetItemsProcessed(static_cast<std::int64_t>(tick_us.size()));
+}
+
+void BM_press_glide(benchmark::State& state) {
+  run_gesture(state, 1,
+              {{0, 0, 0, 1}, {0.005, 0, 0, 500}, {0.005, 0, 0, 500}, {0.005, 0.020, 0, 2000},
+               {0, 0.020, 0, 500}, {0, 0.020, 0, 500}});
+}
+void BM_two_tools(benchmark::State& state) {
+  run_gesture(state, 2,
+              {{0, 0, 0, 1}, {0.005, 0, 0, 500}, {0.005, 0, 0, 500}, {0.005, 0.020, 0, 2000},
+               {0, 0.020, 0, 500}, {0, 0.020, 0, 500}});
+}
+void BM_wide_press(benchmark::State& state) {
+  run_gesture(state, 1,
+              {{0, 0, 0, 1}, {0.008, 0, 0, 500}, {0.008, 0, 0, 500}, {0.008, 0.020, 0, 2000},
+               {0, 0.020, 0, 500}, {0, 0.020, 0, 500}},
+              0.015);
+}
+void BM_grasp_pull(benchmark::State& state) {
+  run_gesture(state, 1,
+              {{0, 0, 40, 1}, {0.003, 0, 40, 500}, {0.003, 0, 0, 400}, {-0.007, 0, 0, 1000},
+               {-0.007, 0, 40, 400}, {-0.010, 0, 40, 500}});
+}
+
+}  // namespace
+
+BENCHMARK(palpate::bench::BM_dgemm)->Arg(512)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_press_glide)->Unit(benchmark::kMillisecond)->Iterations(5);
+BENCHMARK(BM_two_tools)->Unit(benchmark::kMillisecond)->Iterations(5);
+BENCHMARK(BM_wide_press)->Unit(benchmark::kMillisecond)->Iterations(5);
+BENCHMARK(BM_grasp_pull)->Unit(benchmark::kMillisecond)->Iterations(5);
+
+int main(int argc, char** argv) {
+  const std::string path = palpate::bench::take_model_path(argc, argv);
+  if (path.empty()) {
+    std::printf("palpate_contact_bench: give a compliance file (or PALPATE_BENCH_MODEL)\n");
+    return 0;
+  }
+  palpate::ensure_optimized_blas(argv);
+  const palpate::SurfaceModel model = palpate::load_surface_model("bench", path);
+  g_model = &model;
+  benchmark::Initialize(&argc, argv);
+  benchmark::AddCustomContext("model", path);
+  benchmark::AddCustomContext("compliance_vertices", std::to_string(model.compliance_vertex_count()));
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
