@@ -2,7 +2,8 @@
 # palpate's demo on a fresh Debian 12 machine: installs what is missing,
 # builds, generates the sample organ (or takes the job given), precomputes its
 # surface compliance by both methods, then serves it with palpated while
-# palpate-client presses, pinches and slides on it at 1 kHz.
+# palpate-client presses, pinches and slides on it at 1 kHz, then
+# palpate-pliers plays a press and a grasp with the tool topics.
 #
 # Usage: scripts/demo.sh                 the sample organ (config/sample-organ.toml)
 #        scripts/demo.sh JOB.toml        any job file, e.g. config/openhelp-liver-h12.toml
@@ -14,7 +15,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build build -j2 --target palpate-precompute palpated palpate-client
+cmake --build build -j2 --target palpate-precompute palpated palpate-client palpate-pliers
 mkdir -p out
 precompute=build/precompute/palpate-precompute
 if [ $# -eq 0 ]; then
@@ -41,6 +42,13 @@ unshare --net -- sh -c '
   daemon=$!
   build/clients/palpate-client demo --model "$1"
   status=$?
+  if [ $status -eq 0 ]; then
+    echo
+    echo "demo: palpate-pliers plays two gestures on the tool topics at 1 kHz (docs/pliers.md)"
+    for gesture in press grasp-pull-release; do
+      build/clients/palpate-pliers "config/gestures/$gesture.toml" --model "$1" || status=$?
+    done
+  fi
   kill -TERM $daemon
   wait $daemon || status=$?
   exit $status' demo "$model" "$compliance"

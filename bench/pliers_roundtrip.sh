@@ -1,0 +1,163 @@
+#!/bin/sh
+# The tool loop's round trip (pose → palpated's contact solve → feedback), as
+# palpate-pliers measures it at 1 kHz, next to Cyclone DDS's own best-effort
+# ping-pong at the same rate and a comparable payload, same machine, same
+# loopback configuration, same run.
+#
+# Usage: bench/pliers_roundtrip.sh BUILD_DIR MODEL.h5 [SECONDS]   (as root)
+#
+# Everything runs inside ONE private network namespace whose only interface
+# is loopback (unshare --net), and every DDS process gets palpate's loopback
+# Cyclone configuration through CYCLONEDDS_URI (the XML of
+# palpate::dds::loopback_config() in lib/src/dds.cpp): no DDS packet can reach
+# a real network.
+#
+# 1. palpated serves MODEL.h5 as "organ" with its default tools (left,
+#    right); palpate-pliers plays config/gestures/steady-press.toml (each tool
+#    in contact, depth 3-5 mm, 10 s per play, played ceil(SECONDS / 10.6)
+#    times, the first second left out) for the left tool alone, then for
+#    both tools, its loop waiting for feedback on a waitset and polling
+#    (--busy-wait); palpated is stopped with SIGTERM.
+# 2. ddsperf -u (best effort, as the tool topics) ping-pong at 1000 Hz with
+#    the mean of the pose and feedback sizes as payload, in its listener and
+#    waitset modes, SECONDS + 2 s; ddsperf prints min/50%/90%/99%/max once per
+#    second; the first 2 s are dropped, and the table gives the median over
+#    the seconds of its 50% and 99% figures and the largest max (it prints no
+#    99.9%, and no share under 1 ms).
+#
+# Caveat: ddsperf's round trip is ping→pong→ping between two processes with
+# nothing in between; ours is pose→(contacts, solve of every tool, feedback)
+# →feedback through palpate's ToolClient. The ratio is what palpated's tool
+# loop adds over the transport's own floor, the contact solve included.
+set -eu
+
+if [ $# -lt 2 ]; then
+  echo "usage: $0 BUILD_DIR MODEL.h5 [SECONDS]" >&2
+  exit 2
+fi
+
+# palpate::dds::loopback_config(), verbatim.
+LOOPBACK_URI='<General><Interfaces><NetworkInterface name="lo" multicast="false"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>100</MaxAutoParticipantIndex><Peers><Peer address="127.0.0.1"/></Peers></Discovery>'
+
+if [ "${PALPATE_PLIERS_NETNS:-}" != 1 ]; then
+  build=$(realpath "$1")
+  model=$(realpath "$2")
+  shift 2
+  exec unshare --net -- env PALPATE_PLIERS_NETNS=1 sh "$(realpath "$0")" "$build" "$model" "$@"
+fi
+
+BUILD=$1
+MODEL=$2
+SECONDS_MEASURED=${3:-10}
+WARMUP=2
+RATE=1000
+GESTURE=$(dirname "$(realpath "$0")")/../config/gestures/steady-press.toml
+REPEAT=$(/usr/bin/python3 -c 'import math, sys; print(max(1, math.ceil(float(sys.argv[1]) / 10.6)))' "$SECONDS_MEASURED")
+
+# Inside the namespace: bring loopback up and refuse to go on if anything
+# else is there (/sys/class/net would show the host's devices, ip does not).
+ip link set lo up
+interfaces=$(ip -o link show | awk -F': ' '{print $2}' | tr '\n' ' ')
+if [ "$interfaces" != "lo " ]; then
+  echo "pliers_roundtrip: refusing to run: network namespace has interfaces '$interfaces', want only lo" >&2
+  exit 1
+fi
+
+for program in "$BUILD/server/palpated" "$BUILD/clients/palpate-pliers" /usr/bin/ddsperf; do
+  [ -x "$program" ] || { echo "pliers_roundtrip: $program is missing (build it, or apt-get install cyclonedds-tools)" >&2; exit 1; }
+done
+[ -f "$MODEL" ] || { echo "pliers_roundtrip: no compliance file $MODEL" >&2; exit 1; }
+[ -f "$GESTURE" ] || { echo "pliers_roundtrip: no gesture file $GESTURE" >&2; exit 1; }
+
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+# 1. palpated and palpate-pliers.
+CYCLONEDDS_URI="$LOOPBACK_URI" "$BUILD/server/palpated" --model "organ=$MODEL" --log-level warn 2>"$work/palpated.log" &
+daemon=$!
+for tools in one two; do
+  for wait in waitset busy; do
+    flags=""
+    [ "$tools" = one ] && flags="--tool left"
+    [ "$wait" = busy ] && flags="$flags --busy-wait"
+    if ! CYCLONEDDS_URI="$LOOPBACK_URI" "$BUILD/clients/palpate-pliers" "$GESTURE" --model organ --rate "$RATE" \
+        --repeat "$REPEAT" --warmup 1 --timeout 30 --quiet $flags --json "$work/pliers-$tools-$wait.json" \
+        >"$work/pliers-$tools-$wait.txt"; then
+      echo "pliers_roundtrip: palpate-pliers $flags failed; it said:" >&2
+      cat "$work/pliers-$tools-$wait.txt" >&2
+      echo "palpated said:" >&2
+      cat "$work/palpated.log" >&2
+      kill -TERM "$daemon"
+      exit 1
+    fi
+  done
+done
+kill -TERM "$daemon"
+wait "$daemon" || { echo "pliers_roundtrip: palpated exited with status $?" >&2; cat "$work/palpated.log" >&2; exit 1; }
+
+# 2. ddsperf ping-pong, best effort, payload = mean of the pose and feedback
+#    sizes (XCDR2, approximate: encapsulation 4, two bounded strings of ids
+#    "left"/"organ" at 4 + length + 1 padded to 8, then the fixed fields:
+#    pose 2 × 8 + 8 × 8 = 80; feedback 8 + 8 + 6 × 8 + 8 + 4 + 4 + 2 padded
+#    to 8 + 8 = 96).
+size=$(( (4 + 16 + 16 + 80 + 4 + 16 + 16 + 96) / 2 ))
+duration=$((SECONDS_MEASURED + WARMUP))
+for mode in listener waitset; do
+  CYCLONEDDS_URI="$LOOPBACK_URI" ddsperf -u -D $((duration + 3)) pong "$mode" >"$work/pong-$mode.txt" 2>&1 &
+  pong=$!
+  echo "ddsperf -u -D $duration ping ${RATE}Hz size $size $mode  (with: ddsperf -u -D $((duration + 3)) pong $mode)" \
+    >"$work/ddsperf-$mode.cmd"
+  CYCLONEDDS_URI="$LOOPBACK_URI" ddsperf -u -D "$duration" ping "${RATE}Hz" size "$size" "$mode" \
+    >"$work/ping-$mode.txt" 2>&1
+  wait "$pong" || true
+done
+
+/usr/bin/python3 - "$work" "$WARMUP" <<'EOF'
+import json, re, statistics, sys
+
+work, warmup = sys.argv[1], float(sys.argv[2])
+# "[pid] 3.000  host:pid size 1200 mean 24.5us min 8.4us 50% 25.1us 90% 36.1us 99% 43.8us max 517.5us cnt 908"
+LINE = re.compile(r"\]\s+([\d.]+)\s+\S+ size (\d+) mean ([\d.]+)us min ([\d.]+)us 50% ([\d.]+)us "
+                  r"90% ([\d.]+)us 99% ([\d.]+)us max ([\d.]+)us cnt (\d+)")
+
+def ddsperf(mode):
+    path = f"{work}/ping-{mode}.txt"
+    rows = [m.groups() for m in map(LINE.search, open(path)) if m]
+    rows = [r for r in rows if float(r[0]) > warmup]
+    if not rows:
+        raise SystemExit(f"pliers_roundtrip: no latency lines from ddsperf ping ({mode}); its output:\n"
+                         + open(path).read())
+    return {"mode": mode, "size": int(rows[0][1]), "seconds": len(rows), "samples": sum(int(r[8]) for r in rows),
+            "p50_us": statistics.median(float(r[4]) for r in rows),
+            "p99_us": statistics.median(float(r[6]) for r in rows),
+            "max_us": max(float(r[7]) for r in rows),
+            "command": open(f"{work}/ddsperf-{mode}.cmd").read().strip()}
+
+theirs = {mode: ddsperf(mode) for mode in ("listener", "waitset")}
+print("Tool loop round trip (pose → feedback), loopback only, 1 kHz, µs; palpate-pliers on steady-press.toml")
+print("ddsperf -u (best effort) ping-pong, median over 1-s intervals of its 50% / 99% (it gives no p99.9, no share ≤ 1 ms):")
+for t in theirs.values():
+    print(f"  {t['mode']:>8}: p50 {t['p50_us']:.1f}  p99 {t['p99_us']:.1f}  max {t['max_us']:.1f}  ({t['samples']} round trips)")
+print(f"{'tools':>5} {'tool':>5} {'wait':>7} | {'p50':>6} {'p99':>6} {'p99.9':>7} {'max':>7} {'≤1 ms':>8} "
+      f"{'late':>5} {'miss':>5} | {'÷ listener p50':>14} {'p99':>5} | {'÷ waitset p50':>13} {'p99':>5}")
+runs = []
+for tools in ("one", "two"):
+    for wait in ("waitset", "busy"):
+        ours = json.load(open(f"{work}/pliers-{tools}-{wait}.json"))
+        runs.append({"tools": tools, "client_wait": wait, "pliers": ours})
+        for tool in ours["tools"]:
+            rt = tool["round_trip"]
+            ratios = {m: (rt["p50_us"] / t["p50_us"], rt["p99_us"] / t["p99_us"]) for m, t in theirs.items()}
+            print(f"{tools:>5} {tool['id']:>5} {wait:>7} | {rt['p50_us']:>6.0f} {rt['p99_us']:>6.0f} "
+                  f"{rt['p999_us']:>7.0f} {rt['max_us']:>7.0f} {100 * tool['within_budget_share']:>7.2f}% "
+                  f"{tool['late']:>5} {tool['missing']:>5} | {ratios['listener'][0]:>14.2f} {ratios['listener'][1]:>5.2f} | "
+                  f"{ratios['waitset'][0]:>13.2f} {ratios['waitset'][1]:>5.2f}")
+for run in runs:
+    for tool in run["pliers"]["tools"]:
+        c, lag = tool["compute"], tool["schedule_lag"]
+        print(f"{run['tools']} tool(s), {run['client_wait']}, {tool['id']}: {tool['ticks']} poses counted; palpated's compute "
+              f"p50 {c['p50_us']:.1f} µs p99 {c['p99_us']:.1f} µs; tick start lag p99 {lag['p99_us']:.0f} µs; "
+              f"max |force| {tool['max_force_n']:.2f} N, max contacts {tool['max_contacts']}")
+print("ddsperf commands: " + "; ".join(t["command"] for t in theirs.values()))
+print("JSON " + json.dumps({"pliers": runs, "ddsperf": theirs}))
+EOF
