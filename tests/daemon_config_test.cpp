@@ -100,5 +100,100 @@ TEST(DaemonConfig, ErrorsNameTheLineTheKeyAndWhatIsAccepted) {
                            {"daemon.log_level 'verbose'", "trace, debug"});
 }
 
+TEST(DaemonConfig, ReadsToolsInMillimetresAndDegreesAsSI) {
+  testing::TempDir dir;
+  std::ofstream(dir / "organ.h5") << "placeholder";
+  std::filesystem::create_directory(dir / "sessions");
+  const auto config = read_daemon_config(write(dir, R"(
+[[model]]
+id = "liver"
+file = "organ.h5"
+[[tools]]
+id = "probe"
+tip = "sphere"
+tip_radius_mm = 2.5
+friction = 0
+jaw_length_mm = 0
+force_limit_n = 3.3
+max_force_rate_n_per_s = 200
+[[tools]]
+id = "grasper"
+tip_length_mm = 12
+grasp_angle_deg = 10
+release_angle_deg = 30
+max_jaw_angle_deg = 60
+[contact]
+watchdog_timeout_ms = 20
+watchdog_ramp_ms = 100
+search_margin_mm = 5
+max_contacts_per_tool = 12
+max_iterations = 3
+workspace_margin_mm = 200
+[recording]
+directory = "sessions"
+)"));
+  ASSERT_EQ(config.tools.size(), 2u);
+  const ToolGeometry& probe = config.tools[0];
+  EXPECT_EQ(probe.id, "probe");
+  EXPECT_EQ(probe.tip, TipShape::kSphere);
+  EXPECT_DOUBLE_EQ(probe.tip_radius_m, 0.0025);
+  EXPECT_EQ(probe.tip_length_m, 0.0);
+  EXPECT_EQ(probe.friction, 0.0);
+  EXPECT_EQ(probe.jaw_length_m, 0.0);
+  EXPECT_EQ(probe.force_limit_n, 3.3);
+  EXPECT_EQ(probe.max_force_rate_n_per_s, 200);
+  const ToolGeometry& grasper = config.tools[1];
+  EXPECT_EQ(grasper.tip, TipShape::kCapsule);
+  EXPECT_DOUBLE_EQ(grasper.tip_length_m, 0.012);
+  EXPECT_NEAR(grasper.grasp_angle_rad, 0.17453292519943295, 1e-15);
+  EXPECT_NEAR(grasper.release_angle_rad, 0.52359877559829882, 1e-15);
+  EXPECT_DOUBLE_EQ(config.contact.watchdog_timeout_s, 0.020);
+  EXPECT_DOUBLE_EQ(config.contact.watchdog_ramp_s, 0.100);
+  EXPECT_DOUBLE_EQ(config.contact.search_margin_m, 0.005);
+  EXPECT_EQ(config.contact.max_contacts_per_tool, 12);
+  EXPECT_EQ(config.contact.max_iterations, 3);
+  EXPECT_DOUBLE_EQ(config.contact.workspace_margin_m, 0.2);
+  EXPECT_EQ(config.record_directory, dir.path() / "sessions");
+  EXPECT_NO_THROW(validate(config));
+
+  DaemonConfig defaults;
+  ASSERT_EQ(defaults.tools.size(), 2u);
+  EXPECT_EQ(defaults.tools[0].id, "left");
+  EXPECT_EQ(defaults.tools[1].id, "right");
+  EXPECT_TRUE(defaults.record_directory.empty());
+}
+
+TEST(DaemonConfig, ToolErrorsSayWhatIsAccepted) {
+  testing::TempDir dir;
+  expect_error<InputError>(
+      [&] { read_daemon_config(write(dir, "[[tools]]\nid = \"a\"\ntip = \"cone\"\n")); },
+      {"palpated.toml:3", "tools.a.tip", "sphere", "capsule"});
+  expect_error<InputError>(
+      [&] {
+        read_daemon_config(write(dir, "[[tools]]\nid = \"a\"\ntip = \"sphere\"\ntip_length_mm = 3\n"));
+      },
+      {"tools.a.tip_length_mm", "a sphere tip has no length"});
+  expect_error<InputError>(
+      [&] { read_daemon_config(write(dir, "[[tools]]\nid = \"a\"\ntip_radius_mm = -1\n")); },
+      {"palpated.toml:3", "tools.a.tip_radius_mm", "positive"});
+  expect_error<InputError>([&] { read_daemon_config(write(dir, "[[tools]]\ntip = \"sphere\"\n")); },
+                           {"needs an id"});
+  expect_error<InputError>([&] { read_daemon_config(write(dir, "[contact]\nwatchdog_ms = 3\n")); },
+                           {"contact.watchdog_ms", "unknown key", "watchdog_timeout_ms"});
+
+  std::ofstream(dir / "a.h5") << "x";
+  DaemonConfig config;
+  config.models = {{"a", dir / "a.h5"}};
+  config.tools[1].id = "left";
+  expect_error<InputError>([&] { validate(config); }, {"tool id 'left' is given twice"});
+  config.tools = DaemonConfig::default_tools();
+  config.tools[0].release_angle_rad = config.tools[0].grasp_angle_rad;
+  expect_error<InputError>([&] { validate(config); },
+                           {"tool 'left'", "grasp < release ≤ max"});
+  config.tools = DaemonConfig::default_tools();
+  config.record_directory = dir / "nowhere";
+  expect_error<InputError>([&] { validate(config); }, {"recording.directory", "nowhere", "not a directory"});
+}
+
 }  // namespace
 }  // namespace palpate
