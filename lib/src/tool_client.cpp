@@ -147,12 +147,15 @@ bool ToolClient::wait_for_daemon(std::chrono::milliseconds timeout) {
   const auto deadline = Clock::now() + timeout;
   for (;;) {
     dds_publication_matched_status_t poses{};
-    dds_subscription_matched_status_t feedback{};
+    dds_subscription_matched_status_t feedback{}, events{};
     dds::check(dds_get_publication_matched_status(impl_->pose_writer, &poses),
                "reading the pose writer's matched status");
     dds::check(dds_get_subscription_matched_status(impl_->feedback.reader.get(), &feedback),
                "reading the feedback reader's matched status");
-    if (poses.current_count > 0 && feedback.current_count > 0) return true;
+    dds::check(dds_get_subscription_matched_status(impl_->events.reader.get(), &events),
+               "reading the event reader's matched status");
+    if (poses.current_count > 0 && feedback.current_count > 0 && events.current_count > 0)
+      return true;
     if (Clock::now() >= deadline) return false;
     dds_sleepfor(DDS_MSECS(5));
   }

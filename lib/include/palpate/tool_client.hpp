@@ -93,9 +93,9 @@ class ToolClient {
   /// served when the wanted one is not).
   std::vector<std::string> models_seen() const;
 
-  /// Waits until a daemon reads the pose topic and writes the feedback topic
-  /// (both best effort: poses sent before are lost, and so is feedback
-  /// written before). @returns false on timeout.
+  /// Waits until a daemon reads the pose topic and writes the feedback and
+  /// event topics (all volatile: poses sent, feedback or events written
+  /// before the match are lost). @returns false on timeout.
   bool wait_for_daemon(std::chrono::milliseconds timeout);
 
   /// Publishes one pose of tool @p tool_id (1..63 characters) on @p model_id:
