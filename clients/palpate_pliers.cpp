@@ -21,8 +21,8 @@
 #include <cstdio>
 #include <fstream>
 #include <limits>
-#include <numbers>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <thread>
@@ -57,24 +57,27 @@ enum class Outcome : std::uint8_t {
 };
 const char* outcome_name(Outcome o) {
   switch (o) {
-    case Outcome::kMissing: return "missing";
-    case Outcome::kInTime: return "in_time";
-    case Outcome::kLate: return "late";
+    case Outcome::kMissing:
+      return "missing";
+    case Outcome::kInTime:
+      return "in_time";
+    case Outcome::kLate:
+      return "late";
   }
   return "?";
 }
 
 /// One tick of one tool.
 struct TickRecord {
-  double time_s = 0;            ///< gesture time played
-  std::uint64_t sequence = 0;   ///< of the pose sent
-  std::int64_t send_ns = 0;     ///< steady clock
-  double lag_us = 0;            ///< send time − scheduled tick time
+  double time_s = 0;           ///< gesture time played
+  std::uint64_t sequence = 0;  ///< of the pose sent
+  std::int64_t send_ns = 0;    ///< steady clock
+  double lag_us = 0;           ///< send time − scheduled tick time
   Outcome outcome = Outcome::kMissing;
-  bool newer = false;           ///< this tick's wait got feedback for a newer sequence
+  bool newer = false;  ///< this tick's wait got feedback for a newer sequence
   std::uint64_t newer_sequence = 0;
-  int duplicates = 0;           ///< further feedback for this sequence (watchdog ramp, resends)
-  double rtt_us = kNaN;         ///< receive − send_time_ns of its own feedback, client clock
+  int duplicates = 0;    ///< further feedback for this sequence (watchdog ramp, resends)
+  double rtt_us = kNaN;  ///< receive − send_time_ns of its own feedback, client clock
   std::array<double, 3> force_n{kNaN, kNaN, kNaN};
   double grip_n = kNaN;
   std::uint32_t contacts = 0;
@@ -165,9 +168,9 @@ double share(std::size_t part, std::size_t whole) {
   return whole == 0 ? 0 : 100.0 * static_cast<double>(part) / static_cast<double>(whole);
 }
 
-constexpr std::array<ToolEventKind, 6> kEventKinds{ToolEventKind::kTouch,    ToolEventKind::kLeave,
-                                                   ToolEventKind::kGrasp,    ToolEventKind::kRelease,
-                                                   ToolEventKind::kWatchdog, ToolEventKind::kResumed};
+constexpr std::array<ToolEventKind, 6> kEventKinds{
+    ToolEventKind::kTouch,   ToolEventKind::kLeave,    ToolEventKind::kGrasp,
+    ToolEventKind::kRelease, ToolEventKind::kWatchdog, ToolEventKind::kResumed};
 
 struct Settings {
   std::string gesture_file, model_id = "sample-organ", csv, json;
@@ -183,21 +186,24 @@ void write_csv(const std::string& path, const std::vector<ToolRun>& runs, std::s
                std::int64_t start_ns) {
   std::ofstream out(path);
   if (!out) throw palpate::InputError(fmt::format("--csv {}: cannot be written", path));
-  out << "tick,tool,counted,time_s,sequence,send_ms,lag_us,outcome,newer_sequence,duplicates,rtt_us,"
+  out << "tick,tool,counted,time_s,sequence,send_ms,lag_us,outcome,newer_sequence,duplicates,rtt_"
+         "us,"
          "force_x_n,force_y_n,force_z_n,grip_n,contacts,state,force_limited,watchdog,compute_us,"
          "tip_x_m,tip_y_m,tip_z_m,jaw_deg\n";
   for (std::size_t i = 0; !runs.empty() && i < runs.front().ticks.size(); ++i)
     for (const ToolRun& run : runs) {
       const TickRecord& r = run.ticks[i];
       out << fmt::format(
-          "{},{},{},{:.4f},{},{:.4f},{:.1f},{},{},{},{:.1f},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{:d},{:.2f},"
+          "{},{},{},{:.4f},{},{:.4f},{:.1f},{},{},{},{:.1f},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},"
+          "{:d},{:.2f},"
           "{:.6f},{:.6f},{:.6f},{:.2f}\n",
           i, run.id, i >= first_counted ? 1 : 0, r.time_s, r.sequence,
           static_cast<double>(r.send_ns - start_ns) * 1e-6, r.lag_us, outcome_name(r.outcome),
           r.newer ? std::to_string(r.newer_sequence) : "", r.duplicates, r.rtt_us, r.force_n[0],
           r.force_n[1], r.force_n[2], r.grip_n, r.contacts,
           r.outcome == Outcome::kMissing ? "" : palpate::tool_state_name(r.state), r.force_limited,
-          r.watchdog, r.compute_us, r.tip_m.x(), r.tip_m.y(), r.tip_m.z(), r.jaw_rad * 180 / std::numbers::pi);
+          r.watchdog, r.compute_us, r.tip_m.x(), r.tip_m.y(), r.tip_m.z(),
+          r.jaw_rad * 180 / std::numbers::pi);
     }
   if (!out) throw palpate::SystemError(fmt::format("--csv {}: write failed", path));
 }
@@ -210,22 +216,28 @@ int run(int argc, char** argv) {
   app.add_option("gesture", o.gesture_file, "gesture file (TOML, e.g. config/gestures/press.toml)")
       ->required();
   app.add_option("--model", o.model_id, "model id palpated serves (default sample-organ)");
-  app.add_option("--tool", o.only_tools, "play only this tool of the gesture (repeatable; default: all)")
+  app.add_option("--tool", o.only_tools,
+                 "play only this tool of the gesture (repeatable; default: all)")
       ->allow_extra_args(false);
-  app.add_option("--rate", o.rate_hz, "ticks per second (default 1000)")->check(CLI::Range(10.0, 20000.0));
+  app.add_option("--rate", o.rate_hz, "ticks per second (default 1000)")
+      ->check(CLI::Range(10.0, 20000.0));
   app.add_option("--repeat", o.repeat, "play the gesture this many times in a row (default 1)")
       ->check(CLI::Range(1, 100000));
-  app.add_option("--warmup", o.warmup_s, "seconds played first but left out of the summary (default 0)")
+  app.add_option("--warmup", o.warmup_s,
+                 "seconds played first but left out of the summary (default 0)")
       ->check(CLI::NonNegativeNumber);
-  app.add_flag("--busy-wait", o.busy_wait,
-               "poll for each feedback instead of sleeping on a waitset (keeps a core busy while waiting)");
-  app.add_option("--timeout", o.timeout_s, "seconds to wait for palpated and the model (default 10)")
+  app.add_flag(
+      "--busy-wait", o.busy_wait,
+      "poll for each feedback instead of sleeping on a waitset (keeps a core busy while waiting)");
+  app.add_option("--timeout", o.timeout_s,
+                 "seconds to wait for palpated and the model (default 10)")
       ->check(CLI::PositiveNumber);
   app.add_option("--csv", o.csv, "write every tick of every tool to this CSV file");
   app.add_option("--json", o.json, "write the summary to this JSON file");
   app.add_flag("-q,--quiet", o.quiet, "print only the summary (not the anchors and events)");
   app.add_option("--domain", o.domain, "DDS domain id")->check(CLI::Range(0, 232));
-  app.add_option("--dds-config", o.dds_config, "Cyclone DDS configuration (default: loopback only)");
+  app.add_option("--dds-config", o.dds_config,
+                 "Cyclone DDS configuration (default: loopback only)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -238,8 +250,8 @@ int run(int argc, char** argv) {
   const palpate::Gesture gesture = palpate::read_gesture_file(o.gesture_file);
   std::vector<ToolRun> runs;
   for (std::size_t t = 0; t < gesture.tools.size(); ++t)
-    if (o.only_tools.empty() ||
-        std::find(o.only_tools.begin(), o.only_tools.end(), gesture.tools[t].id) != o.only_tools.end())
+    if (o.only_tools.empty() || std::find(o.only_tools.begin(), o.only_tools.end(),
+                                          gesture.tools[t].id) != o.only_tools.end())
       runs.push_back({gesture.tools[t].id, static_cast<int>(t), {}, {}});
   for (const auto& wanted : o.only_tools)
     if (std::none_of(runs.begin(), runs.end(), [&](const ToolRun& r) { return r.id == wanted; })) {
@@ -249,8 +261,9 @@ int run(int argc, char** argv) {
           fmt::format("--tool {}: not a tool of {} (its tools: {})", wanted, o.gesture_file, ids));
     }
   if (static_cast<int>(runs.size()) > palpate::ToolClient::kMaxTools)
-    throw palpate::InputError(fmt::format("{}: {} tools; palpate-pliers plays at most {}", o.gesture_file,
-                                          runs.size(), static_cast<int>(palpate::ToolClient::kMaxTools)));
+    throw palpate::InputError(fmt::format("{}: {} tools; palpate-pliers plays at most {}",
+                                          o.gesture_file, runs.size(),
+                                          static_cast<int>(palpate::ToolClient::kMaxTools)));
 
   // 2. palpated: the model's description, then a reader of the poses.
   palpate::ToolClient client({o.domain, o.dds_config, o.busy_wait});
@@ -266,37 +279,40 @@ int run(int argc, char** argv) {
           o.timeout_s, o.domain));
     std::string ids;
     for (const auto& id : seen) ids += (ids.empty() ? "" : ", ") + id;
-    throw palpate::InputError(
-        fmt::format("model '{}' is not served by palpated; served: {} (use --model)", o.model_id, ids));
+    throw palpate::InputError(fmt::format(
+        "model '{}' is not served by palpated; served: {} (use --model)", o.model_id, ids));
   }
   const palpate::SurfaceView surface{model->compliance_vertex_count, model->vertex_ids,
                                      model->rest_positions_m, model->triangles};
   const palpate::GesturePlayer player(gesture, palpate::place_gesture(gesture, surface));
-  if (!client.wait_for_daemon(std::max(std::chrono::milliseconds(100),
-                                       std::chrono::duration_cast<std::chrono::milliseconds>(
-                                           give_up - Clock::now()))))
+  if (!client.wait_for_daemon(
+          std::max(std::chrono::milliseconds(100),
+                   std::chrono::duration_cast<std::chrono::milliseconds>(give_up - Clock::now()))))
     throw NoAnswer(fmt::format(
         "palpated serves model '{}' but reads no tool poses (or writes no feedback) within {:g} s: "
         "is it a palpated with tools?",
         o.model_id, o.timeout_s));
 
   const double period_s = 1.0 / o.rate_hz;
-  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period_s));
-  const auto ticks_per_play = static_cast<std::size_t>(std::floor(player.duration_s() * o.rate_hz + 1e-9)) + 1;
+  const auto period =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period_s));
+  const auto ticks_per_play =
+      static_cast<std::size_t>(std::floor(player.duration_s() * o.rate_hz + 1e-9)) + 1;
   const std::size_t total = ticks_per_play * static_cast<std::size_t>(o.repeat);
   const auto first_counted =
       std::min(total, static_cast<std::size_t>(std::llround(o.warmup_s * o.rate_hz)));
   for (auto& r : runs) r.ticks.resize(total);
   if (!o.quiet) {
     std::printf("palpate-pliers: %s (%s), %.2f s × %d at %.0f Hz on model %s, %zu tool%s, %s\n",
-                gesture.name.c_str(), o.gesture_file.c_str(), player.duration_s(), o.repeat, o.rate_hz,
-                o.model_id.c_str(), runs.size(), runs.size() == 1 ? "" : "s",
+                gesture.name.c_str(), o.gesture_file.c_str(), player.duration_s(), o.repeat,
+                o.rate_hz, o.model_id.c_str(), runs.size(), runs.size() == 1 ? "" : "s",
                 o.busy_wait ? "busy-wait" : "waitset");
     for (const auto& r : runs) {
       const auto& a = player.anchor(r.gesture_index);
-      std::printf("  %s: anchor vertex %u at (%.4f, %.4f, %.4f) m, outward normal (%.3f, %.3f, %.3f)\n",
-                  r.id.c_str(), a.vertex_id, a.origin_m.x(), a.origin_m.y(), a.origin_m.z(), a.normal.x(),
-                  a.normal.y(), a.normal.z());
+      std::printf(
+          "  %s: anchor vertex %u at (%.4f, %.4f, %.4f) m, outward normal (%.3f, %.3f, %.3f)\n",
+          r.id.c_str(), a.vertex_id, a.origin_m.x(), a.origin_m.y(), a.origin_m.z(), a.normal.x(),
+          a.normal.y(), a.normal.z());
     }
     std::fflush(stdout);
   }
@@ -309,7 +325,8 @@ int run(int argc, char** argv) {
   // earlier run on this host (at most one per ms), so that palpated never
   // takes a new run's poses for stale ones of the last (its watchdog resets
   // a tool only 50 ms after its poses stop).
-  const std::uint64_t first_sequence = static_cast<std::uint64_t>(palpate::ToolClient::now_ns() / 1000);
+  const std::uint64_t first_sequence =
+      static_cast<std::uint64_t>(palpate::ToolClient::now_ns() / 1000);
   std::uint64_t other_sessions = 0;  // feedback for sequences this run never sent
   auto collect_late = [&](ToolRun& run, std::size_t now_tick) {
     for (;;) {
@@ -335,7 +352,8 @@ int run(int argc, char** argv) {
   constexpr int kMaxEventLines = 24;
   std::size_t played = 0;
   const auto start = Clock::now() + std::chrono::milliseconds(5);
-  const std::int64_t start_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
+  const std::int64_t start_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
   for (std::size_t i = 0; i < total && !interrupted; ++i, ++played) {
     const auto scheduled = start + i * period;
     std::this_thread::sleep_until(scheduled);
@@ -371,17 +389,21 @@ int run(int argc, char** argv) {
       collect_late(run, i);
     }
     for (const auto& e : client.take_events()) {
-      const auto it = std::find_if(runs.begin(), runs.end(), [&](const ToolRun& r) { return r.id == e.tool_id; });
+      const auto it = std::find_if(runs.begin(), runs.end(),
+                                   [&](const ToolRun& r) { return r.id == e.tool_id; });
       // Another client's tools, or the end of an earlier run (its watchdog).
-      if (it == runs.end() || e.model_id != o.model_id || e.pose_sequence < first_sequence) continue;
+      if (it == runs.end() || e.model_id != o.model_id || e.pose_sequence < first_sequence)
+        continue;
       const auto kind = static_cast<std::size_t>(e.kind);
       if (kind < it->events.size()) ++it->events[kind];
       if (!o.quiet && ++event_lines <= kMaxEventLines) {
         std::printf("  %7.3f s  %-6s %s", static_cast<double>(e.receive_time_ns - start_ns) * 1e-9,
                     e.tool_id.c_str(), palpate::tool_event_name(e.kind));
         if (e.kind == ToolEventKind::kGrasp) std::printf(" (%u vertices held)", e.held_vertices);
-        std::printf("  [pose %llu]\n", static_cast<unsigned long long>(e.pose_sequence - first_sequence + 1));
-        if (event_lines == kMaxEventLines) std::printf("  … further events are only counted (summary)\n");
+        std::printf("  [pose %llu]\n",
+                    static_cast<unsigned long long>(e.pose_sequence - first_sequence + 1));
+        if (event_lines == kMaxEventLines)
+          std::printf("  … further events are only counted (summary)\n");
       }
     }
   }
@@ -396,50 +418,58 @@ int run(int argc, char** argv) {
 
   // 4. The summary.
   const double budget_us = period_s * 1e6;
-  std::printf("%s: %zu ticks at %.0f Hz (%.2f s)%s%s\n", gesture.name.c_str(), played, o.rate_hz,
-              static_cast<double>(played) * period_s, interrupted ? ", interrupted" : "",
-              first_counted > 0 ? fmt::format(", first {} left out (warm-up)", first_counted).c_str() : "");
+  std::printf(
+      "%s: %zu ticks at %.0f Hz (%.2f s)%s%s\n", gesture.name.c_str(), played, o.rate_hz,
+      static_cast<double>(played) * period_s, interrupted ? ", interrupted" : "",
+      first_counted > 0 ? fmt::format(", first {} left out (warm-up)", first_counted).c_str() : "");
   nlohmann::json tools_json = nlohmann::json::array();
   std::string silent_tools;  // tools palpated never answered
   for (const ToolRun& run : runs) {
     const ToolSummary s = summarize(run, std::min(first_counted, played), budget_us);
-    if (s.ticks > 0 && s.in_time + s.late == 0) silent_tools += (silent_tools.empty() ? "'" : ", '") + run.id + "'";
+    if (s.ticks > 0 && s.in_time + s.late == 0)
+      silent_tools += (silent_tools.empty() ? "'" : ", '") + run.id + "'";
     std::printf(
         "  %s: %zu poses; feedback in the tick %zu, late %zu, missing %zu; for a newer pose %zu\n"
-        "    round trip p50 %.0f µs  p99 %.0f µs  p99.9 %.0f µs  max %.0f µs; within %.3g ms: %.2f %%\n"
-        "    max |force| %.3f N, max grip %.3f N, max contacts %u; answered free %zu, touching %zu, "
+        "    round trip p50 %.0f µs  p99 %.0f µs  p99.9 %.0f µs  max %.0f µs; within %.3g ms: %.2f "
+        "%%\n"
+        "    max |force| %.3f N, max grip %.3f N, max contacts %u; answered free %zu, touching "
+        "%zu, "
         "grasping %zu; force limited %zu, watchdog %zu\n",
-        run.id.c_str(), s.ticks, s.in_time, s.late, s.missing, s.newer, s.rtt.p50, s.rtt.p99, s.rtt.p999,
-        s.rtt.max, budget_us * 1e-3, share(s.within_budget, s.ticks), s.max_force_n, s.max_grip_n,
-        s.max_contacts, s.states[0], s.states[1], s.states[2], s.force_limited, s.watchdog);
+        run.id.c_str(), s.ticks, s.in_time, s.late, s.missing, s.newer, s.rtt.p50, s.rtt.p99,
+        s.rtt.p999, s.rtt.max, budget_us * 1e-3, share(s.within_budget, s.ticks), s.max_force_n,
+        s.max_grip_n, s.max_contacts, s.states[0], s.states[1], s.states[2], s.force_limited,
+        s.watchdog);
     std::string events;
     nlohmann::json events_json = nlohmann::json::object();
     for (const auto kind : kEventKinds) {
       const auto n = run.events[static_cast<std::size_t>(kind)];
       events_json[palpate::tool_event_name(kind)] = n;
-      if (n > 0) events += fmt::format("{}{} {}", events.empty() ? "" : ", ", palpate::tool_event_name(kind), n);
+      if (n > 0)
+        events +=
+            fmt::format("{}{} {}", events.empty() ? "" : ", ", palpate::tool_event_name(kind), n);
     }
     std::printf("    events: %s; palpated's compute p50 %.1f µs p99 %.1f µs\n",
                 events.empty() ? "none" : events.c_str(), s.compute.p50, s.compute.p99);
-    tools_json.push_back({{"id", run.id},
-                          {"anchor_vertex", player.anchor(run.gesture_index).vertex_id},
-                          {"ticks", s.ticks},
-                          {"in_time", s.in_time},
-                          {"late", s.late},
-                          {"missing", s.missing},
-                          {"newer", s.newer},
-                          {"duplicates", s.duplicates},
-                          {"round_trip", to_json(s.rtt)},
-                          {"within_budget_share", share(s.within_budget, s.ticks) / 100},
-                          {"compute", to_json(s.compute)},
-                          {"schedule_lag", to_json(s.lag)},
-                          {"max_force_n", s.max_force_n},
-                          {"max_grip_n", s.max_grip_n},
-                          {"max_contacts", s.max_contacts},
-                          {"states", {{"free", s.states[0]}, {"touching", s.states[1]}, {"grasping", s.states[2]}}},
-                          {"force_limited", s.force_limited},
-                          {"watchdog", s.watchdog},
-                          {"events", events_json}});
+    tools_json.push_back(
+        {{"id", run.id},
+         {"anchor_vertex", player.anchor(run.gesture_index).vertex_id},
+         {"ticks", s.ticks},
+         {"in_time", s.in_time},
+         {"late", s.late},
+         {"missing", s.missing},
+         {"newer", s.newer},
+         {"duplicates", s.duplicates},
+         {"round_trip", to_json(s.rtt)},
+         {"within_budget_share", share(s.within_budget, s.ticks) / 100},
+         {"compute", to_json(s.compute)},
+         {"schedule_lag", to_json(s.lag)},
+         {"max_force_n", s.max_force_n},
+         {"max_grip_n", s.max_grip_n},
+         {"max_contacts", s.max_contacts},
+         {"states", {{"free", s.states[0]}, {"touching", s.states[1]}, {"grasping", s.states[2]}}},
+         {"force_limited", s.force_limited},
+         {"watchdog", s.watchdog},
+         {"events", events_json}});
   }
   if (client.foreign_feedback() > 0 || client.dropped_late_feedback() > 0 || other_sessions > 0)
     std::printf(

@@ -49,9 +49,10 @@ SurfaceView view(const ModelInfo& m) {
   return {m.compliance_vertex_count, m.vertex_ids, m.rest_positions_m, m.triangles};
 }
 
-void expect_near(const Eigen::Vector3d& actual, const Eigen::Vector3d& expected, double tol = kTol) {
-  EXPECT_LT((actual - expected).norm(), tol) << "actual " << actual.transpose() << "\nexpected "
-                                             << expected.transpose();
+void expect_near(const Eigen::Vector3d& actual, const Eigen::Vector3d& expected,
+                 double tol = kTol) {
+  EXPECT_LT((actual - expected).norm(), tol)
+      << "actual " << actual.transpose() << "\nexpected " << expected.transpose();
 }
 
 const char* kTwoTools = R"(name = "pinch and press"
@@ -115,7 +116,8 @@ TEST(Gesture, ParsesKeyframesInSIUnitsAndCarriesKeysOver) {
 TEST(Gesture, NameDefaultsToTheFileStemAndAnchorMayBeAVertexId) {
   testing::TempDir dir;
   const auto path = dir / "my-press.toml";
-  std::ofstream(path) << "anchor = 102\n[[tool]]\nid = \"left\"\n[[tool.keyframe]]\nt = 0\nposition = [0, 0, 5]\n";
+  std::ofstream(path)
+      << "anchor = 102\n[[tool]]\nid = \"left\"\n[[tool.keyframe]]\nt = 0\nposition = [0, 0, 5]\n";
   const Gesture g = read_gesture_file(path);
   EXPECT_EQ(g.name, "my-press");
   EXPECT_EQ(g.anchor_vertex_id, 102);
@@ -124,7 +126,8 @@ TEST(Gesture, NameDefaultsToTheFileStemAndAnchorMayBeAVertexId) {
 
 TEST(Gesture, ErrorsNameTheFileLineAndKey) {
   auto parse = [](const std::string& text) { return [text] { parse_gesture(text, "g.toml"); }; };
-  const std::string head = "[[tool]]\nid = \"left\"\n[[tool.keyframe]]\nt = 0\nposition = [0, 0, 5]\n";
+  const std::string head =
+      "[[tool]]\nid = \"left\"\n[[tool.keyframe]]\nt = 0\nposition = [0, 0, 5]\n";
   expect_error<InputError>(parse(head + "speed = 3\n"),
                            {"g.toml:6:", "tool.keyframe.speed", "unknown key", "position", "jaw"});
   expect_error<InputError>(parse(head + "[[tool.keyframe]]\nt = 0\n"),
@@ -140,7 +143,8 @@ TEST(Gesture, ErrorsNameTheFileLineAndKey) {
   expect_error<InputError>(parse("[[tool]]\nid = \"left\"\n[[tool.keyframe]]\nt = 0\n"),
                            {"g.toml:3:", "first keyframe", "position"});
   expect_error<InputError>(parse("[[tool]]\nid = \"left\"\n"), {"g.toml:1:", "no keyframe"});
-  expect_error<InputError>(parse("[[tool]]\nid = \"left hand\"\n"), {"g.toml:2:", "tool.id", "A-Z"});
+  expect_error<InputError>(parse("[[tool]]\nid = \"left hand\"\n"),
+                           {"g.toml:2:", "tool.id", "A-Z"});
   expect_error<InputError>(parse(head + head), {"g.toml:7:", "tool.id", "given twice"});
   expect_error<InputError>(parse("anchor = \"top\"\n" + head), {"g.toml:1:", "anchor", "auto"});
   expect_error<InputError>(parse("anchor = -3\n" + head), {"g.toml:1:", "anchor", "≥ 0"});
@@ -168,7 +172,8 @@ TEST(Gesture, OutwardNormalsAreAreaWeighted) {
 
   ModelInfo lonely = m;
   lonely.triangles.clear();
-  expect_error<InputError>([&] { outward_normal(view(lonely), 0); }, {"vertex 100", "no surface triangle"});
+  expect_error<InputError>([&] { outward_normal(view(lonely), 0); },
+                           {"vertex 100", "no surface triangle"});
 }
 
 TEST(Gesture, AutoAnchorIsTheFreeVertexFarthestFromTheAttachment) {
@@ -270,7 +275,8 @@ TEST(Gesture, SamplesInterpolateLinearlyAndSlerp) {
   // Right: one keyframe at 0.5 s, in its own anchor frame at +x
   // (x = model y, y = model z, z = model x): tip (1, 2, 3) mm → model (10 + 3, 1, 2) mm.
   for (double t : {0.0, 0.5, 2.0}) expect_near(player.sample(1, t).tip_m, {0.013, 0.001, 0.002});
-  // Its shaft points into the organ along −x; with roll 90° the jaws open along −y of the anchor (model −z).
+  // Its shaft points into the organ along −x; with roll 90° the jaws open along −y of the anchor
+  // (model −z).
   const GesturePose r = player.sample(1, 1.0);
   expect_near(r.orientation * Eigen::Vector3d::UnitZ(), {-1, 0, 0});
   expect_near(r.orientation * Eigen::Vector3d::UnitX(), {0, 0, -1});
@@ -278,7 +284,8 @@ TEST(Gesture, SamplesInterpolateLinearlyAndSlerp) {
 }
 
 TEST(Gesture, TheShippedGesturesReadAndPlaceOnAnyOrgan) {
-  const auto dir = std::filesystem::path(__FILE__).parent_path().parent_path() / "config" / "gestures";
+  const auto dir =
+      std::filesystem::path(__FILE__).parent_path().parent_path() / "config" / "gestures";
   if (!std::filesystem::exists(dir)) GTEST_SKIP() << dir << " not found";
   const ModelInfo m = octahedron();
   int count = 0;

@@ -103,16 +103,14 @@ class ModelDescriptions {
 
   /// The description of @p model_id, waiting for it until @p deadline;
   /// std::nullopt if it did not come. Every description taken on the way is kept.
-  std::optional<ModelInfo> wait_for(const std::string& model_id,
-                                    ClientClock::time_point deadline) {
+  std::optional<ModelInfo> wait_for(const std::string& model_id, ClientClock::time_point deadline) {
     if (auto m = find(model_id)) return m;
-    reader_.take_until<palpate_ModelDescription>(
-        deadline, [&](const palpate_ModelDescription& d) {
-          ModelInfo info = from_idl(d);
-          const bool wanted = info.model_id == model_id;
-          known_[info.model_id] = std::move(info);
-          return wanted;
-        });
+    reader_.take_until<palpate_ModelDescription>(deadline, [&](const palpate_ModelDescription& d) {
+      ModelInfo info = from_idl(d);
+      const bool wanted = info.model_id == model_id;
+      known_[info.model_id] = std::move(info);
+      return wanted;
+    });
     return find(model_id);
   }
 

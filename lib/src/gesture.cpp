@@ -26,7 +26,8 @@ Eigen::Vector2d vec2(const TomlReader& r, const toml::node& node, const std::str
 
 double finite(const TomlReader& r, const toml::node& node, const std::string& key, double value,
               const char* accepted) {
-  if (!std::isfinite(value)) r.fail(&node, key, fmt::format("{} is not finite; {}", value, accepted));
+  if (!std::isfinite(value))
+    r.fail(&node, key, fmt::format("{} is not finite; {}", value, accepted));
   return value;
 }
 
@@ -35,7 +36,9 @@ GestureTool read_tool(const TomlReader& r, const toml::table& t, std::size_t ind
   r.only_keys(t, where, {"id", "reach_mm", "offset_mm", "keyframe"});
   GestureTool tool;
   const toml::node* id = t.get("id");
-  if (!id) r.fail(&t, where, fmt::format("tool {} needs an id (one of palpated's tools, e.g. \"left\")", index + 1));
+  if (!id)
+    r.fail(&t, where,
+           fmt::format("tool {} needs an id (one of palpated's tools, e.g. \"left\")", index + 1));
   tool.id = r.string(*id, "tool.id");
   if (!is_valid_id(tool.id))
     r.fail(id, "tool.id",
@@ -67,7 +70,8 @@ GestureTool read_tool(const TomlReader& r, const toml::table& t, std::size_t ind
     if (!time) r.fail(&k, "tool.keyframe", "needs t, its time in s from the start of the gesture");
     frame.time_s = finite(r, *time, "tool.keyframe.t", r.number(*time, "tool.keyframe.t"),
                           "expected a time in s");
-    if (!(frame.time_s >= 0)) r.fail(time, "tool.keyframe.t", fmt::format("{} s: expected a time ≥ 0", frame.time_s));
+    if (!(frame.time_s >= 0))
+      r.fail(time, "tool.keyframe.t", fmt::format("{} s: expected a time ≥ 0", frame.time_s));
     if (previous && !(frame.time_s > previous->time_s))
       r.fail(time, "tool.keyframe.t",
              fmt::format("{} s is not after the previous keyframe's {} s (line {}); the keyframes "
@@ -84,7 +88,8 @@ GestureTool read_tool(const TomlReader& r, const toml::table& t, std::size_t ind
              "anchor frame: z along the outward normal)");
     }
     if (const toml::node* n = k.get("tilt")) {
-      const Eigen::Vector2d tilt = vec2(r, *n, "tool.keyframe.tilt", "[about x, about y] in degrees");
+      const Eigen::Vector2d tilt =
+          vec2(r, *n, "tool.keyframe.tilt", "[about x, about y] in degrees");
       if (!(tilt.cwiseAbs().maxCoeff() <= 90))
         r.fail(n, "tool.keyframe.tilt",
                fmt::format("[{}, {}]: expected angles in [-90, 90] degrees", tilt[0], tilt[1]));
@@ -93,7 +98,8 @@ GestureTool read_tool(const TomlReader& r, const toml::table& t, std::size_t ind
     if (const toml::node* n = k.get("roll")) {
       const double roll = r.number(*n, "tool.keyframe.roll");
       if (!(std::abs(roll) <= 360))
-        r.fail(n, "tool.keyframe.roll", fmt::format("{}: expected an angle in [-360, 360] degrees", roll));
+        r.fail(n, "tool.keyframe.roll",
+               fmt::format("{}: expected an angle in [-360, 360] degrees", roll));
       frame.roll_rad = degrees(roll);
     }
     if (const toml::node* n = k.get("jaw")) {
@@ -137,8 +143,9 @@ Gesture read(const toml::table& root, const std::string& source) {
   }
   const toml::node* tools = root.get("tool");
   if (!tools)
-    r.fail(nullptr, "tool",
-           "no tool: a gesture needs at least one [[tool]] table (id, then [[tool.keyframe]] tables)");
+    r.fail(
+        nullptr, "tool",
+        "no tool: a gesture needs at least one [[tool]] table (id, then [[tool.keyframe]] tables)");
   r.each_table(*tools, "tool", [&](const toml::table& t) {
     GestureTool tool = read_tool(r, t, g.tools.size());
     for (const auto& other : g.tools)
@@ -147,7 +154,8 @@ Gesture read(const toml::table& root, const std::string& source) {
                fmt::format("tool '{}' is given twice; one [[tool]] table per tool", tool.id));
     g.tools.push_back(std::move(tool));
   });
-  if (g.tools.empty()) r.fail(tools, "tool", "no tool: a gesture needs at least one [[tool]] table");
+  if (g.tools.empty())
+    r.fail(tools, "tool", "no tool: a gesture needs at least one [[tool]] table");
   return g;
 }
 
@@ -175,7 +183,8 @@ int nearest_compliance_vertex(const SurfaceView& s, const Eigen::Vector3d& p) {
 
 void check_surface(const SurfaceView& s) {
   const auto drawn = s.vertex_ids.size();
-  if (s.compliance_vertex_count <= 0 || static_cast<std::size_t>(s.compliance_vertex_count) > drawn ||
+  if (s.compliance_vertex_count <= 0 ||
+      static_cast<std::size_t>(s.compliance_vertex_count) > drawn ||
       s.rest_positions_m.size() != 3 * drawn || s.triangles.size() % 3 != 0)
     throw InputError(fmt::format(
         "model description: {} compliance vertices, {} drawn vertices, {} rest coordinates, {} "
@@ -302,7 +311,8 @@ std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const SurfaceView
       anchors.push_back(base);
       continue;
     }
-    const Eigen::Vector3d target = base.origin_m + tool.offset_m[0] * base.x + tool.offset_m[1] * base.y;
+    const Eigen::Vector3d target =
+        base.origin_m + tool.offset_m[0] * base.x + tool.offset_m[1] * base.y;
     anchors.push_back(anchor_frame(s, nearest_compliance_vertex(s, target), base.x));
   }
   return anchors;

@@ -96,7 +96,8 @@ struct ToolClient::Impl {
 
   ToolSlot* find(std::string_view tool_id) {
     for (int i = 0; i < tool_count; ++i)
-      if (tools[static_cast<std::size_t>(i)].is(tool_id)) return &tools[static_cast<std::size_t>(i)];
+      if (tools[static_cast<std::size_t>(i)].is(tool_id))
+        return &tools[static_cast<std::size_t>(i)];
     return nullptr;
   }
 
@@ -121,9 +122,8 @@ ToolClient::ToolClient(const ToolClientOptions& options) : impl_(std::make_uniqu
       dds::check(dds_create_writer(p, topic(&palpate_ToolPose_desc, dds::kToolPoseTopic),
                                    dds::tool_stream_qos().get(), nullptr),
                  "creating the tool pose writer");
-  c.feedback =
-      WaitableReader(p, p, topic(&palpate_ToolFeedback_desc, dds::kToolFeedbackTopic),
-                     dds::tool_stream_qos().get(), "creating the tool feedback reader");
+  c.feedback = WaitableReader(p, p, topic(&palpate_ToolFeedback_desc, dds::kToolFeedbackTopic),
+                              dds::tool_stream_qos().get(), "creating the tool feedback reader");
   c.feedback.busy_wait = options.busy_wait;
   c.events = WaitableReader(p, p, topic(&palpate_ToolEvent_desc, dds::kToolEventTopic),
                             dds::tool_event_qos().get(), "creating the tool event reader");
@@ -180,8 +180,8 @@ std::int64_t ToolClient::send_pose(std::string_view tool_id, std::string_view mo
     slot.id_length = tool_id.size();
   }
   if (!is_valid_id(model_id))
-    throw InputError(
-        fmt::format("model id '{}': expected 1 to 63 characters among A-Z a-z 0-9 _ - .", model_id));
+    throw InputError(fmt::format(
+        "model id '{}': expected 1 to 63 characters among A-Z a-z 0-9 _ - .", model_id));
   copy_id(pose.tool_id, tool_id);
   copy_id(pose.model_id, model_id);
   pose.pose_sequence = sequence;
@@ -195,7 +195,8 @@ std::int64_t ToolClient::send_pose(std::string_view tool_id, std::string_view mo
 }
 
 std::optional<ToolFeedbackSample> ToolClient::wait_feedback(
-    std::string_view tool_id, std::uint64_t sequence, std::chrono::steady_clock::time_point deadline) {
+    std::string_view tool_id, std::uint64_t sequence,
+    std::chrono::steady_clock::time_point deadline) {
   Impl& c = *impl_;
   ToolSlot* const slot = c.find(tool_id);
   PALPATE_DEMAND(slot != nullptr);  // a tool that never sent a pose has no feedback to wait for
@@ -216,8 +217,8 @@ std::optional<ToolFeedbackSample> ToolClient::wait_feedback(
   if (!answer) {
     c.feedback.take_until<palpate_ToolFeedback>(deadline, [&](const palpate_ToolFeedback& f) {
       const std::int64_t received = now_ns();
-      ToolSlot* const owner = c.find(
-          std::string_view(f.tool_id, strnlen(f.tool_id, sizeof f.tool_id)));
+      ToolSlot* const owner =
+          c.find(std::string_view(f.tool_id, strnlen(f.tool_id, sizeof f.tool_id)));
       if (owner == nullptr) {
         ++c.foreign;
         return false;

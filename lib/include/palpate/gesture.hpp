@@ -18,14 +18,13 @@
 /// point and the jaw angle, slerp of the orientation; before the first and
 /// after the last keyframe a tool holds still.
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <filesystem>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "palpate/eigen.hpp"
 
@@ -47,9 +46,11 @@ struct GestureKeyframe {
 
 /// One tool of a gesture.
 struct GestureTool {
-  std::string id;            ///< the tool id poses carry (one of palpated's tools)
-  double reach_m = 0.019;    ///< hinge to tip point along the shaft: palpated's default tool (15 mm capsule + 4 mm radius)
-  Eigen::Vector2d offset_m = Eigen::Vector2d::Zero();  ///< anchor offset in the first anchor's tangent plane
+  std::string id;          ///< the tool id poses carry (one of palpated's tools)
+  double reach_m = 0.019;  ///< hinge to tip point along the shaft: palpated's default tool (15 mm
+                           ///< capsule + 4 mm radius)
+  Eigen::Vector2d offset_m =
+      Eigen::Vector2d::Zero();             ///< anchor offset in the first anchor's tangent plane
   std::vector<GestureKeyframe> keyframes;  ///< times strictly increasing, at least one
 };
 
@@ -83,11 +84,11 @@ struct SurfaceView {
 
 /// An anchor frame on the organ's rest surface (model frame).
 struct AnchorFrame {
-  int drawn_index = -1;       ///< drawn vertex (a compliance vertex)
+  int drawn_index = -1;         ///< drawn vertex (a compliance vertex)
   std::uint32_t vertex_id = 0;  ///< its mesh vertex id
   Eigen::Vector3d origin_m = Eigen::Vector3d::Zero();
-  Eigen::Vector3d x = Eigen::Vector3d::UnitX();  ///< tangent
-  Eigen::Vector3d y = Eigen::Vector3d::UnitY();  ///< normal × x
+  Eigen::Vector3d x = Eigen::Vector3d::UnitX();       ///< tangent
+  Eigen::Vector3d y = Eigen::Vector3d::UnitY();       ///< normal × x
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< outward, unit
   /// Anchor frame → model frame (columns x, y, normal).
   Eigen::Matrix3d rotation() const;
