@@ -62,37 +62,6 @@ struct TipCandidate {
   Vector3d target;  // the vertex's position put back on the tip's surface, m
 };
 
-/// Largest s ≥ 0 with x − s·d on the surface of the capsule of radius r
-/// around [a, a + length·axis], for x inside it (d, axis unit): where the
-/// ray from x along −d leaves the tip.
-double exit_distance(const Vector3d& x, const Vector3d& d, const Vector3d& a,
-                     const Vector3d& axis, double length, double r) {
-  double exit = 0;
-  // |w − s d|² = r² for a sphere of centre c, w = x − c.
-  auto sphere = [&](const Vector3d& c) {
-    const Vector3d w = x - c;
-    const double b = w.dot(d), disc = b * b - w.squaredNorm() + r * r;
-    if (disc >= 0) exit = std::max(exit, b + std::sqrt(disc));
-  };
-  sphere(a);
-  if (length > 0) {
-    sphere(a + length * axis);
-    // The cylinder: the same in the plane normal to the axis, the exit kept
-    // when it lies along the segment.
-    const Vector3d w = x - a;
-    const Vector3d wp = w - w.dot(axis) * axis, dp = d - d.dot(axis) * axis;
-    const double dd = dp.squaredNorm();
-    if (dd > 1e-24) {
-      const double b = wp.dot(dp), disc = b * b - dd * (wp.squaredNorm() - r * r);
-      if (disc >= 0) {
-        const double s = (b + std::sqrt(disc)) / dd;
-        const double along = (w - s * d).dot(axis);
-        if (along >= 0 && along <= length) exit = std::max(exit, s);
-      }
-    }
-  }
-  return exit;
-}
 
 struct HeldVertex {
   int index;
@@ -336,17 +305,16 @@ struct ToolContactEngine::Impl {
       if (jaws_open && tool.held.empty() && between_jaws(tool, x, tool.pose.jaw_angle_rad) &&
           !was)
         continue;
-      // Inside: pushed out along the organ's inward normal (the tip does not
-      // roll a vertex around itself on a coarse mesh). Within the shell:
-      // back onto the nearest point of the tip's surface.
-      const Vector3d& outward = vertex_normal[static_cast<std::size_t>(j)];
-      const Vector3d target =
-          distance < r ? Vector3d(x - exit_distance(x, outward, tool.pose.position_m, axis,
-                                                    tip_length(g), r) *
-                                         outward)
-          : distance > 0 ? Vector3d(q + (x - q) * (r / distance))
-                         : x;
-      tool.tips[static_cast<std::size_t>(found++)] = {j, r - distance, -outward, target};
+      // Put back on the tip's surface at the nearest point, pushed along the
+      // tip's surface normal there. That normal's tangent plane bounds the
+      // tip (it is convex): a vertex whose free position is inside the tip
+      // is on the push side of it, so a sliding contact never finds itself
+      // pulling while the tissue would spring into the tip (no flicker).
+      const Vector3d normal = distance > 1e-9 * r
+                                  ? Vector3d((x - q) / distance)
+                                  : Vector3d(-vertex_normal[static_cast<std::size_t>(j)]);
+      const Vector3d target = q + r * normal;
+      tool.tips[static_cast<std::size_t>(found++)] = {j, r - distance, normal, target};
     }
     // Keep the deepest.
     if (found > per_tool_cap - static_cast<int>(tool.held.size())) {
@@ -447,16 +415,17 @@ struct ToolContactEngine::Impl {
           const Eigen::Map<const Vector3d> n(&b_normal[3 * bb]);
           const Vector3d fc = f.segment<3>(3 * j);
           const double normal_force = fc.dot(n);
-          if (normal_force < 0) {
-            released[bb] = 1;
-            any = true;
-          } else if (b_kind[bb] == ConstraintKind::kDisplacement &&
-                     (fc - normal_force * n).norm() >
-                         tools[static_cast<std::size_t>(b_tool[bb])].geometry.friction *
-                             normal_force) {
+          if (b_kind[bb] == ConstraintKind::kDisplacement &&
+              (normal_force < 0 ||
+               (fc - normal_force * n).norm() >
+                   tools[static_cast<std::size_t>(b_tool[bb])].geometry.friction * normal_force)) {
+            // Outside the friction cone (a pull included): it slides first.
             b_kind[bb] = ConstraintKind::kNormalDisplacement;
             b_value[3 * bb] = n.dot(Eigen::Map<const Vector3d>(&b_value[3 * bb]));
             b_value[3 * bb + 1] = b_value[3 * bb + 2] = 0;
+            any = true;
+          } else if (normal_force < 0) {
+            released[bb] = 1;  // a sliding contact that pulls: adhesion, let go
             any = true;
           }
         }
