@@ -54,6 +54,12 @@ std::shared_ptr<Entity> acquire_domain(std::uint32_t domain_id, const DomainConf
   return domain;
 }
 
+dds_entity_t topic(dds_entity_t participant, const dds_topic_descriptor_t* type,
+                   const char* name) {
+  return check(dds_create_topic(participant, type, name, nullptr, nullptr),
+               std::string("creating topic ") + name);
+}
+
 std::string reply_partition(std::string_view client_id) {
   return std::string(kReplyPartitionPrefix) + std::string(client_id);
 }

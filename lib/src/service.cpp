@@ -281,9 +281,8 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   }
   participant = dds::Entity(dds::check(dds_create_participant(config.domain_id, nullptr, nullptr),
                                        "creating the DDS participant"));
-  auto topic = [&](const dds_topic_descriptor_t* type, const char* name) {
-    return dds::check(dds_create_topic(participant.get(), type, name, nullptr, nullptr),
-                      fmt::format("creating topic {}", name));
+  auto topic = [this](const dds_topic_descriptor_t* type, const char* name) {
+    return dds::topic(participant.get(), type, name);
   };
   const dds_entity_t model_topic = topic(&palpate_ModelDescription_desc, dds::kModelTopic);
   const dds_entity_t request_topic = topic(&palpate_ConstraintRequest_desc, dds::kRequestTopic);

@@ -113,9 +113,8 @@ ToolClient::ToolClient(const ToolClientOptions& options) : impl_(std::make_uniqu
   c.participant = dds::Entity(dds::check(
       dds_create_participant(options.domain_id, nullptr, nullptr), "creating the DDS participant"));
   const dds_entity_t p = c.participant.get();
-  auto topic = [&](const dds_topic_descriptor_t* type, const char* name) {
-    return dds::check(dds_create_topic(p, type, name, nullptr, nullptr),
-                      fmt::format("creating topic {}", name));
+  auto topic = [p](const dds_topic_descriptor_t* type, const char* name) {
+    return dds::topic(p, type, name);
   };
   c.models = detail::ModelDescriptions(p);
   c.pose_writer =

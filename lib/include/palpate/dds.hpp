@@ -74,6 +74,10 @@ std::shared_ptr<Entity> acquire_domain(std::uint32_t domain_id, const DomainConf
 
 // ------------------------------------------------------------------ topics
 
+/// Creates (or finds) topic @p name of @p type on @p participant.
+/// @throws SystemError naming the topic.
+dds_entity_t topic(dds_entity_t participant, const dds_topic_descriptor_t* type, const char* name);
+
 inline constexpr const char* kModelTopic = "palpate_model";
 inline constexpr const char* kRequestTopic = "palpate_request";
 inline constexpr const char* kReplyTopic = "palpate_reply";
