@@ -42,15 +42,8 @@ class ToolContactTest : public ::testing::Test {
 
   /// The compliance vertex of the top face (z = 40 mm) nearest (x, y) in mm.
   static int top_vertex(double x_mm, double y_mm) {
-    int best = -1;
-    double best_d = 1e9;
-    for (int j = 0; j < model().compliance_vertex_count(); ++j) {
-      const Vector3d p = rest(j);
-      if (std::abs(p.z() - 0.040) > 1e-9) continue;
-      const double d = std::hypot(p.x() - x_mm * 1e-3, p.y() - y_mm * 1e-3);
-      if (d < best_d) best_d = d, best = j;
-    }
-    return best;
+    return testing::box_top_vertex(model().drawn_rest_positions_m, model().compliance_vertex_count(),
+                                   x_mm, y_mm);
   }
   static Vector3d rest(int j) {
     return Eigen::Map<const Vector3d>(&model().drawn_rest_positions_m[3 * static_cast<std::size_t>(j)]);

@@ -1,6 +1,7 @@
 #include "box_job.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "test_meshes.hpp"
 
@@ -25,6 +26,19 @@ std::filesystem::path write_box_compliance(const std::filesystem::path& dir,
   const PrecomputeJob job = box_job(dir, name, cells, young_modulus_pa);
   run_precompute(job, {});
   return job.output;
+}
+
+int box_top_vertex(std::span<const double> rest_positions_m, int compliance_vertex_count,
+                   double x_mm, double y_mm) {
+  int best = -1;
+  double best_d = 1e9;
+  for (int j = 0; j < compliance_vertex_count; ++j) {
+    const double* p = &rest_positions_m[3 * static_cast<std::size_t>(j)];
+    if (std::abs(p[2] - 0.040) > 1e-9) continue;
+    const double d = std::hypot(p[0] - x_mm * 1e-3, p[1] - y_mm * 1e-3);
+    if (d < best_d) best_d = d, best = j;
+  }
+  return best;
 }
 
 }  // namespace palpate::testing

@@ -3,6 +3,7 @@
 // clamped on x = 0, soft-tissue material.
 
 #include <filesystem>
+#include <span>
 #include <string>
 
 #include "palpate/precompute.hpp"
@@ -18,5 +19,11 @@ PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name 
 std::filesystem::path write_box_compliance(const std::filesystem::path& dir,
                                            const std::string& name = "box", int cells = 4,
                                            double young_modulus_pa = 85e3);
+
+/// The compliance vertex on the box's top face (z = 40 mm) nearest (x, y)
+/// in mm, from drawn rest positions (SurfaceModel or ModelInfo: the first
+/// @p compliance_vertex_count are the compliance vertices); −1 if none.
+int box_top_vertex(std::span<const double> rest_positions_m, int compliance_vertex_count,
+                   double x_mm, double y_mm);
 
 }  // namespace palpate::testing
