@@ -33,15 +33,8 @@ if [ $# -lt 2 ]; then
   exit 2
 fi
 
-# palpate::dds::loopback_config(), verbatim.
-LOOPBACK_URI='<General><Interfaces><NetworkInterface name="lo" multicast="false"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>100</MaxAutoParticipantIndex><Peers><Peer address="127.0.0.1"/></Peers></Discovery>'
-
-if [ "${PALPATE_ROUNDTRIP_NETNS:-}" != 1 ]; then
-  build=$(realpath "$1")
-  model=$(realpath "$2")
-  shift 2
-  exec unshare --net -- env PALPATE_ROUNDTRIP_NETNS=1 sh "$(realpath "$0")" "$build" "$model" "$@"
-fi
+. "$(dirname "$(realpath "$0")")/roundtrip_common.sh"
+enter_private_netns "$0" "$@"
 
 BUILD=$1
 MODEL=$2
@@ -49,14 +42,7 @@ SECONDS_MEASURED=${3:-10}
 WARMUP=2
 RATE=1000
 
-# Inside the namespace: bring loopback up and refuse to go on if anything
-# else is there (/sys/class/net would show the host's devices, ip does not).
-ip link set lo up
-interfaces=$(ip -o link show | awk -F': ' '{print $2}' | tr '\n' ' ')
-if [ "$interfaces" != "lo " ]; then
-  echo "dds_roundtrip: refusing to run: network namespace has interfaces '$interfaces', want only lo" >&2
-  exit 1
-fi
+require_loopback_only dds_roundtrip
 
 for program in "$BUILD/server/palpated" "$BUILD/bench/palpate_rtt_bench" /usr/bin/ddsperf; do
   [ -x "$program" ] || { echo "dds_roundtrip: $program is missing (build it, or apt-get install cyclonedds-tools)" >&2; exit 1; }
@@ -93,37 +79,19 @@ for k in 1 20; do
   size=$(/usr/bin/python3 -c 'import json,sys; r=json.load(open(sys.argv[1])); print((r["request_bytes"]+r["reply_bytes"])//2)' "$work/rtt-$k-waitset.json")
   duration=$((SECONDS_MEASURED + WARMUP))
   for mode in listener waitset; do
-    CYCLONEDDS_URI="$LOOPBACK_URI" ddsperf -D $((duration + 3)) pong "$mode" >"$work/pong-$k-$mode.txt" 2>&1 &
-    pong=$!
-    echo "ddsperf -D $duration ping ${RATE}Hz size $size $mode  (with: ddsperf -D $((duration + 3)) pong $mode)" \
-      >"$work/ddsperf-$k-$mode.cmd"
-    CYCLONEDDS_URI="$LOOPBACK_URI" ddsperf -D "$duration" ping "${RATE}Hz" size "$size" "$mode" \
-      >"$work/ping-$k-$mode.txt" 2>&1
-    wait "$pong" || true
+    ddsperf_pair "$work" "$k-$mode" "$duration" "$RATE" "$size" "$mode"
   done
 done
 
-/usr/bin/python3 - "$work" "$WARMUP" <<'EOF'
-import json, re, statistics, sys
+/usr/bin/python3 - "$work" "$WARMUP" "$(dirname "$(realpath "$0")")" <<'EOF'
+import json, sys
+
+sys.path.insert(0, sys.argv[3])
+import ddsperf_log
 
 work, warmup = sys.argv[1], float(sys.argv[2])
-# "[pid] 3.000  host:pid size 1200 mean 24.5us min 8.4us 50% 25.1us 90% 36.1us 99% 43.8us max 517.5us cnt 908"
-LINE = re.compile(r"\]\s+([\d.]+)\s+\S+ size (\d+) mean ([\d.]+)us min ([\d.]+)us 50% ([\d.]+)us "
-                  r"90% ([\d.]+)us 99% ([\d.]+)us max ([\d.]+)us cnt (\d+)")
-
 def ddsperf(k, mode):
-    path = f"{work}/ping-{k}-{mode}.txt"
-    rows = [m.groups() for m in map(LINE.search, open(path)) if m]
-    rows = [r for r in rows if float(r[0]) > warmup]
-    if not rows:
-        raise SystemExit(f"dds_roundtrip: no latency lines from ddsperf ping (k={k}, {mode}); its output:\n"
-                         + open(path).read())
-    return {"mode": mode, "size": int(rows[0][1]), "seconds": len(rows), "samples": sum(int(r[8]) for r in rows),
-            "p50_us": statistics.median(float(r[4]) for r in rows),
-            "p99_us": statistics.median(float(r[6]) for r in rows),
-            "worst_second_p99_us": max(float(r[6]) for r in rows),
-            "max_us": max(float(r[7]) for r in rows),
-            "command": open(f"{work}/ddsperf-{k}-{mode}.cmd").read().strip()}
+    return ddsperf_log.summary(work, f"{k}-{mode}", mode, warmup, "dds_roundtrip")
 
 results = []
 print("DDS round trip, loopback only, 1 kHz (µs); ddsperf: median over 1-s intervals of its 50% / 99%")

@@ -36,15 +36,8 @@ if [ $# -lt 2 ]; then
   exit 2
 fi
 
-# palpate::dds::loopback_config(), verbatim.
-LOOPBACK_URI='<General><Interfaces><NetworkInterface name="lo" multicast="false"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>100</MaxAutoParticipantIndex><Peers><Peer address="127.0.0.1"/></Peers></Discovery>'
-
-if [ "${PALPATE_PLIERS_NETNS:-}" != 1 ]; then
-  build=$(realpath "$1")
-  model=$(realpath "$2")
-  shift 2
-  exec unshare --net -- env PALPATE_PLIERS_NETNS=1 sh "$(realpath "$0")" "$build" "$model" "$@"
-fi
+. "$(dirname "$(realpath "$0")")/roundtrip_common.sh"
+enter_private_netns "$0" "$@"
 
 BUILD=$1
 MODEL=$2
@@ -54,14 +47,7 @@ RATE=1000
 GESTURE=$(dirname "$(realpath "$0")")/../config/gestures/steady-press.toml
 REPEAT=$(/usr/bin/python3 -c 'import math, sys; print(max(1, math.ceil(float(sys.argv[1]) / 10.6)))' "$SECONDS_MEASURED")
 
-# Inside the namespace: bring loopback up and refuse to go on if anything
-# else is there (/sys/class/net would show the host's devices, ip does not).
-ip link set lo up
-interfaces=$(ip -o link show | awk -F': ' '{print $2}' | tr '\n' ' ')
-if [ "$interfaces" != "lo " ]; then
-  echo "pliers_roundtrip: refusing to run: network namespace has interfaces '$interfaces', want only lo" >&2
-  exit 1
-fi
+require_loopback_only pliers_roundtrip
 
 for program in "$BUILD/server/palpated" "$BUILD/clients/palpate-pliers" /usr/bin/ddsperf; do
   [ -x "$program" ] || { echo "pliers_roundtrip: $program is missing (build it, or apt-get install cyclonedds-tools)" >&2; exit 1; }
@@ -103,35 +89,18 @@ wait "$daemon" || { echo "pliers_roundtrip: palpated exited with status $?" >&2;
 size=$(( (4 + 16 + 16 + 80 + 4 + 16 + 16 + 96) / 2 ))
 duration=$((SECONDS_MEASURED + WARMUP))
 for mode in listener waitset; do
-  CYCLONEDDS_URI="$LOOPBACK_URI" ddsperf -u -D $((duration + 3)) pong "$mode" >"$work/pong-$mode.txt" 2>&1 &
-  pong=$!
-  echo "ddsperf -u -D $duration ping ${RATE}Hz size $size $mode  (with: ddsperf -u -D $((duration + 3)) pong $mode)" \
-    >"$work/ddsperf-$mode.cmd"
-  CYCLONEDDS_URI="$LOOPBACK_URI" ddsperf -u -D "$duration" ping "${RATE}Hz" size "$size" "$mode" \
-    >"$work/ping-$mode.txt" 2>&1
-  wait "$pong" || true
+  ddsperf_pair "$work" "$mode" "$duration" "$RATE" "$size" "$mode" -u
 done
 
-/usr/bin/python3 - "$work" "$WARMUP" <<'EOF'
-import json, re, statistics, sys
+/usr/bin/python3 - "$work" "$WARMUP" "$(dirname "$(realpath "$0")")" <<'EOF'
+import json, sys
+
+sys.path.insert(0, sys.argv[3])
+import ddsperf_log
 
 work, warmup = sys.argv[1], float(sys.argv[2])
-# "[pid] 3.000  host:pid size 1200 mean 24.5us min 8.4us 50% 25.1us 90% 36.1us 99% 43.8us max 517.5us cnt 908"
-LINE = re.compile(r"\]\s+([\d.]+)\s+\S+ size (\d+) mean ([\d.]+)us min ([\d.]+)us 50% ([\d.]+)us "
-                  r"90% ([\d.]+)us 99% ([\d.]+)us max ([\d.]+)us cnt (\d+)")
-
 def ddsperf(mode):
-    path = f"{work}/ping-{mode}.txt"
-    rows = [m.groups() for m in map(LINE.search, open(path)) if m]
-    rows = [r for r in rows if float(r[0]) > warmup]
-    if not rows:
-        raise SystemExit(f"pliers_roundtrip: no latency lines from ddsperf ping ({mode}); its output:\n"
-                         + open(path).read())
-    return {"mode": mode, "size": int(rows[0][1]), "seconds": len(rows), "samples": sum(int(r[8]) for r in rows),
-            "p50_us": statistics.median(float(r[4]) for r in rows),
-            "p99_us": statistics.median(float(r[6]) for r in rows),
-            "max_us": max(float(r[7]) for r in rows),
-            "command": open(f"{work}/ddsperf-{mode}.cmd").read().strip()}
+    return ddsperf_log.summary(work, mode, mode, warmup, "pliers_roundtrip")
 
 theirs = {mode: ddsperf(mode) for mode in ("listener", "waitset")}
 print("Tool loop round trip (pose → feedback), loopback only, 1 kHz, µs; palpate-pliers on steady-press.toml")
