@@ -1,5 +1,6 @@
-// Writes the known session that tests/session_report_test.py checks
-// scripts/session_report.py against (its values are computed by hand there).
+// Writes the known session that tests/session_report_test.py and
+// tests/session_plots_test.py check scripts/session_report.py and
+// scripts/session_plots.py against (its values are computed by hand there).
 // Usage: palpate_session_writer_for_tests OUT.h5 [--crash]
 //   --crash: wait until every tick is flushed, then SIGKILL this process, so
 //   that OUT.h5.partial is left as a crash leaves it.
@@ -8,9 +9,12 @@
 //   free [0,200) touching [200,500) grasping [500,600) touching [600,650)
 //   grasping [650,700) free [700,1000); |force| 2 N touching, 3 N grasping
 //   (5 N at k = 550); grip 1.5 N grasping (2.5 N at k = 660); contacts:
-//   1 + k mod 3 touching, 4 grasping.
+//   1 + k mod 3 touching, 4 grasping. compute 20 µs + 10 ns·k for k < 985,
+//   150 µs + 1 µs·(k − 985) for the 15 slow ticks k ≥ 985 (nearest-rank
+//   p50 25 µs, p99 154 µs).
 // Tool "right", 500 ticks at 500 Hz (t = 2k ms), y = k mm: touching
-//   [100,200) with 1 N, free otherwise; one contact while touching.
+//   [100,200) with 1 N, free otherwise; one contact while touching; compute
+//   40 µs + 20 ns·k (p50 45 µs, p99 49.88 µs).
 // Events: left touch, grasp, release, grasp, release, leave; right touch, leave.
 
 #include <signal.h>
@@ -89,6 +93,8 @@ void write(const char* out, bool crash) {
     }
     t.grip_n = grasping ? (k == 660 ? 2.5 : 1.5) : 0;
     t.held = grasping ? 4 : 0;
+    t.compute_ns = k < 985 ? 20'000 + 10 * static_cast<std::uint64_t>(k)
+                           : 150'000 + 1'000 * static_cast<std::uint64_t>(k - 985);
     record(recorder, t, t.state == ToolState::kFree ? 0 : grasping ? 4 : 1 + k % 3);
   }
   for (int k = 0; k < 500; ++k) {
@@ -101,6 +107,7 @@ void write(const char* out, bool crash) {
     const bool touching = k >= 100 && k < 200;
     t.state = touching ? ToolState::kTouching : ToolState::kFree;
     t.force_n[0] = touching ? 1 : 0;
+    t.compute_ns = 40'000 + 20 * static_cast<std::uint64_t>(k);
     record(recorder, t, touching ? 1 : 0);
   }
   if (crash) {
