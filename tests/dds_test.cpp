@@ -260,6 +260,13 @@ TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMove
                      ref.field(shown.results)),
             kRelativeTolerance);
   EXPECT_LT((vec(sample->total_force_n) - vec(shown.total_force_n)).norm(), 1e-15);
+  // The constraint that made the state comes with it, for drawing.
+  ASSERT_EQ(sample->constrained_vertices, std::vector<std::uint32_t>{m.vertex_ids[11]});
+  ASSERT_EQ(sample->constrained_forces_n.size(), 3u);
+  EXPECT_LT((Eigen::Map<const Eigen::Vector3d>(sample->constrained_forces_n.data()) -
+             vec(shown.results[0].force_n))
+                .norm(),
+            1e-15);
 
   // A query (update_state = false) and a refused request leave the state alone:
   // the next state the viewer sees is the next state-changing request's.

@@ -187,6 +187,12 @@ std::optional<SurfaceSample> Client::wait_surface(const std::string& model_id,
         out.total_force_n = to_array(s.total_force);
         out.displacement_m.assign(s.displacement._buffer,
                                   s.displacement._buffer + s.displacement._length);
+        out.constrained_vertices.assign(
+            s.constrained_vertices._buffer,
+            s.constrained_vertices._buffer + s.constrained_vertices._length);
+        out.constrained_forces_n.assign(
+            s.constrained_forces._buffer,
+            s.constrained_forces._buffer + s.constrained_forces._length);
         return true;
       });
   return sample;

@@ -122,6 +122,7 @@ struct ServedModel {
   std::uint64_t published_version = 0;
   std::vector<int> stream_indices;
   std::vector<double> stream_forces;
+  std::vector<std::uint32_t> stream_vertex_ids;  // mesh vertex ids of stream_indices, for the sample
   Eigen::VectorXd displacement;
 };
 
@@ -242,6 +243,7 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
     served->shown_forces.resize(3 * k);
     served->stream_indices.resize(k);
     served->stream_forces.resize(3 * k);
+    served->stream_vertex_ids.resize(k);
     served->displacement = Eigen::VectorXd::Zero(m.G.rows());
     served->tools =
         std::make_unique<ToolContactEngine>(m, config.tools, config.contact, config.limits);
@@ -848,6 +850,16 @@ void Service::Impl::publish_surfaces() {
     sample.displacement._length = sample.displacement._maximum =
         static_cast<std::uint32_t>(served->displacement.size());
     sample.displacement._release = false;
+    for (int c = 0; c < count; ++c)
+      served->stream_vertex_ids[c] = served->model.drawn_vertex_ids[served->stream_indices[c]];
+    sample.constrained_vertices._buffer = served->stream_vertex_ids.data();
+    sample.constrained_vertices._length = sample.constrained_vertices._maximum =
+        static_cast<std::uint32_t>(count);
+    sample.constrained_vertices._release = false;
+    sample.constrained_forces._buffer = served->stream_forces.data();
+    sample.constrained_forces._length = sample.constrained_forces._maximum =
+        static_cast<std::uint32_t>(3 * count);
+    sample.constrained_forces._release = false;
     if (const dds_return_t rc = dds_write(surface_writer.get(), &sample); rc < 0)
       spdlog::error("event=dds_error what=\"writing the surface of {}\" error={}", served->model.id,
                     dds_strretcode(rc));
