@@ -1,0 +1,391 @@
+// The DDS side of palpate-viewer: palpated's topics in, browser messages out
+// (docs/viewer.md describes both ends of the wire format written here).
+
+#include "feed.hpp"
+
+#include <dds/dds.h>
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <thread>
+#include <unordered_map>
+
+#include "palpate.h"
+#include "palpate/dds.hpp"
+#include "palpate/error.hpp"
+
+namespace palpate::viewer {
+namespace {
+
+static_assert(std::endian::native == std::endian::little,
+              "the binary frames are little-endian, as browsers' typed arrays are");
+
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+std::string bounded(const char* text, std::size_t size) { return {text, strnlen(text, size)}; }
+
+/// Appends little-endian 32-bit words to a binary frame; every field starts
+/// on a 4-byte boundary so the page can view arrays in place.
+class FrameWriter {
+ public:
+  explicit FrameWriter(std::uint32_t kind) { u32(kind); }
+  void u32(std::uint32_t v) { append(&v, 4); }
+  void f32(double v) {
+    const auto f = static_cast<float>(v);
+    append(&f, 4);
+  }
+  void string(const std::string& s) {
+    u32(static_cast<std::uint32_t>(s.size()));
+    bytes_.append(s);
+    bytes_.append((4 - s.size() % 4) % 4, '\0');
+  }
+  void reserve(std::size_t n) { bytes_.reserve(n); }
+  std::string take() { return std::move(bytes_); }
+
+ private:
+  void append(const void* p, std::size_t n) { bytes_.append(static_cast<const char*>(p), n); }
+  std::string bytes_;
+};
+
+constexpr std::uint32_t kGeometryFrame = 1;
+constexpr std::uint32_t kSurfaceFrame = 2;
+constexpr std::uint32_t kNoVertex = 0xffffffffu;
+
+const char* state_name(palpate_ToolState s) {
+  switch (s) {
+    case palpate_TOOL_FREE: return "free";
+    case palpate_TOOL_TOUCHING: return "touching";
+    case palpate_TOOL_GRASPING: return "grasping";
+  }
+  return "unknown";
+}
+
+const char* event_name(palpate_ToolEventKind k) {
+  switch (k) {
+    case palpate_TOOL_EVENT_TOUCH: return "touch";
+    case palpate_TOOL_EVENT_LEAVE: return "leave";
+    case palpate_TOOL_EVENT_GRASP: return "grasp";
+    case palpate_TOOL_EVENT_RELEASE: return "release";
+    case palpate_TOOL_EVENT_WATCHDOG: return "watchdog";
+    case palpate_TOOL_EVENT_RESUMED: return "resumed";
+  }
+  return "unknown";
+}
+
+json latency_json(const palpate_Latency& l) {
+  return {{"p50_us", l.p50_us}, {"p99_us", l.p99_us}, {"p999_us", l.p999_us}, {"max_us", l.max_us}};
+}
+
+template <std::size_t N>
+json array_json(const double (&v)[N]) {
+  return json(std::vector<double>(v, v + N));
+}
+
+/// What the feed knows of one tool between two tool messages.
+struct ToolView {
+  std::string model_id;
+  double position[3] = {};
+  double orientation[4] = {1, 0, 0, 0};
+  double jaw_angle = 0;
+  double force[3] = {};
+  double grip_force = 0;
+  std::uint32_t contacts = 0;
+  palpate_ToolState state = palpate_TOOL_FREE;
+  bool force_limited = false, watchdog = false;
+  std::uint64_t poses = 0, feedbacks = 0;
+  double compute_us = 0;
+};
+
+}  // namespace
+
+struct Feed::Impl {
+  FeedOptions options;
+  Sink sink;
+  dds::DomainConfig domain_config;
+  std::shared_ptr<dds::Entity> domain;
+  dds::Entity participant, waitset;
+  dds_entity_t stop_condition = 0;
+  enum Reader { kModels, kSurfaces, kStatus, kPoses, kFeedback, kEvents, kReaderCount };
+  dds_entity_t readers[kReaderCount] = {};
+  std::atomic<bool> stopping{false};
+  std::thread thread;
+
+  // Owned by the thread.
+  std::unordered_map<std::string, std::unordered_map<std::uint32_t, std::uint32_t>> drawn_index;
+  std::map<std::string, ToolView> tools;
+  bool tools_changed = false;
+  json daemon_status;  // null until the first status
+  std::uint64_t surfaces = 0, poses = 0, feedbacks = 0;
+
+  Impl(const FeedOptions& o, Sink s) : options(o), sink(std::move(s)) {
+    domain_config = dds::resolve_domain_config(options.dds_config);
+    domain = dds::acquire_domain(options.domain_id, domain_config);
+    participant = dds::Entity(dds::check(dds_create_participant(options.domain_id, nullptr, nullptr),
+                                         "creating the viewer's DDS participant"));
+    const dds_entity_t p = participant.get();
+    struct Spec {
+      const dds_topic_descriptor_t* type;
+      const char* name;
+      dds::Qos qos;
+    };
+    Spec specs[kReaderCount] = {
+        {&palpate_ModelDescription_desc, dds::kModelTopic, dds::model_qos()},
+        {&palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic, dds::surface_qos()},
+        {&palpate_DaemonStatus_desc, dds::kStatusTopic, dds::status_qos()},
+        {&palpate_ToolPose_desc, dds::kToolPoseTopic, dds::tool_stream_qos()},
+        {&palpate_ToolFeedback_desc, dds::kToolFeedbackTopic, dds::tool_stream_qos()},
+        {&palpate_ToolEvent_desc, dds::kToolEventTopic, dds::tool_event_qos()},
+    };
+    waitset = dds::Entity(dds::check(dds_create_waitset(p), "creating the viewer's waitset"));
+    for (int r = 0; r < kReaderCount; ++r) {
+      const std::string what = std::string("creating the reader of ") + specs[r].name;
+      readers[r] = dds::check(
+          dds_create_reader(p, dds::topic(p, specs[r].type, specs[r].name), specs[r].qos.get(),
+                            nullptr),
+          what);
+      const dds_entity_t condition =
+          dds::check(dds_create_readcondition(readers[r], DDS_ANY_STATE), what);
+      dds::check(dds_waitset_attach(waitset.get(), condition, r), what);
+    }
+    stop_condition = dds::check(dds_create_guardcondition(p), "creating the viewer's stop condition");
+    dds::check(dds_waitset_attach(waitset.get(), stop_condition, kReaderCount),
+               "attaching the stop condition");
+    thread = std::thread([this] { run(); });
+  }
+
+  ~Impl() {
+    stopping.store(true);
+    dds_set_guardcondition(stop_condition, true);
+    if (thread.joinable()) thread.join();
+  }
+
+  /// Takes every sample of reader @p r and hands the valid ones to @p use.
+  template <typename Sample, typename Use>
+  void take_all(Reader r, Use use) {
+    constexpr int kBatch = 16;
+    void* samples[kBatch] = {};
+    dds_sample_info_t infos[kBatch];
+    for (;;) {
+      const dds_return_t n = dds_take(readers[r], samples, infos, kBatch, kBatch);
+      if (n <= 0) return;
+      for (int i = 0; i < n; ++i)
+        if (infos[i].valid_data) use(*static_cast<const Sample*>(samples[i]));
+      dds_return_loan(readers[r], samples, n);
+      if (n < kBatch) return;
+    }
+  }
+
+  void run() {
+    const auto tools_period = std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(1.0 / options.tools_rate_hz));
+    const auto status_period = std::chrono::seconds(1);
+    auto next_tools = Clock::now() + tools_period;
+    auto next_status = Clock::now() + status_period;
+    auto last_status = Clock::now();
+    while (!stopping.load()) {
+      const auto wake = std::min(next_tools, next_status);
+      const auto timeout = std::max<std::int64_t>(
+          0, std::chrono::duration_cast<std::chrono::nanoseconds>(wake - Clock::now()).count());
+      dds_attach_t triggered[kReaderCount + 1];
+      dds_waitset_wait(waitset.get(), triggered, kReaderCount + 1, timeout);
+      if (stopping.load()) break;
+      take_all<palpate_ModelDescription>(kModels, [&](const auto& d) { on_model(d); });
+      take_all<palpate_SurfaceDisplacement>(kSurfaces, [&](const auto& s) { on_surface(s); });
+      take_all<palpate_DaemonStatus>(kStatus, [&](const auto& s) { on_status(s); });
+      take_all<palpate_ToolPose>(kPoses, [&](const auto& p) { on_pose(p); });
+      take_all<palpate_ToolFeedback>(kFeedback, [&](const auto& f) { on_feedback(f); });
+      take_all<palpate_ToolEvent>(kEvents, [&](const auto& e) { on_event(e); });
+      const auto now = Clock::now();
+      if (now >= next_tools) {
+        if (tools_changed) send_tools();
+        next_tools = std::max(next_tools + tools_period, now);
+      }
+      if (now >= next_status) {
+        send_status(std::chrono::duration<double>(now - last_status).count());
+        last_status = now;
+        next_status = std::max(next_status + status_period, now);
+      }
+    }
+  }
+
+  void on_model(const palpate_ModelDescription& d) {
+    const std::string id = bounded(d.model_id, sizeof d.model_id);
+    const std::uint32_t nv = d.vertex_ids._length;
+    const std::uint32_t nt = d.triangles._length / 3;
+    if (d.rest_positions._length != 3 * nv || d.compliance_vertex_count > nv) {
+      // A daemon of another version: say so once per description, draw nothing.
+      sink({Message::Kind::kEvent, id,
+            json{{"type", "warning"},
+                 {"message", "model " + id + ": inconsistent description (" +
+                                 std::to_string(d.rest_positions._length) + " coordinates for " +
+                                 std::to_string(nv) + " vertices); not drawn"}}
+                .dump(),
+            {}});
+      return;
+    }
+    auto& index = drawn_index[id];
+    index.clear();
+    for (std::uint32_t v = 0; v < nv; ++v) index.emplace(d.vertex_ids._buffer[v], v);
+
+    json text = {{"type", "model"},
+                 {"model_id", id},
+                 {"units", bounded(d.units, sizeof d.units)},
+                 {"material", bounded(d.material_summary, sizeof d.material_summary)},
+                 {"input_hash", bounded(d.input_hash, sizeof d.input_hash)},
+                 {"vertex_count", nv},
+                 {"compliance_vertex_count", d.compliance_vertex_count},
+                 {"triangle_count", nt}};
+    FrameWriter frame(kGeometryFrame);
+    frame.reserve(64 + 12 * static_cast<std::size_t>(nv) + 12 * static_cast<std::size_t>(nt));
+    frame.string(id);
+    frame.u32(nv);
+    frame.u32(d.compliance_vertex_count);
+    frame.u32(nt);
+    for (std::uint32_t i = 0; i < 3 * nv; ++i) frame.f32(d.rest_positions._buffer[i]);
+    for (std::uint32_t i = 0; i < 3 * nt; ++i) {
+      const std::uint32_t v = d.triangles._buffer[i];
+      frame.u32(v < nv ? v : 0);
+    }
+    sink({Message::Kind::kModel, id, text.dump(), frame.take()});
+  }
+
+  void on_surface(const palpate_SurfaceDisplacement& s) {
+    ++surfaces;
+    const std::string id = bounded(s.model_id, sizeof s.model_id);
+    const auto index = drawn_index.find(id);
+    const std::uint32_t ns = s.displacement._length / 3;
+    const std::uint32_t nc =
+        std::min(s.constrained_vertices._length, s.constrained_forces._length / 3);
+    FrameWriter frame(kSurfaceFrame);
+    frame.reserve(96 + 12 * static_cast<std::size_t>(ns) + 16 * static_cast<std::size_t>(nc));
+    frame.string(id);
+    frame.string(bounded(s.source_client_id, sizeof s.source_client_id));
+    frame.u32(static_cast<std::uint32_t>(s.sequence_number));
+    frame.u32(static_cast<std::uint32_t>(s.sequence_number >> 32));
+    frame.u32(ns);
+    frame.u32(nc);
+    for (double f : s.total_force) frame.f32(f);
+    for (std::uint32_t i = 0; i < 3 * ns; ++i) frame.f32(s.displacement._buffer[i]);
+    for (std::uint32_t c = 0; c < nc; ++c) {
+      std::uint32_t drawn = kNoVertex;
+      if (index != drawn_index.end())
+        if (const auto it = index->second.find(s.constrained_vertices._buffer[c]);
+            it != index->second.end())
+          drawn = it->second;
+      frame.u32(drawn);
+    }
+    for (std::uint32_t i = 0; i < 3 * nc; ++i) frame.f32(s.constrained_forces._buffer[i]);
+    sink({Message::Kind::kSurface, id, {}, frame.take()});
+  }
+
+  void on_status(const palpate_DaemonStatus& s) {
+    daemon_status = {{"daemon_id", bounded(s.daemon_id, sizeof s.daemon_id)},
+                     {"uptime_s", static_cast<double>(s.uptime_ns) * 1e-9},
+                     {"models", s.models},
+                     {"clients", s.clients},
+                     {"requests_served", s.requests_served},
+                     {"request_rate_hz", s.request_rate_hz},
+                     {"surface_rate_hz", s.surface_rate_hz},
+                     {"tool_poses", s.tool_poses},
+                     {"tool_poses_refused", s.tool_poses_refused},
+                     {"solve", latency_json(s.solve)},
+                     {"tool_compute", latency_json(s.tool_compute)}};
+  }
+
+  void on_pose(const palpate_ToolPose& p) {
+    ++poses;
+    ToolView& t = tools[bounded(p.tool_id, sizeof p.tool_id)];
+    t.model_id = bounded(p.model_id, sizeof p.model_id);
+    std::copy_n(p.position, 3, t.position);
+    std::copy_n(p.orientation, 4, t.orientation);
+    t.jaw_angle = p.jaw_angle;
+    ++t.poses;
+    tools_changed = true;
+  }
+
+  void on_feedback(const palpate_ToolFeedback& f) {
+    ++feedbacks;
+    ToolView& t = tools[bounded(f.tool_id, sizeof f.tool_id)];
+    std::copy_n(f.force, 3, t.force);
+    t.grip_force = f.grip_force;
+    t.contacts = f.contacts;
+    t.state = f.state;
+    t.force_limited = f.force_limited;
+    t.watchdog = f.watchdog;
+    t.compute_us = static_cast<double>(f.compute_ns) * 1e-3;
+    ++t.feedbacks;
+    tools_changed = true;
+  }
+
+  void on_event(const palpate_ToolEvent& e) {
+    const std::string tool = bounded(e.tool_id, sizeof e.tool_id);
+    sink({Message::Kind::kEvent, tool,
+          json{{"type", "event"},
+               {"tool_id", tool},
+               {"model_id", bounded(e.model_id, sizeof e.model_id)},
+               {"kind", event_name(e.kind)},
+               {"held_vertices", e.held_vertices},
+               {"pose_sequence", e.pose_sequence}}
+              .dump(),
+          {}});
+  }
+
+  const ToolGeometry& geometry(const std::string& id) const {
+    static const ToolGeometry defaults;
+    for (const auto& g : options.tools)
+      if (g.id == id) return g;
+    return defaults;
+  }
+
+  void send_tools() {
+    tools_changed = false;
+    json list = json::array();
+    for (const auto& [id, t] : tools) {
+      const ToolGeometry& g = geometry(id);
+      list.push_back({{"tool_id", id},
+                      {"model_id", t.model_id},
+                      {"position", array_json(t.position)},
+                      {"orientation", array_json(t.orientation)},
+                      {"jaw_angle", t.jaw_angle},
+                      {"force", array_json(t.force)},
+                      {"grip_force", t.grip_force},
+                      {"contacts", t.contacts},
+                      {"state", state_name(t.state)},
+                      {"force_limited", t.force_limited},
+                      {"watchdog", t.watchdog},
+                      {"compute_us", t.compute_us},
+                      {"poses", t.poses},
+                      {"geometry",
+                       {{"tip", g.tip == TipShape::kSphere ? "sphere" : "capsule"},
+                        {"tip_radius", g.tip_radius_m},
+                        {"tip_length", g.tip_length_m},
+                        {"jaw_length", g.jaw_length_m},
+                        {"jaw_width", g.jaw_width_m},
+                        {"force_limit", g.force_limit_n}}}});
+    }
+    sink({Message::Kind::kTools, "tools", json{{"type", "tools"}, {"tools", list}}.dump(), {}});
+  }
+
+  void send_status(double interval_s) {
+    const json bridge = {{"surface_hz", static_cast<double>(surfaces) / interval_s},
+                         {"pose_hz", static_cast<double>(poses) / interval_s},
+                         {"feedback_hz", static_cast<double>(feedbacks) / interval_s}};
+    surfaces = poses = feedbacks = 0;
+    sink({Message::Kind::kStatus, "status",
+          json{{"type", "status"}, {"daemon", daemon_status}, {"bridge", bridge}}.dump(), {}});
+  }
+};
+
+Feed::Feed(const FeedOptions& options, Sink sink)
+    : impl_(std::make_unique<Impl>(options, std::move(sink))) {}
+Feed::~Feed() = default;
+const std::string& Feed::dds_origin() const { return impl_->domain_config.origin; }
+
+}  // namespace palpate::viewer
