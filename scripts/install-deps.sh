@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# Install palpate's build and run dependencies from Debian 12 packages.
+# Install palpate's build and run dependencies from Debian 12 packages, and
+# the viewer's two JavaScript packages from the npm registry (npm ci, pinned
+# by viewer/package-lock.json).
 #
-# Idempotent: when every package is already installed it changes nothing and
-# touches no network. Needs root (or sudo) only when something is missing.
+# Idempotent: when everything is already there it changes nothing and
+# touches no network. Needs root (or sudo) only when a package is missing.
 set -euo pipefail
 
 packages=(
@@ -20,6 +22,11 @@ packages=(
   python3 python3-h5py python3-numpy
   # DDS middleware and its tools (ddsperf), network namespaces
   cyclonedds-dev cyclonedds-tools iproute2 util-linux
+  # the browser viewer: Boost.Beast (HTTP/WebSocket bridge), Node.js and npm
+  # for three.js, Chromium for its end-to-end test and the demo's screenshots
+  libboost-dev nodejs chromium
+  # session plots (matplotlib) and the XDMF sidecar's independent reader (meshio)
+  python3-matplotlib python3-meshio
 )
 
 missing=()
@@ -29,13 +36,32 @@ for p in "${packages[@]}"; do
   fi
 done
 
-if [ ${#missing[@]} -eq 0 ]; then
-  echo "install-deps: all ${#packages[@]} packages already installed"
-  exit 0
-fi
-
-echo "install-deps: installing ${missing[*]}"
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-$SUDO apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages already installed"
+else
+  echo "install-deps: installing ${missing[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+# Debian's nodejs comes without npm (a package of its own); some builds of
+# nodejs include it.
+if ! command -v npm >/dev/null; then
+  echo "install-deps: installing npm"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends npm
+fi
+
+# The viewer's JavaScript packages (three.js; playwright-core for its test),
+# at the versions of viewer/package-lock.json, from the npm registry. Skipped
+# when node_modules already matches the lock file.
+viewer=$(cd "$(dirname "$0")/../viewer" && pwd)
+stamp="$viewer/node_modules/.palpate-package-lock.json"
+if ! cmp -s "$viewer/package-lock.json" "$stamp"; then
+  echo "install-deps: npm ci in $viewer"
+  (cd "$viewer" && npm ci --no-audit --no-fund --loglevel=error)
+  cp "$viewer/package-lock.json" "$stamp"
+else
+  echo "install-deps: viewer/node_modules matches package-lock.json"
+fi
