@@ -204,19 +204,37 @@ double symmetry_error(CRef<Eigen::MatrixXd> G) {
   return scale > 0 ? worst / scale : worst;
 }
 
+namespace {
+
+// Eigenvalues, increasing, of the symmetric part of G's k-th 3 × 3 diagonal
+// block. Symmetrized: the eigenvalues of the symmetric part decide
+// definiteness, and G from `solves` is symmetric only to round-off.
+Eigen::Vector3d diagonal_block_eigenvalues(CRef<Eigen::MatrixXd> G, Eigen::Index k) {
+  const Eigen::Matrix3d B = G.block<3, 3>(3 * k, 3 * k);
+  const Eigen::Matrix3d S = 0.5 * (B + B.transpose());
+  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(S, Eigen::EigenvaluesOnly).eigenvalues();
+}
+
+}  // namespace
+
 double min_diagonal_block_eigenvalue(CRef<Eigen::MatrixXd> G, int* vertex) {
   double lowest = INFINITY;
   for (Eigen::Index k = 0; 3 * k < G.rows(); ++k) {
-    const Eigen::Matrix3d B = G.block<3, 3>(3 * k, 3 * k);
-    // Symmetrized: the eigenvalues of the symmetric part decide definiteness.
-    const Eigen::Matrix3d S = 0.5 * (B + B.transpose());
-    const double e = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(S, Eigen::EigenvaluesOnly).eigenvalues()[0];
+    const double e = diagonal_block_eigenvalues(G, k)[0];
     if (e < lowest) {
       lowest = e;
       if (vertex) *vertex = static_cast<int>(k);
     }
   }
   return lowest;
+}
+
+Eigen::VectorXd diagonal_block_largest_eigenvalues(CRef<Eigen::MatrixXd> G) {
+  PALPATE_DEMAND(G.rows() == G.cols() && G.rows() % 3 == 0);
+  Eigen::VectorXd largest(G.rows() / 3);
+  for (Eigen::Index k = 0; k < largest.size(); ++k)
+    largest[k] = diagonal_block_eigenvalues(G, k)[2];
+  return largest;
 }
 
 }  // namespace palpate

@@ -86,4 +86,17 @@ double symmetry_error(CRef<Eigen::MatrixXd> G);
 /// *vertex receives the compliance index where it occurs.
 double min_diagonal_block_eigenvalue(CRef<Eigen::MatrixXd> G, int* vertex = nullptr);
 
+/// Softness of each compliance vertex: the largest eigenvalue λ_max (m/N) of
+/// the symmetric part of its 3 × 3 diagonal block G^kk. For a force f on
+/// vertex k alone, the vertex moves by u_k = G^kk f, and
+///
+///     max over ‖f‖ = 1 N of ‖u_k‖ = λ_max(G^kk)      (G^kk symmetric positive definite)
+///
+/// so it is the largest displacement (m) one newton at that vertex can
+/// produce there. n 3 × 3 symmetric eigenproblems: cheap next to G.
+/// @param G 3n × 3n compliance, m/N, in compliance order (float64, before
+///   any storage rounding)
+/// @returns n values, m/N, in compliance order
+Eigen::VectorXd diagonal_block_largest_eigenvalues(CRef<Eigen::MatrixXd> G);
+
 }  // namespace palpate
