@@ -36,7 +36,7 @@ int run(int argc, char** argv) {
   std::vector<double> box, sphere, half_space;
   double young = 0, poisson = 0, fill_size = 0, tolerance = 0, memory_gb = 0;
   int block_columns = 0;
-  bool json_out = false, quiet = false;
+  bool json_out = false, quiet = false, xdmf = true;
 
   app.add_option("-j,--job", job_file, "TOML job file (config/*.toml); flags override it");
   app.add_option("--mesh", mesh, "tetrahedral mesh (.msh v2/v4, .mesh, .vtk) or closed surface (.stl)");
@@ -56,6 +56,8 @@ int run(int argc, char** argv) {
   app.add_option("--tolerance", tolerance, "largest accepted relative difference between the methods (default 1e-8)");
   app.add_option("--memory-limit-gb", memory_gb, "refuse jobs needing more than this (default: available memory)");
   app.add_option("-o,--output", output, "compliance file to write (HDF5, written atomically)");
+  app.add_flag("--xdmf,!--no-xdmf", xdmf,
+               "write (default) or not the XDMF sidecar X.xdmf next to X.h5, for ParaView");
   app.add_option("--save-job", save_job, "write the effective job as TOML (to reproduce the run)");
   app.add_flag("--json", json_out, "print the report as JSON on stdout");
   app.add_flag("-q,--quiet", quiet, "no progress or report text on stderr");
@@ -116,6 +118,7 @@ int run(int argc, char** argv) {
   if (app.count("--tolerance")) job.tolerance = tolerance;
   if (app.count("--memory-limit-gb")) job.memory_limit_bytes = 1e9 * memory_gb;
   if (!output.empty()) job.output = output;
+  if (app.count("--xdmf")) job.write_xdmf = xdmf;  // either spelling
 
   if (!save_job.empty()) {
     palpate::AtomicOutput out(save_job);

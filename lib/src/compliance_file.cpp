@@ -1,6 +1,7 @@
 #include "palpate/compliance_file.hpp"
 
 #include <cerrno>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 
@@ -135,6 +136,7 @@ void write_compliance_file(const std::filesystem::path& path, const ComplianceMo
                            CRef<Eigen::MatrixXd> G) {
   const Eigen::Index n = model.compliance_vertices.size();
   PALPATE_DEMAND(G.rows() == 3 * n && G.cols() == 3 * n);
+  PALPATE_DEMAND(model.softness_m_per_n.size() == model.vertices_m.rows());
   silence_hdf5();
   AtomicOutput out(path);
   {
@@ -199,6 +201,21 @@ void write_compliance_file(const std::filesystem::path& path, const ComplianceMo
             "write /compliance/G");
     }
     write_string_attribute(set, "units", "m/N");
+
+    // 1.1: per-vertex arrays for viewers (the XDMF sidecar, xdmf.hpp).
+    Handle visualization(H5Gcreate2(file, "visualization", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                         H5Gclose, "create group /visualization");
+    write_vector(visualization, "softness", model.softness_m_per_n, H5T_NATIVE_DOUBLE,
+                 H5T_IEEE_F64LE);
+    {
+      Handle softness(H5Dopen2(visualization, "softness", H5P_DEFAULT), H5Dclose,
+                      "open /visualization/softness");
+      write_string_attribute(softness, "units", "m/N");
+    }
+    Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> fixed =
+        Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>::Zero(model.vertices_m.rows());
+    for (const int v : model.fixed_vertices) fixed[v] = 1;
+    write_vector(visualization, "fixed", fixed, H5T_NATIVE_INT8, H5T_STD_I8LE);
     check(H5Fflush(file, H5F_SCOPE_GLOBAL), "flush the file");
   }
   out.commit();
@@ -230,6 +247,9 @@ ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::M
            fmt::format("is {}; this palpate reads version {}.x", major, kComplianceFormatMajor));
 
   ComplianceModel m;
+  // Any minor version reads: minor versions only add (docs/compliance-file.md).
+  m.format_version_minor =
+      H5Aexists(file, "format_version_minor") > 0 ? r.int_attribute("format_version_minor") : 0;
   m.producer = r.string_attribute("producer");
   m.method = r.string_attribute("method");
   m.material_summary = r.string_attribute("material_summary");
@@ -289,6 +309,19 @@ ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::M
       r.fail("/compliance/vertex_ids", fmt::format("entry {} is not above entry {}: ids must be distinct and increasing", i, i - 1));
   if (m.tet_material.size() != m.tetrahedra.rows())
     r.fail("/mesh/tetrahedron_material", "does not have one entry per tetrahedron");
+
+  // Since 1.1; absent from 1.0 files, which read all the same.
+  if (H5Lexists(file, "/visualization", H5P_DEFAULT) > 0 &&
+      H5Lexists(file, "/visualization/softness", H5P_DEFAULT) > 0) {
+    const auto d = r.dims("/visualization/softness", 1);
+    if (d[0] != static_cast<hsize_t>(nv))
+      r.fail("/visualization/softness",
+             fmt::format("has {} entries, expected one per vertex ({})", d[0], nv));
+    m.softness_m_per_n.resize(nv);
+    if (nv > 0) r.read("/visualization/softness", H5T_NATIVE_DOUBLE, m.softness_m_per_n.data());
+    if (!m.softness_m_per_n.allFinite())
+      r.fail("/visualization/softness", "holds a non-finite value");
+  }
 
   const auto gd = r.dims("/compliance/G", 2);
   const auto n3 = static_cast<hsize_t>(3 * m.compliance_vertices.size());

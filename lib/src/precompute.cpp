@@ -15,6 +15,7 @@
 #include "palpate/fem.hpp"
 #include "palpate/hash.hpp"
 #include "palpate/system_info.hpp"
+#include "palpate/xdmf.hpp"
 #include "toml_reader.hpp"
 
 #ifndef PALPATE_VERSION
@@ -161,8 +162,9 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
   }
   if (const auto* output = root.get("output")) {
     const auto& t = r.table(*output, "output");
-    r.only_keys(t, "output", {"file"});
+    r.only_keys(t, "output", {"file", "xdmf"});
     if (const auto* n = t.get("file")) job.output = relative_to(base, r.string(*n, "output.file"));
+    if (const auto* n = t.get("xdmf")) job.write_xdmf = r.boolean(*n, "output.xdmf");
   }
   return job;
 }
@@ -206,9 +208,9 @@ std::string to_toml(const PrecomputeJob& job) {
                       {"block_columns", job.block_columns},
                       {"tolerance", job.tolerance}};
   if (job.memory_limit_bytes > 0) compute.insert("memory_limit_gb", job.memory_limit_bytes / 1e9);
+  toml::table output{{"file", absolute(job.output)}, {"xdmf", job.write_xdmf}};
   toml::table root{{"mesh", mesh}, {"material", material}, {"attachment", attachment},
-                   {"compute", compute},
-                   {"output", toml::table{{"file", absolute(job.output)}}}};
+                   {"compute", compute}, {"output", output}};
   std::ostringstream out;
   out << "# palpate-precompute job (written by " << "palpate-precompute " PALPATE_VERSION << ")\n"
       << root << "\n";
@@ -227,6 +229,7 @@ void validate_job(const PrecomputeJob& job) {
   if (!job.poisson_ratio)
     throw InputError("no Poisson ratio given: use --poisson-ratio NU or [material] poisson_ratio");
   require_output_directory(job.output);
+  if (job.write_xdmf) check_xdmf_sidecar_name(job.output);
   if (job.attachment.empty())
     throw InputError("no attachment given: the organ must be held somewhere; use --fix-ids, "
                      "--fix-group, --fix-box, --fix-sphere, --fix-half-space or [attachment]");
@@ -282,7 +285,10 @@ json factor_json(const ComplianceStats& s) {
 std::string input_hash(const TetMesh& mesh, const std::vector<MaterialRecord>& materials,
                        const Eigen::VectorXi& tet_material, const std::vector<int>& fixed) {
   Sha256 h;
-  h.update(fmt::format("{} {}.{}\n", kComplianceFormatName, kComplianceFormatMajor, kComplianceFormatMinor));
+  // The version in which this definition of the hash was fixed, not the
+  // file's: minor versions add datasets but hash the same problem the same
+  // way, so a 1.1 file and a 1.0 file of one problem share their hash.
+  h.update(fmt::format("{} {}.0\n", kComplianceFormatName, kComplianceFormatMajor));
   const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> X = mesh.vertices;
   const Eigen::Matrix<int, Eigen::Dynamic, 4, Eigen::RowMajor> T = mesh.tetrahedra;
   h.update(fmt::format("vertices {}\n", X.rows()));
@@ -483,6 +489,8 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
   }
   int weakest = 0;
   const double min_eig = min_diagonal_block_eigenvalue(G, &weakest);
+  // The softness map, from the float64 G (before any float32 storage rounding).
+  const Eigen::VectorXd block_softness = diagonal_block_largest_eigenvalues(G);
   checks["max_residual"] = residual;
   checks["max_column_mismatch"] = mismatch;
   checks["symmetry_error"] = symmetry_error(G);
@@ -523,6 +531,9 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
   model.source_vertex_ids = mesh.source_ids;
   model.compliance_vertices = Eigen::Map<const Eigen::VectorXi>(
       dofs.compliance_vertices.data(), static_cast<Eigen::Index>(dofs.compliance_vertices.size()));
+  model.softness_m_per_n = Eigen::VectorXd::Zero(mesh.vertices.rows());
+  for (Eigen::Index a = 0; a < model.compliance_vertices.size(); ++a)
+    model.softness_m_per_n[model.compliance_vertices[a]] = block_softness[a];
   model.precision = job.precision;
   model.method = to_string(job.method);
   model.producer = report["producer"];
@@ -535,13 +546,23 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
                            mat.young_modulus_pa, mat.poisson_ratio);
   model.material_summary = summary;
   model.job_toml = to_toml(job);
-  report["output"] = {{"file", job.output.string()}, {"precision", to_string(job.precision)}};
+  const auto sidecar = xdmf_sidecar_path(job.output);
+  report["output"] = {{"file", job.output.string()},
+                      {"precision", to_string(job.precision)},
+                      {"xdmf", job.write_xdmf ? json(sidecar.string()) : json(nullptr)}};
   model.report_json = report.dump();
 
   phase("write file");
   phases.begin("write file");
   write_compliance_file(job.output, model, G);
+  // The sidecar refers to the file's datasets: only once the file is in place.
+  if (job.write_xdmf) write_xdmf_sidecar(job.output, model);
   phases.end();
+  std::error_code ec;
+  if (!job.write_xdmf && std::filesystem::exists(sidecar, ec))
+    warn(fmt::format("{} is left from an earlier run and may not match the new {}: delete it, "
+                     "or run without --no-xdmf to rewrite it",
+                     sidecar.string(), job.output.string()));
   report["output"]["bytes"] = std::filesystem::file_size(job.output);
   report["peak_rss_bytes"] = phases.peak();
   return report;

@@ -43,6 +43,10 @@ class TomlReader {
     if (auto v = node.value<double>()) return *v;
     fail(&node, key, "expected a number");
   }
+  bool boolean(const toml::node& node, const std::string& key) const {
+    if (auto v = node.value_exact<bool>()) return *v;
+    fail(&node, key, "expected true or false");
+  }
   std::string string(const toml::node& node, const std::string& key) const {
     if (auto v = node.value<std::string>()) return *v;
     fail(&node, key, "expected a string");

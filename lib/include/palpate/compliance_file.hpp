@@ -14,7 +14,7 @@ namespace palpate {
 
 inline constexpr const char* kComplianceFormatName = "palpate-compliance";
 inline constexpr int kComplianceFormatMajor = 1;
-inline constexpr int kComplianceFormatMinor = 0;
+inline constexpr int kComplianceFormatMinor = 1;
 
 /// One material region (a Gmsh physical volume, or the default).
 struct MaterialRecord {
@@ -36,8 +36,13 @@ struct ComplianceModel {
   Eigen::VectorXi fixed_vertices;       ///< sorted (/mesh/fixed_vertex_ids)
   Eigen::VectorXi source_vertex_ids;    ///< #V node index in the input file (/mesh/source_vertex_ids)
   Eigen::VectorXi compliance_vertices;  ///< n, compliance order (/compliance/vertex_ids)
+  /// #V, m/N (/visualization/softness, since 1.1): for compliance vertex a,
+  /// diagonal_block_largest_eigenvalues(G)[a] of the float64 G; 0 on every
+  /// other vertex. Required for writing; empty when read from a 1.0 file.
+  Eigen::VectorXd softness_m_per_n;
   Precision precision = Precision::kFloat64;
   // Root attributes.
+  int format_version_minor = kComplianceFormatMinor;  ///< read from the file; written as ours
   std::string method;            ///< "solves", "condensation" or "both"
   std::string producer;          ///< e.g. "palpate-precompute 0.1.0"
   std::string created_utc;       ///< ISO 8601
@@ -48,14 +53,17 @@ struct ComplianceModel {
 };
 
 /// Writes the file atomically (AtomicOutput): nothing appears at @p path
-/// unless the whole file was written.
+/// unless the whole file was written. /visualization/fixed is derived from
+/// model.fixed_vertices.
 /// @param G 3n × 3n compliance, m/N, in compliance order
+/// @pre model.softness_m_per_n has one entry per vertex
 /// @throws SystemError on I/O failure.
 void write_compliance_file(const std::filesystem::path& path, const ComplianceModel& model,
                            CRef<Eigen::MatrixXd> G);
 
 /// Reads and checks a compliance file: format name and major version, shapes,
-/// index ranges, finite values.
+/// index ranges, finite values. Any minor version of major 1 is read; the
+/// 1.1 /visualization/softness is read and checked when present.
 /// @param G receives the 3n × 3n compliance (converted to double)
 /// @throws InputError naming the file and the dataset at fault.
 ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::MatrixXd* G);

@@ -49,6 +49,8 @@ struct PrecomputeJob {
   double tolerance = 1e-8;         ///< `both`: largest accepted relative difference
   double memory_limit_bytes = 0;   ///< 0: the machine's available memory
   std::filesystem::path output;
+  /// Also write the XDMF sidecar next to the output (xdmf.hpp), for ParaView.
+  bool write_xdmf = true;
 };
 
 /// Reads a TOML job file (docs/configuration.md). Relative paths are taken
@@ -69,7 +71,8 @@ struct PrecomputeHooks {
 
 /// Runs the job end to end: read and check the mesh, select the attachment,
 /// assemble K, compute G_SS by the chosen method(s), check, write the file
-/// atomically. Returns the report (docs/compliance-file.md, "report").
+/// atomically, then its XDMF sidecar (unless !job.write_xdmf). Returns the
+/// report (docs/compliance-file.md, "report").
 /// @throws InputError, NumericalError (including methods that disagree beyond
 ///   the tolerance: then no file is written), ResourceError, SystemError.
 nlohmann::json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks);
