@@ -282,16 +282,9 @@ TEST_F(ToolsOverDdsTest, BadPosesAreIgnoredWithAWarningAndServingGoesOn) {
 }
 
 TEST_F(ToolsOverDdsTest, WhenPosesStopTheWatchdogRampsTheForceToZero) {
-  const int v = top_vertex(50, 25);
-  const double reach = 0.015 + 0.004;
-  Hand right("right", rest(v) + Vector3d(0, 0, reach + 0.001));
-  right.move(rest(v) + Vector3d(0, 0, reach - 0.004), 0);
-  right.hold(10);
-  const double pressed = right.force().norm();
-  ASSERT_GT(pressed, 0.05);
-  client_->take_events();
-  // No more poses: watchdog samples come on their own, ramping down. Read
-  // them with a plain reader of the feedback topic.
+  // A plain reader of the feedback topic sees the watchdog's samples, which
+  // come on their own. Made first: waiting for its discovery after the
+  // press would be a silence the watchdog acts on (50 ms).
   const auto domain = dds::acquire_domain(0, dds::resolve_domain_config(""));
   dds::Entity participant(dds::check(dds_create_participant(0, nullptr, nullptr), "participant"));
   const dds_entity_t topic = dds::check(
@@ -300,8 +293,24 @@ TEST_F(ToolsOverDdsTest, WhenPosesStopTheWatchdogRampsTheForceToZero) {
       "topic");
   const dds_entity_t reader = dds::check(
       dds_create_reader(participant.get(), topic, dds::tool_stream_qos().get(), nullptr), "reader");
-  std::this_thread::sleep_for(200ms);  // discovery; the watchdog fires 50 ms after the last pose
-  right.hold(1);  // the last pose: from here, silence
+  std::this_thread::sleep_for(200ms);  // discovery
+
+  const int v = top_vertex(50, 25);
+  const double reach = 0.015 + 0.004;
+  Hand right("right", rest(v) + Vector3d(0, 0, reach + 0.001));
+  right.move(rest(v) + Vector3d(0, 0, reach - 0.004), 0);
+  right.hold(10);  // the last poses: from here, silence
+  const double pressed = right.force().norm();
+  ASSERT_GT(pressed, 0.05);
+  client_->take_events();
+  // Samples taken so far are the feedback of the poses, not the watchdog's.
+  {
+    palpate_ToolFeedback sample{};
+    void* pointer = &sample;
+    dds_sample_info_t info;
+    while (dds_take(reader, &pointer, &info, 1, 1) == 1) {
+    }
+  }
   std::vector<double> magnitudes;
   const auto until = std::chrono::steady_clock::now() + 1s;
   while (std::chrono::steady_clock::now() < until) {
