@@ -1,56 +1,222 @@
 #!/usr/bin/env bash
-# palpate's demo on a fresh Debian 12 machine: installs what is missing,
-# builds, generates the sample organ (or takes the job given), precomputes its
-# surface compliance by both methods, then serves it with palpated while
-# palpate-client presses, pinches and slides on it at 1 kHz, then
-# palpate-pliers plays a press and a grasp with the tool topics.
+# palpate's demo on a fresh Debian 12 machine, as root: installs what is
+# missing, builds, precomputes an organ, serves it with palpated, opens the
+# live viewer, and plays a two-handed gesture with palpate-pliers (right
+# hand presses and glides, left hand grasps, pulls and releases), then prints
+# the latency and force summary, the recorded session's report and plots.
 #
-# Usage: scripts/demo.sh                 the sample organ (config/sample-organ.toml)
-#        scripts/demo.sh JOB.toml        any job file, e.g. config/openhelp-liver-h12.toml
-# Outputs go to out/ (the daemon's log: out/palpated.log).
+# Usage: scripts/demo.sh              the sample organ (config/sample-organ.toml)
+#        scripts/demo.sh JOB.toml     a precompute job, e.g. config/openhelp-liver-h8.toml
+#        scripts/demo.sh MESH         a mesh (.msh .mesh .vtk .stl): the job in config/ that
+#                                     names it, else a default job (docs/viewer.md, "The demo")
+# Environment: PALPATE_DEMO_PORT     the viewer's port on 127.0.0.1 (default 8080)
+#              PALPATE_DEMO_REPEAT   times the gesture is played (default 2)
+#              PALPATE_DEMO_NETNS    "private" (default) or "host" (below)
+#              PALPATE_BUILD_DIR     the build directory (default build)
+# Outputs: out/demo/ (the script lists them at the end).
 #
-# DDS runs in a private network namespace whose only interface is loopback
-# (unshare --net), and palpated's default configuration is loopback-only too.
+# Network: palpated, the pliers and the viewer's DDS side run in a private
+# network namespace whose only interface is loopback (unshare --net, then
+# ip link set lo up); the viewer opens its HTTP port on the machine's
+# 127.0.0.1 before joining that namespace, so a browser here can reach it.
+# PALPATE_DEMO_NETNS=host runs them in the machine's namespace instead, still
+# with palpate's loopback-only DDS configuration.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/install-deps.sh
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build build -j2 --target palpate-precompute palpated palpate-client palpate-pliers
-mkdir -p out
-precompute=build/precompute/palpate-precompute
-if [ $# -eq 0 ]; then
-  # About 1,900 vertices: the scale of the 1999 INRIA liver (1,969).
-  "$precompute" make-sample -o out/sample-organ.msh --size 0.008
-  job=config/sample-organ.toml
-else
-  job=$1
+port=${PALPATE_DEMO_PORT:-8080}
+repeat=${PALPATE_DEMO_REPEAT:-2}
+netns_mode=${PALPATE_DEMO_NETNS:-private}
+build=${PALPATE_BUILD_DIR:-build}
+case $netns_mode in private | host) ;; *)
+  echo "demo: PALPATE_DEMO_NETNS=$netns_mode: expected private or host" >&2; exit 2 ;;
+esac
+if [ "$netns_mode" = private ] && [ "$(id -u)" -ne 0 ]; then
+  echo "demo: run as root (a private network namespace needs it), or set PALPATE_DEMO_NETNS=host" >&2
+  exit 2
 fi
-"$precompute" --job "$job"
-compliance=$(/usr/bin/python3 -c '
+
+say() { printf '\ndemo: %s\n' "$*"; }
+now_ms() { echo $(($(date +%s%N) / 1000000)); }
+
+scripts/install-deps.sh
+cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build" -j2 --target palpate-precompute palpated palpate-client palpate-pliers palpate-viewer
+out=out/demo
+rm -rf "$out/recordings" "$out"/viewer*.png "$out"/*-force.png "$out"/*-latency.png "$out"/*-contacts.png
+mkdir -p "$out/recordings"
+precompute=$build/precompute/palpate-precompute
+
+# ------------------------------------------------------------- the organ
+job_output() {  # the compliance file a job writes, resolved against the job's folder
+  /usr/bin/python3 -c '
 import os, sys, tomllib
 job = sys.argv[1]
 with open(job, "rb") as f:
     out = tomllib.load(f)["output"]["file"]
-print(os.path.normpath(os.path.join(os.path.dirname(job), out)))' "$job")
-model=$(basename "$compliance" .h5)
+print(os.path.normpath(os.path.join(os.path.dirname(job), out)))' "$1"
+}
+job_for_mesh() {  # the job in config/ whose mesh is this file, if any
+  /usr/bin/python3 -c '
+import glob, os, sys, tomllib
+mesh = os.path.realpath(sys.argv[1])
+for job in sorted(glob.glob("config/*.toml")):
+    try:
+        with open(job, "rb") as f:
+            m = tomllib.load(f).get("mesh", {}).get("file")
+    except (OSError, tomllib.TOMLDecodeError):
+        continue
+    if m and os.path.realpath(os.path.join(os.path.dirname(job), m)) == mesh:
+        print(job)
+        break' "$1"
+}
 
-echo
-echo "demo: palpated serves $compliance as model '$model'; palpate-client palpates it (loopback only)"
-unshare --net -- sh -c '
-  ip link set lo up || exit 1
-  build/server/palpated --model "$1=$2" 2>out/palpated.log &
-  daemon=$!
-  build/clients/palpate-client demo --model "$1"
-  status=$?
-  if [ $status -eq 0 ]; then
-    echo
-    echo "demo: palpate-pliers plays two gestures on the tool topics at 1 kHz (docs/pliers.md)"
-    for gesture in press grasp-pull-release; do
-      build/clients/palpate-pliers "config/gestures/$gesture.toml" --model "$1" || status=$?
-    done
-  fi
-  kill -TERM $daemon
-  wait $daemon || status=$?
-  exit $status' demo "$model" "$compliance"
-echo
-echo "demo: compliance file and report in out/ (HDF5: docs/compliance-file.md); daemon log out/palpated.log"
+input=${1:-}
+if [ -z "$input" ]; then
+  say "the sample organ (about 1,900 vertices, the scale of the 1999 INRIA liver)"
+  "$precompute" make-sample -o out/sample-organ.msh --size 0.008
+  input=config/sample-organ.toml
+fi
+if [ ! -f "$input" ]; then
+  echo "demo: $input: no such file (expected a job .toml or a mesh .msh/.mesh/.vtk/.stl)" >&2
+  exit 2
+fi
+case $input in
+  *.toml) job=$input ;;
+  *) job=$(job_for_mesh "$input") ;;
+esac
+start=$(now_ms)
+if [ -n "$job" ]; then
+  say "precomputing $job (both methods, cross-checked)"
+  "$precompute" --job "$job"
+  compliance=$(job_output "$job")
+else
+  # A mesh no job names: guess its unit from its size, hold the top 15 % of
+  # it (a hanging organ) and use the sample's material. Say so.
+  read -r unit half_space < <(/usr/bin/python3 -c '
+import sys, meshio, numpy as np
+p = meshio.read(sys.argv[1]).points
+lo, hi = p.min(axis=0), p.max(axis=0)
+unit = "mm" if np.linalg.norm(hi - lo) > 5 else "m"
+z = hi[2] - 0.15 * (hi[2] - lo[2])
+print(unit, 0, 0, z, 0, 0, 1)' "$input")
+  compliance=$out/$(basename "${input%.*}").h5
+  say "no job in config/ names $input: unit $unit (from its size), fixed: the top 15 % (z ≥ $(echo "$half_space" | cut -d' ' -f3)), E = 85 kPa, ν = 0.45"
+  # shellcheck disable=SC2086
+  "$precompute" --mesh "$input" --mesh-unit "$unit" --fix-half-space $half_space \
+    -E 85e3 --nu 0.45 --method condensation -o "$compliance"
+fi
+model=$(basename "$compliance" .h5)
+precompute_ms=$(($(now_ms) - start))
+
+# ------------------------------------------------- processes and cleanup
+pids=()     # running: stopped by cleanup
+started=()  # every process this script started, checked at the end
+cleanup() {
+  for pid in "${pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
+  for pid in "${pids[@]}"; do wait "$pid" 2>/dev/null || true; done
+}
+trap cleanup EXIT
+trap 'exit 130' INT TERM
+
+if [ "$netns_mode" = private ]; then
+  unshare --net -- sleep infinity &
+  holder=$!
+  pids+=("$holder")
+  started+=("$holder")
+  netns=/proc/$holder/ns/net
+  for _ in $(seq 50); do [ "$(readlink "$netns")" != "$(readlink /proc/self/ns/net)" ] && break; sleep 0.02; done
+  # nsenter joins the namespace and execs the program: $! is the program.
+  in_netns=(nsenter --net="$netns" --)
+  "${in_netns[@]}" ip link set lo up
+  interfaces=$("${in_netns[@]}" ip -o link show | awk -F': ' '{print $2}' | tr '\n' ' ')
+  [ "$interfaces" = "lo " ] || { echo "demo: the private namespace has '$interfaces', want only lo" >&2; exit 5; }
+  viewer_netns=(--dds-netns "$netns")
+else
+  in_netns=()
+  viewer_netns=()
+fi
+
+say "palpated serves $compliance as model '$model' (DDS: loopback only, network namespace: $netns_mode)"
+"${in_netns[@]}" "$build/server/palpated" --model "$model=$compliance" --record "$out/recordings" 2>"$out/palpated.log" &
+daemon=$!
+pids+=("$daemon")
+started+=("$daemon")
+for _ in $(seq 600); do
+  grep -q 'event=serving' "$out/palpated.log" && break
+  kill -0 "$daemon" 2>/dev/null || break
+  sleep 0.1
+done
+if ! grep -q 'event=serving' "$out/palpated.log"; then
+  echo "demo: palpated did not start serving; its log ($out/palpated.log) ends with:" >&2
+  tail -3 "$out/palpated.log" >&2
+  exit 5
+fi
+"$build/viewer/palpate-viewer" --listen "127.0.0.1:$port" "${viewer_netns[@]}" >"$out/viewer.log" 2>&1 &
+pids+=($!)
+started+=($!)
+url=""
+for _ in $(seq 100); do
+  url=$(grep -o 'http://[0-9.]*:[0-9]*/' "$out/viewer.log" || true)
+  [ -n "$url" ] && break
+  kill -0 "${pids[-1]}" 2>/dev/null || break
+  sleep 0.1
+done
+if [ -z "$url" ]; then
+  echo "demo: the viewer did not start: $(cat "$out/viewer.log") (another port: PALPATE_DEMO_PORT=8081)" >&2
+  exit 5
+fi
+say "the live viewer: $url?model=$model (open it in a browser on this machine, or ssh -L $port:127.0.0.1:$port)"
+if [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ] && command -v xdg-open >/dev/null; then
+  xdg-open "$url?model=$model" >/dev/null 2>&1 || true
+fi
+
+say "palpate-client: requests and replies at 1 kHz (docs/dds.md)"
+"${in_netns[@]}" "$build/clients/palpate-client" demo --model "$model"
+
+# Headless Chromium takes screenshots while the gesture plays; it renders
+# in software, so it runs niced to leave the cores to palpated's 1 kHz loop.
+capture=""
+gesture=config/gestures/demo.toml
+gesture_s=$((5 * repeat + 1))
+printf '#!/bin/sh\nexec nice -n 10 /usr/bin/chromium "$@"\n' > "$out/.chromium"
+chmod +x "$out/.chromium"
+PALPATE_CHROMIUM=$out/.chromium node viewer/test/capture.mjs --url "$url" --model "$model" \
+  --out "$out" --seconds "$gesture_s" --interval 0.5 >"$out/capture.log" 2>&1 &
+capture=$!
+pids+=("$capture")
+started+=("$capture")
+for _ in $(seq 300); do
+  grep -q 'capture: ready' "$out/capture.log" && break
+  kill -0 "$capture" 2>/dev/null || break
+  sleep 0.1
+done
+grep -q 'capture: ready' "$out/capture.log" ||
+  echo "demo: no screenshots: $(tail -1 "$out/capture.log")" >&2
+
+say "palpate-pliers plays $gesture $repeat time(s) at 1 kHz, two tools (docs/pliers.md)"
+status=0
+"${in_netns[@]}" "$build/clients/palpate-pliers" "$gesture" --model "$model" --repeat "$repeat" \
+  --json "$out/pliers.json" || status=$?
+wait "$capture" 2>/dev/null || true
+kill -TERM "$daemon"
+wait "$daemon" || status=$?
+cleanup
+pids=()
+
+recording=$(ls -t "$out"/recordings/*.h5 2>/dev/null | head -1 || true)
+if [ -n "$recording" ]; then
+  say "the recorded session ($recording)"
+  /usr/bin/python3 scripts/session_report.py "$recording" || status=$?
+  /usr/bin/python3 scripts/session_plots.py "$recording" --out "$out" || status=$?
+fi
+
+left=0
+for pid in "${started[@]}"; do kill -0 "$pid" 2>/dev/null && left=$((left + 1)); done
+elapsed_ms=$(($(now_ms) - start))
+say "done in $((elapsed_ms / 1000)) s (precompute $((precompute_ms / 1000)).$((precompute_ms % 1000 / 100)) s); processes left running: $left of ${#started[@]} started"
+echo "  compliance file  $compliance (+ .xdmf for ParaView when present; docs/compliance-file.md)"
+echo "  viewer           $out/viewer.png (the liveliest of $out/viewer-NN.png); log $out/viewer.log"
+echo "  gesture summary  $out/pliers.json"
+echo "  session          ${recording:-none} and its plots $out/*-force.png, -latency.png, -contacts.png"
+echo "  daemon log       $out/palpated.log"
+exit $status

@@ -10,7 +10,7 @@ const GEOMETRY_FRAME = 1;
 const SURFACE_FRAME = 2;
 const NO_VERTEX = 0xffffffff;
 const MM_PER_M = 1000;
-const ARROW_M_PER_N = 0.01;          // force arrows: 1 cm per newton
+const ARROW_M_PER_N = 0.005;         // force arrows: 5 mm per newton
 const MIN_SCALE_M = 0.0005;          // the colour scale never goes below 0.5 mm
 const SCALE_HALF_LIFE_S = 3;         // then follows the peak, decaying
 const MAX_CONTACTS = 256;
@@ -182,7 +182,8 @@ function applySurface(ns, displacement, contactIndex, contactForce) {
 }
 
 // Contact points (small spheres on the deformed surface) and the force the
-// tool exerts on the organ at each (arrows, ARROW_M_PER_N).
+// tool exerts on the organ at each (red arrows, ARROW_M_PER_N); the force
+// on each tool is the yellow arrow at its tip.
 const contactMarkers = new THREE.InstancedMesh(
   new THREE.SphereGeometry(1, 12, 8),
   new THREE.MeshBasicMaterial({ color: 0xff3355 }), MAX_CONTACTS);
@@ -309,8 +310,11 @@ function frameTools(list) {
     side.add(new THREE.Vector3(0, 1, 0).applyQuaternion(q));
   }
   target.divideScalar(near.length);
-  const direction = back.normalize().multiplyScalar(0.55).add(side.normalize().multiplyScalar(0.85));
-  frameCamera(target, direction, 1.4 * organ.radius);
+  // From outside the organ (back along the shafts and away from its centre),
+  // a little from the side so that the shafts do not hide the tips.
+  const outward = target.clone().sub(organ.centre).normalize();
+  const direction = back.normalize().add(outward).normalize().add(side.normalize().multiplyScalar(0.45));
+  frameCamera(target, direction, 2.0 * organ.radius);
   framedTools = true;
 }
 
