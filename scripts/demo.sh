@@ -37,6 +37,15 @@ fi
 
 say() { printf '\ndemo: %s\n' "$*"; }
 now_ms() { echo $(($(date +%s%N) / 1000000)); }
+# wait_for FILE PATTERN PID SECONDS: until FILE has a line matching PATTERN
+# (true), PID exits or SECONDS pass (false).
+wait_for() {
+  local deadline=$(($(now_ms) + 1000 * $4))
+  until grep -q "$2" "$1" 2>/dev/null; do
+    kill -0 "$3" 2>/dev/null && [ "$(now_ms)" -lt "$deadline" ] || return 1
+    sleep 0.1
+  done
+}
 
 scripts/install-deps.sh
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
@@ -141,12 +150,7 @@ say "palpated serves $compliance as model '$model' (DDS: loopback only, network 
 daemon=$!
 pids+=("$daemon")
 started+=("$daemon")
-for _ in $(seq 600); do
-  grep -q 'event=serving' "$out/palpated.log" && break
-  kill -0 "$daemon" 2>/dev/null || break
-  sleep 0.1
-done
-if ! grep -q 'event=serving' "$out/palpated.log"; then
+if ! wait_for "$out/palpated.log" 'event=serving' "$daemon" 60; then
   echo "demo: palpated did not start serving; its log ($out/palpated.log) ends with:" >&2
   tail -3 "$out/palpated.log" >&2
   exit 5
@@ -154,13 +158,8 @@ fi
 "$build/viewer/palpate-viewer" --listen "127.0.0.1:$port" "${viewer_netns[@]}" >"$out/viewer.log" 2>&1 &
 pids+=($!)
 started+=($!)
-url=""
-for _ in $(seq 100); do
-  url=$(grep -o 'http://[0-9.]*:[0-9]*/' "$out/viewer.log" || true)
-  [ -n "$url" ] && break
-  kill -0 "${pids[-1]}" 2>/dev/null || break
-  sleep 0.1
-done
+wait_for "$out/viewer.log" 'http://[0-9.]*:[0-9]*/' "$!" 10 || true
+url=$(grep -o 'http://[0-9.]*:[0-9]*/' "$out/viewer.log" || true)
 if [ -z "$url" ]; then
   echo "demo: the viewer did not start: $(cat "$out/viewer.log") (another port: PALPATE_DEMO_PORT=8081)" >&2
   exit 5
@@ -175,22 +174,16 @@ say "palpate-client: requests and replies at 1 kHz (docs/dds.md)"
 
 # Headless Chromium takes screenshots while the gesture plays; it renders
 # in software, so it runs niced to leave the cores to palpated's 1 kHz loop.
-capture=""
 gesture=config/gestures/demo.toml
 gesture_s=$((5 * repeat + 1))
 printf '#!/bin/sh\nexec nice -n 10 /usr/bin/chromium "$@"\n' > "$out/.chromium"
 chmod +x "$out/.chromium"
 PALPATE_CHROMIUM=$out/.chromium node viewer/test/capture.mjs --url "$url" --model "$model" \
-  --out "$out" --seconds "$gesture_s" --interval 0.5 >"$out/capture.log" 2>&1 &
+  --out "$out" --seconds "$gesture_s" --interval 1 >"$out/capture.log" 2>&1 &
 capture=$!
 pids+=("$capture")
 started+=("$capture")
-for _ in $(seq 300); do
-  grep -q 'capture: ready' "$out/capture.log" && break
-  kill -0 "$capture" 2>/dev/null || break
-  sleep 0.1
-done
-grep -q 'capture: ready' "$out/capture.log" ||
+wait_for "$out/capture.log" 'capture: ready' "$capture" 30 ||
   echo "demo: no screenshots: $(tail -1 "$out/capture.log")" >&2
 
 say "palpate-pliers plays $gesture $repeat time(s) at 1 kHz, two tools (docs/pliers.md)"
@@ -214,7 +207,9 @@ left=0
 for pid in "${started[@]}"; do kill -0 "$pid" 2>/dev/null && left=$((left + 1)); done
 elapsed_ms=$(($(now_ms) - start))
 say "done in $((elapsed_ms / 1000)) s (precompute $((precompute_ms / 1000)).$((precompute_ms % 1000 / 100)) s); processes left running: $left of ${#started[@]} started"
-echo "  compliance file  $compliance (+ .xdmf for ParaView when present; docs/compliance-file.md)"
+xdmf=${compliance%.h5}.xdmf
+[ -f "$xdmf" ] && xdmf=", $xdmf for ParaView" || xdmf=""
+echo "  compliance file  $compliance$xdmf (docs/compliance-file.md)"
 echo "  viewer           $out/viewer.png (the liveliest of $out/viewer-NN.png); log $out/viewer.log"
 echo "  gesture summary  $out/pliers.json"
 echo "  session          ${recording:-none} and its plots $out/*-force.png, -latency.png, -contacts.png"
