@@ -10,6 +10,8 @@
 
 import { spawn } from 'node:child_process';
 import { mkdirSync } from 'node:fs';
+import { request } from 'node:http';
+import { connect } from 'node:net';
 import { join } from 'node:path';
 import { parseArgs } from 'node:util';
 import { chromium } from 'playwright-core';
@@ -60,6 +62,44 @@ const share = (grey, keep) => grey.filter(keep).length / grey.length;
 // position, read back from the geometry the renderer draws.
 async function drawnDisplacement(page) {
   return page.evaluate(() => window.palpateViewer.drawnDisplacement());
+}
+
+// One raw HTTP request (no URL normalisation): { status, type }.
+function raw(method, path, headers = {}) {
+  const { hostname, port } = new URL(args.url);
+  return new Promise((resolve) => {
+    const r = request({ hostname, port, method, path, headers }, (res) => {
+      res.resume();
+      resolve({ status: res.statusCode, type: res.headers['content-type'] || '' });
+    });
+    r.on('upgrade', (res, socket) => { socket.destroy(); resolve({ status: res.statusCode, type: '' }); });
+    r.on('error', (e) => resolve({ status: 0, type: e.message }));
+    r.end();
+  });
+}
+
+// 0. The bridge serves the page and three.js, and nothing else.
+{
+  const three = await raw('GET', '/vendor/three/build/three.module.js');
+  check(three.status === 200 && three.type.startsWith('text/javascript'), 'three.js is served', `${three.status} ${three.type}`);
+  for (const path of ['/../CMakeLists.txt', '/vendor/three/../../package.json', '/%2e%2e/CMakeLists.txt', '/missing.js'])
+    check((await raw('GET', path)).status === 404, `${path} is not served`);
+  check((await raw('POST', '/')).status === 405, 'POST is refused');
+  const upgrade = { Connection: 'Upgrade', Upgrade: 'websocket', 'Sec-WebSocket-Version': '13',
+                    'Sec-WebSocket-Key': 'dGhlIHNhbXBsZSBub25jZQ==' };
+  check((await raw('GET', '/ws', { ...upgrade, Origin: 'http://evil.example' })).status === 403,
+    'a WebSocket from another origin is refused');
+  check((await raw('GET', '/ws', upgrade)).status === 101, 'a WebSocket without an origin is accepted');
+  // Garbage instead of HTTP: the connection is dropped, the bridge goes on
+  // (the page below is served by the same process).
+  const { hostname, port } = new URL(args.url);
+  await new Promise((resolve) => {
+    const socket = connect(Number(port), hostname, () => socket.end('\x00\xffNOT HTTP\r\n\r\n'.repeat(64)));
+    socket.on('close', resolve);
+    socket.on('error', resolve);
+    socket.resume();
+  });
+  check((await raw('GET', '/')).status === 200, 'still serving after garbage');
 }
 
 const browser = await chromium.launch({
