@@ -103,14 +103,15 @@ else
   # it about 20 cm across), hold the top 15 % of
   # it (a hanging organ) and use the sample's material. Say so.
   read -r unit half_space < <(/usr/bin/python3 -c '
-import sys, meshio, numpy as np
-p = meshio.read(sys.argv[1]).points
+import contextlib, sys, meshio, numpy as np
+with contextlib.redirect_stdout(sys.stderr):  # meshio talks on stdout
+    p = meshio.read(sys.argv[1]).points
 lo, hi = p.min(axis=0), p.max(axis=0)
 # The unit that makes it organ-sized: its diagonal nearest 0.2 m (log scale).
 diagonal = np.linalg.norm(hi - lo)
 unit = min(("m", 1.0), ("cm", 0.01), ("mm", 0.001), key=lambda u: abs(np.log(diagonal * u[1] / 0.2)))[0]
 z = hi[2] - 0.15 * (hi[2] - lo[2])
-print(unit, 0, 0, z, 0, 0, 1)' "$input")
+print(unit, 0, 0, f"{z:.6g}", 0, 0, 1)' "$input")
   compliance=$out/$(basename "${input%.*}").h5
   say "no job in config/ names $input: unit $unit (from its size), fixed: the top 15 % (z ≥ $(echo "$half_space" | cut -d' ' -f3)), E = 85 kPa, ν = 0.45"
   # shellcheck disable=SC2086
