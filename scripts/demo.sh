@@ -64,11 +64,11 @@ with open(job, "rb") as f:
     out = tomllib.load(f)["output"]["file"]
 print(os.path.normpath(os.path.join(os.path.dirname(job), out)))' "$1"
 }
-job_for_mesh() {  # the job in config/ whose mesh is this file, if any
+job_for_mesh() {  # the job under config/ whose mesh is this file, if any
   /usr/bin/python3 -c '
 import glob, os, sys, tomllib
 mesh = os.path.realpath(sys.argv[1])
-for job in sorted(glob.glob("config/*.toml")):
+for job in sorted(glob.glob("config/**/*.toml", recursive=True)):
     try:
         with open(job, "rb") as f:
             m = tomllib.load(f).get("mesh", {}).get("file")
