@@ -25,8 +25,9 @@ packages=(
   # the browser viewer: Boost.Beast (HTTP/WebSocket bridge), Node.js and npm
   # for three.js, Chromium for its end-to-end test and the demo's screenshots
   libboost-dev nodejs chromium
-  # session plots (matplotlib) and the XDMF sidecar's independent reader (meshio)
-  python3-matplotlib python3-meshio
+  # session plots (matplotlib), the XDMF sidecar's independent reader
+  # (meshio), the gmsh program (the STL tutorial and its test)
+  python3-matplotlib python3-meshio gmsh
 )
 
 missing=()
