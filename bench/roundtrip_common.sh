@@ -8,7 +8,12 @@ LOOPBACK_URI='<General><Interfaces><NetworkInterface name="lo" multicast="false"
 
 # enter_private_netns SCRIPT BUILD_DIR MODEL [ARGS...]: unless already
 # inside, re-executes SCRIPT in a new network namespace (paths made absolute).
+# Without BUILD_DIR and MODEL it prints the benchmarks' usage and exits 2.
 enter_private_netns() {
+  if [ $# -lt 3 ]; then
+    echo "usage: $1 BUILD_DIR MODEL.h5 [SECONDS]" >&2
+    exit 2
+  fi
   if [ "${PALPATE_BENCH_NETNS:-}" != 1 ]; then
     _script=$(realpath "$1")
     _build=$(realpath "$2")

@@ -11,11 +11,6 @@
 # is loopback, with palpate's loopback Cyclone configuration (CYCLONEDDS_URI).
 set -eu
 
-if [ $# -lt 2 ]; then
-  echo "usage: $0 BUILD_DIR MODEL.h5 [SECONDS]" >&2
-  exit 2
-fi
-
 . "$(dirname "$(realpath "$0")")/roundtrip_common.sh"
 enter_private_netns "$0" "$@"
 
