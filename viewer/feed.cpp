@@ -101,7 +101,14 @@ struct ToolView {
   bool force_limited = false, watchdog = false;
   std::uint64_t poses = 0, feedbacks = 0;
   double compute_us = 0;
+  Clock::time_point last_heard;  // last pose or feedback
 };
+
+// A tool silent for this long leaves the page (its client stopped).
+constexpr auto kToolForgotten = std::chrono::seconds(2);
+// Tools drawn at most: ids beyond are ignored (a misbehaving client cannot
+// grow the bridge without bound).
+constexpr std::size_t kMaxTools = 64;
 
 }  // namespace
 
@@ -204,6 +211,7 @@ struct Feed::Impl {
       take_all<palpate_ToolEvent>(kEvents, [&](const auto& e) { on_event(e); });
       const auto now = Clock::now();
       if (now >= next_tools) {
+        forget_silent_tools(now);
         if (tools_changed) send_tools();
         next_tools = std::max(next_tools + tools_period, now);
       }
@@ -299,9 +307,29 @@ struct Feed::Impl {
                      {"tool_compute", latency_json(s.tool_compute)}};
   }
 
+  /// The view of tool @p id, made on first sight; nullptr beyond kMaxTools.
+  ToolView* tool(const char* id, std::size_t size) {
+    std::string key = bounded(id, size);
+    auto it = tools.find(key);
+    if (it == tools.end()) {
+      if (tools.size() >= kMaxTools) return nullptr;
+      it = tools.emplace(std::move(key), ToolView{}).first;
+    }
+    it->second.last_heard = Clock::now();
+    return &it->second;
+  }
+
+  void forget_silent_tools(Clock::time_point now) {
+    tools_changed |= std::erase_if(tools, [&](const auto& entry) {
+                       return now - entry.second.last_heard > kToolForgotten;
+                     }) > 0;
+  }
+
   void on_pose(const palpate_ToolPose& p) {
     ++poses;
-    ToolView& t = tools[bounded(p.tool_id, sizeof p.tool_id)];
+    ToolView* view = tool(p.tool_id, sizeof p.tool_id);
+    if (!view) return;
+    ToolView& t = *view;
     t.model_id = bounded(p.model_id, sizeof p.model_id);
     std::copy_n(p.position, 3, t.position);
     std::copy_n(p.orientation, 4, t.orientation);
@@ -312,7 +340,9 @@ struct Feed::Impl {
 
   void on_feedback(const palpate_ToolFeedback& f) {
     ++feedbacks;
-    ToolView& t = tools[bounded(f.tool_id, sizeof f.tool_id)];
+    ToolView* view = tool(f.tool_id, sizeof f.tool_id);
+    if (!view) return;
+    ToolView& t = *view;
     std::copy_n(f.force, 3, t.force);
     t.grip_force = f.grip_force;
     t.contacts = f.contacts;
