@@ -115,9 +115,8 @@ constexpr std::size_t kMaxTools = 64;
 struct Feed::Impl {
   FeedOptions options;
   Sink sink;
-  dds::DomainConfig domain_config;
-  std::shared_ptr<dds::Entity> domain;
-  dds::Entity participant, waitset;
+  dds::Participant participant;
+  dds::Entity waitset;
   dds_entity_t stop_condition = 0;
   enum Reader { kModels, kSurfaces, kStatus, kPoses, kFeedback, kEvents, kReaderCount };
   dds_entity_t readers[kReaderCount] = {};
@@ -132,10 +131,7 @@ struct Feed::Impl {
   std::uint64_t surfaces = 0, poses = 0, feedbacks = 0;
 
   Impl(const FeedOptions& o, Sink s) : options(o), sink(std::move(s)) {
-    domain_config = dds::resolve_domain_config(options.dds_config);
-    domain = dds::acquire_domain(options.domain_id, domain_config);
-    participant = dds::Entity(dds::check(dds_create_participant(options.domain_id, nullptr, nullptr),
-                                         "creating the viewer's DDS participant"));
+    participant = dds::join_domain(options.domain_id, options.dds_config);
     const dds_entity_t p = participant.get();
     struct Spec {
       const dds_topic_descriptor_t* type;
@@ -416,6 +412,6 @@ struct Feed::Impl {
 Feed::Feed(const FeedOptions& options, Sink sink)
     : impl_(std::make_unique<Impl>(options, std::move(sink))) {}
 Feed::~Feed() = default;
-const std::string& Feed::dds_origin() const { return impl_->domain_config.origin; }
+const std::string& Feed::dds_origin() const { return impl_->participant.config.origin; }
 
 }  // namespace palpate::viewer

@@ -30,8 +30,7 @@ void check_client_id(const std::string& id) {
 
 struct Client::Impl {
   ClientOptions options;
-  std::shared_ptr<dds::Entity> domain;
-  dds::Entity participant;
+  dds::Participant participant;
   dds_entity_t request_writer = 0;
   detail::ModelDescriptions models;
   WaitableReader replies, surfaces, statuses;
@@ -45,9 +44,7 @@ Client::Client(const ClientOptions& options) : impl_(std::make_unique<Impl>()) {
   check_client_id(options.client_id);
   Impl& c = *impl_;
   c.options = options;
-  c.domain = dds::acquire_domain(options.domain_id, dds::resolve_domain_config(options.dds_config));
-  c.participant = dds::Entity(dds::check(
-      dds_create_participant(options.domain_id, nullptr, nullptr), "creating the DDS participant"));
+  c.participant = dds::join_domain(options.domain_id, options.dds_config);
   const dds_entity_t p = c.participant.get();
   auto topic = [p](const dds_topic_descriptor_t* type, const char* name) {
     return dds::topic(p, type, name);

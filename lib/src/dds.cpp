@@ -54,6 +54,15 @@ std::shared_ptr<Entity> acquire_domain(std::uint32_t domain_id, const DomainConf
   return domain;
 }
 
+Participant join_domain(std::uint32_t domain_id, const std::string& user_config) {
+  Participant p;
+  p.config = resolve_domain_config(user_config);
+  p.domain = acquire_domain(domain_id, p.config);
+  p.entity = Entity(check(dds_create_participant(domain_id, nullptr, nullptr),
+                          "creating the DDS participant"));
+  return p;
+}
+
 dds_entity_t topic(dds_entity_t participant, const dds_topic_descriptor_t* type,
                    const char* name) {
   return check(dds_create_topic(participant, type, name, nullptr, nullptr),

@@ -84,8 +84,7 @@ void copy_id(char (&out)[64], std::string_view id) {
 
 struct ToolClient::Impl {
   ToolClientOptions options;
-  std::shared_ptr<dds::Entity> domain;
-  dds::Entity participant;
+  dds::Participant participant;
   detail::ModelDescriptions models;
   dds_entity_t pose_writer = 0;
   WaitableReader feedback, events;
@@ -109,9 +108,7 @@ struct ToolClient::Impl {
 ToolClient::ToolClient(const ToolClientOptions& options) : impl_(std::make_unique<Impl>()) {
   Impl& c = *impl_;
   c.options = options;
-  c.domain = dds::acquire_domain(options.domain_id, dds::resolve_domain_config(options.dds_config));
-  c.participant = dds::Entity(dds::check(
-      dds_create_participant(options.domain_id, nullptr, nullptr), "creating the DDS participant"));
+  c.participant = dds::join_domain(options.domain_id, options.dds_config);
   const dds_entity_t p = c.participant.get();
   auto topic = [p](const dds_topic_descriptor_t* type, const char* name) {
     return dds::topic(p, type, name);

@@ -72,6 +72,19 @@ DomainConfig resolve_domain_config(const std::string& user_config);
 /// accepts one dds_create_domain per domain and process).
 std::shared_ptr<Entity> acquire_domain(std::uint32_t domain_id, const DomainConfig& config);
 
+/// A participant and the domain it lives in (kept alive as long as it).
+struct Participant {
+  DomainConfig config;             ///< where the domain's configuration came from
+  std::shared_ptr<Entity> domain;  ///< declared before entity: outlives it
+  Entity entity;
+  dds_entity_t get() const { return entity.get(); }
+};
+
+/// Joins domain @p domain_id with the configuration resolve_domain_config()
+/// gives for @p user_config: what every client of palpated does first.
+/// @throws InputError (configuration) or SystemError naming what failed.
+Participant join_domain(std::uint32_t domain_id, const std::string& user_config);
+
 // ------------------------------------------------------------------ topics
 
 /// Creates (or finds) topic @p name of @p type on @p participant.
