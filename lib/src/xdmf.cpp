@@ -159,13 +159,18 @@ std::string xdmf_document(const ComplianceModel& model, const std::string& h5_fi
       data_item(h5, "/mesh/vertices", fmt::format("{} 3", V), "Float", 8, "          ") +
       "        </Geometry>\n";
 
+  // One grid's connectivity: @p count elements of @p nodes vertices each.
+  auto topology = [&](const char* type, const char* dataset, Eigen::Index count, int nodes) {
+    return fmt::format(
+               "        <Topology TopologyType=\"{}\" NumberOfElements=\"{}\" "
+               "NodesPerElement=\"{}\">\n",
+               type, count, nodes) +
+           data_item(h5, dataset, fmt::format("{} {}", count, nodes), "Int", 4, "          ") +
+           "        </Topology>\n";
+  };
+
   s += "      <Grid Name=\"volume\" GridType=\"Uniform\">\n";
-  s += fmt::format(
-      "        <Topology TopologyType=\"Tetrahedron\" NumberOfElements=\"{}\" "
-      "NodesPerElement=\"4\">\n",
-      T);
-  s += data_item(h5, "/mesh/tetrahedra", fmt::format("{} 4", T), "Int", 4, "          ");
-  s += "        </Topology>\n";
+  s += topology("Tetrahedron", "/mesh/tetrahedra", T, 4);
   s += geometry;
   s += "        <Attribute Name=\"material\" AttributeType=\"Scalar\" Center=\"Cell\">\n";
   s += data_item(h5, "/mesh/tetrahedron_material", std::to_string(T), "Int", 4, "          ");
@@ -174,12 +179,7 @@ std::string xdmf_document(const ComplianceModel& model, const std::string& h5_fi
   s += "      </Grid>\n";
 
   s += "      <Grid Name=\"surface\" GridType=\"Uniform\">\n";
-  s += fmt::format(
-      "        <Topology TopologyType=\"Triangle\" NumberOfElements=\"{}\" "
-      "NodesPerElement=\"3\">\n",
-      F);
-  s += data_item(h5, "/mesh/surface_triangles", fmt::format("{} 3", F), "Int", 4, "          ");
-  s += "        </Topology>\n";
+  s += topology("Triangle", "/mesh/surface_triangles", F, 3);
   s += geometry;
   s += vertex_attributes(h5, V);
   s += "      </Grid>\n";
