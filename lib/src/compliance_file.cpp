@@ -1,9 +1,14 @@
 #include "palpate/compliance_file.hpp"
 
+#include <sys/stat.h>
+
 #include <cerrno>
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <optional>
+#include <thread>
 
 #include <hdf5.h>
 
@@ -12,6 +17,7 @@
 #include "hdf5_support.hpp"
 #include "palpate/atomic_file.hpp"
 #include "palpate/error.hpp"
+#include "palpate/hash.hpp"
 
 namespace palpate {
 
@@ -24,41 +30,63 @@ using hdf5::string_type;
 using hdf5::write_int_attribute;
 using hdf5::write_string_attribute;
 
-// Row-major [rows, cols] dataset from a column-major Eigen matrix: the file
-// holds the transpose of Eigen's memory layout, so write Mᵀ's storage.
+// The content digest (docs/compliance-file.md, "content_sha256"): for each
+// dataset in file order, a line "<path> <d0>x<d1>...\n", then the bytes it
+// stores (little-endian, row-major; a string and its NUL).
+void hash_header(Sha256& digest, const char* path, const std::vector<hsize_t>& dims) {
+  std::string line = path;
+  char separator = ' ';
+  for (const hsize_t d : dims) {
+    line += fmt::format("{}{}", separator, d);
+    separator = 'x';
+  }
+  digest.update(line + "\n");
+}
+
+// Row-major [rows, cols] dataset @p path from a column-major Eigen matrix:
+// the file holds the transpose of Eigen's memory layout, so write Mᵀ's storage.
 template <typename Matrix>
-void write_matrix(hid_t parent, const char* name, const Matrix& M, hid_t mem_type, hid_t file_type) {
+void write_matrix(hid_t file, const char* path, const Matrix& M, hid_t mem_type, hid_t file_type,
+                  Sha256& digest) {
   using Scalar = typename Matrix::Scalar;
   const Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows = M;
   hsize_t dims[2] = {static_cast<hsize_t>(M.rows()), static_cast<hsize_t>(M.cols())};
   Handle space(H5Screate_simple(2, dims, nullptr), H5Sclose, "create a dataspace");
-  Handle set(H5Dcreate2(parent, name, file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-             H5Dclose, fmt::format("create dataset {}", name));
+  Handle set(H5Dcreate2(file, path, file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+             H5Dclose, fmt::format("create dataset {}", path));
   if (rows.size() > 0)
     check(H5Dwrite(set, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, rows.data()),
-          fmt::format("write dataset {}", name));
+          fmt::format("write dataset {}", path));
+  hash_header(digest, path, {dims[0], dims[1]});
+  digest.update(rows.data(), sizeof(Scalar) * static_cast<std::size_t>(rows.size()));
 }
 
 template <typename Vector>
-void write_vector(hid_t parent, const char* name, const Vector& v, hid_t mem_type, hid_t file_type) {
+void write_vector(hid_t file, const char* path, const Vector& v, hid_t mem_type, hid_t file_type,
+                  Sha256& digest) {
   hsize_t dims[1] = {static_cast<hsize_t>(v.size())};
   Handle space(H5Screate_simple(1, dims, nullptr), H5Sclose, "create a dataspace");
-  Handle set(H5Dcreate2(parent, name, file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-             H5Dclose, fmt::format("create dataset {}", name));
+  Handle set(H5Dcreate2(file, path, file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+             H5Dclose, fmt::format("create dataset {}", path));
   if (v.size() > 0)
     check(H5Dwrite(set, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()),
-          fmt::format("write dataset {}", name));
+          fmt::format("write dataset {}", path));
+  hash_header(digest, path, {dims[0]});
+  digest.update(v.data(), sizeof(*v.data()) * static_cast<std::size_t>(v.size()));
 }
 
-void write_strings(hid_t parent, const char* name, const std::vector<std::string>& values) {
+void write_strings(hid_t file, const char* path, const std::vector<std::string>& values,
+                   Sha256& digest) {
   Handle type = string_type();
   hsize_t dims[1] = {values.size()};
   Handle space(H5Screate_simple(1, dims, nullptr), H5Sclose, "create a dataspace");
-  Handle set(H5Dcreate2(parent, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose,
-             fmt::format("create dataset {}", name));
+  Handle set(H5Dcreate2(file, path, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose,
+             fmt::format("create dataset {}", path));
   std::vector<const char*> data;
   for (const auto& s : values) data.push_back(s.c_str());
-  if (!data.empty()) check(H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()), name);
+  if (!data.empty()) check(H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()), path);
+  hash_header(digest, path, {dims[0]});
+  for (const auto& s : values) digest.update(s.c_str(), s.size() + 1);
 }
 
 // ---- reading ---------------------------------------------------------------
@@ -66,6 +94,7 @@ void write_strings(hid_t parent, const char* name, const std::vector<std::string
 struct Reader {
   std::string file;
   hid_t root;
+  Sha256 digest;  // of the datasets read, in file order (hash_header)
 
   [[noreturn]] void fail(const std::string& where, const std::string& what) const {
     throw InputError(fmt::format("{}: {}: {}", file, where, what));
@@ -89,22 +118,33 @@ struct Reader {
       fail(name, "cannot be read (corrupt or of a wrong type)");
   }
 
+  /// Reads @p name into @p out (native memory, the bytes palpate stores) and hashes it.
+  void read_hashed(const char* name, const std::vector<hsize_t>& d, hid_t mem_type, void* out,
+                   std::size_t bytes) {
+    if (bytes > 0) read(name, mem_type, out);
+    hash_header(digest, name, d);
+    digest.update(out, bytes);
+  }
+
   template <typename Scalar, int Cols>
-  Eigen::Matrix<Scalar, Eigen::Dynamic, Cols> matrix(const char* name, hid_t mem_type) const {
+  Eigen::Matrix<Scalar, Eigen::Dynamic, Cols> matrix(const char* name, hid_t mem_type) {
     const auto d = dims(name, 2);
     if (Cols != Eigen::Dynamic && d[1] != static_cast<hsize_t>(Cols))
       fail(name, fmt::format("has {} columns, expected {}", d[1], Cols));
     Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows(d[0], d[1]);
-    if (rows.size() > 0) read(name, mem_type, rows.data());
+    read_hashed(name, d, mem_type, rows.data(), sizeof(Scalar) * static_cast<std::size_t>(rows.size()));
     return rows;
   }
 
-  Eigen::VectorXi ints(const char* name) const {
+  template <typename Scalar>
+  Eigen::Matrix<Scalar, Eigen::Dynamic, 1> vector(const char* name, hid_t mem_type) {
     const auto d = dims(name, 1);
-    Eigen::VectorXi v(static_cast<Eigen::Index>(d[0]));
-    if (v.size() > 0) read(name, H5T_NATIVE_INT, v.data());
+    Eigen::Matrix<Scalar, Eigen::Dynamic, 1> v(static_cast<Eigen::Index>(d[0]));
+    read_hashed(name, d, mem_type, v.data(), sizeof(Scalar) * static_cast<std::size_t>(v.size()));
     return v;
   }
+
+  Eigen::VectorXi ints(const char* name) { return vector<int>(name, H5T_NATIVE_INT); }
 
   std::string string_attribute(const char* name, bool required = true) const {
     if (H5Aexists(root, name) <= 0) {
@@ -130,10 +170,43 @@ struct Reader {
   }
 };
 
+/// What identifies a file's content on disk without reading it: a change of
+/// any of these during a read means the file was written or replaced meanwhile.
+struct FileIdentity {
+  dev_t device = 0;
+  ino_t inode = 0;
+  off_t size = 0;
+  std::int64_t modified_ns = 0, changed_ns = 0;
+  bool operator==(const FileIdentity&) const = default;
+};
+
+std::optional<FileIdentity> identify(const std::filesystem::path& path) {
+  struct stat s {};
+  if (::stat(path.c_str(), &s) != 0) return std::nullopt;
+  return FileIdentity{s.st_dev, s.st_ino, s.st_size,
+                      s.st_mtim.tv_sec * 1'000'000'000LL + s.st_mtim.tv_nsec,
+                      s.st_ctim.tv_sec * 1'000'000'000LL + s.st_ctim.tv_nsec};
+}
+
+/// HDF5's innermost error message (after a failed call), e.g. its "truncated file: eof = …".
+std::string hdf5_error_message() {
+  std::string message;
+  H5Ewalk2(
+      H5E_DEFAULT, H5E_WALK_UPWARD,
+      [](unsigned, const H5E_error2_t* e, void* out) -> herr_t {
+        auto& m = *static_cast<std::string*>(out);
+        if (m.empty() && e->desc != nullptr) m = e->desc;
+        return 0;
+      },
+      &message);
+  return message;
+}
+
 }  // namespace
 
 void write_compliance_file(const std::filesystem::path& path, const ComplianceModel& model,
-                           CRef<Eigen::MatrixXd> G) {
+                           CRef<Eigen::MatrixXd> G,
+                           const std::function<void(long done, long total)>& progress) {
   const Eigen::Index n = model.compliance_vertices.size();
   PALPATE_DEMAND(G.rows() == 3 * n && G.cols() == 3 * n);
   PALPATE_DEMAND(model.softness_m_per_n.size() == model.vertices_m.rows());
@@ -154,17 +227,22 @@ void write_compliance_file(const std::filesystem::path& path, const ComplianceMo
     write_string_attribute(file, "job_toml", model.job_toml);
     write_string_attribute(file, "report_json", model.report_json);
 
-    Handle mesh(H5Gcreate2(file, "mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
-                "create group /mesh");
-    write_matrix(mesh, "vertices", model.vertices_m, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE);
-    write_matrix(mesh, "tetrahedra", model.tetrahedra, H5T_NATIVE_INT, H5T_STD_I32LE);
-    write_vector(mesh, "tetrahedron_material", model.tet_material, H5T_NATIVE_INT, H5T_STD_I32LE);
-    write_matrix(mesh, "surface_triangles", model.surface_triangles, H5T_NATIVE_INT, H5T_STD_I32LE);
-    write_vector(mesh, "fixed_vertex_ids", model.fixed_vertices, H5T_NATIVE_INT, H5T_STD_I32LE);
-    write_vector(mesh, "source_vertex_ids", model.source_vertex_ids, H5T_NATIVE_INT, H5T_STD_I32LE);
+    // Every dataset goes into the digest, in this order (the reader's too).
+    Sha256 digest;
+    hdf5::group(file, "mesh");
+    write_matrix(file, "/mesh/vertices", model.vertices_m, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE,
+                 digest);
+    write_matrix(file, "/mesh/tetrahedra", model.tetrahedra, H5T_NATIVE_INT, H5T_STD_I32LE, digest);
+    write_vector(file, "/mesh/tetrahedron_material", model.tet_material, H5T_NATIVE_INT,
+                 H5T_STD_I32LE, digest);
+    write_matrix(file, "/mesh/surface_triangles", model.surface_triangles, H5T_NATIVE_INT,
+                 H5T_STD_I32LE, digest);
+    write_vector(file, "/mesh/fixed_vertex_ids", model.fixed_vertices, H5T_NATIVE_INT,
+                 H5T_STD_I32LE, digest);
+    write_vector(file, "/mesh/source_vertex_ids", model.source_vertex_ids, H5T_NATIVE_INT,
+                 H5T_STD_I32LE, digest);
 
-    Handle material(H5Gcreate2(file, "material", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
-                    "create group /material");
+    hdf5::group(file, "material");
     std::vector<std::string> names;
     Eigen::VectorXd E(static_cast<Eigen::Index>(model.materials.size())), nu(E.size());
     for (size_t i = 0; i < model.materials.size(); ++i) {
@@ -172,23 +250,27 @@ void write_compliance_file(const std::filesystem::path& path, const ComplianceMo
       E[static_cast<Eigen::Index>(i)] = model.materials[i].young_modulus_pa;
       nu[static_cast<Eigen::Index>(i)] = model.materials[i].poisson_ratio;
     }
-    write_strings(material, "name", names);
-    write_vector(material, "young_modulus_pa", E, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE);
-    write_vector(material, "poisson_ratio", nu, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE);
+    write_strings(file, "/material/name", names, digest);
+    write_vector(file, "/material/young_modulus_pa", E, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, digest);
+    write_vector(file, "/material/poisson_ratio", nu, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, digest);
 
-    Handle compliance(H5Gcreate2(file, "compliance", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-                      H5Gclose, "create group /compliance");
-    write_vector(compliance, "vertex_ids", model.compliance_vertices, H5T_NATIVE_INT, H5T_STD_I32LE);
+    hdf5::group(file, "compliance");
+    write_vector(file, "/compliance/vertex_ids", model.compliance_vertices, H5T_NATIVE_INT,
+                 H5T_STD_I32LE, digest);
     hsize_t dims[2] = {static_cast<hsize_t>(G.rows()), static_cast<hsize_t>(G.cols())};
     Handle space(H5Screate_simple(2, dims, nullptr), H5Sclose, "create a dataspace");
-    const hid_t file_type =
-        model.precision == Precision::kFloat32 ? H5T_IEEE_F32LE : H5T_IEEE_F64LE;
-    Handle set(H5Dcreate2(compliance, "G", file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+    const bool single = model.precision == Precision::kFloat32;
+    Handle set(H5Dcreate2(file, "/compliance/G", single ? H5T_IEEE_F32LE : H5T_IEEE_F64LE, space,
+                          H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
                H5Dclose, "create dataset /compliance/G");
+    hash_header(digest, "/compliance/G", {dims[0], dims[1]});
     // Column j of Eigen's storage is row j of the file: write in row blocks
-    // so the transpose is exact for any G, symmetric or not.
+    // so the transpose is exact for any G, symmetric or not. float32 is
+    // rounded here (round to nearest, as HDF5 would), so that the digest
+    // covers the bytes stored.
     const hsize_t block = 256;
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows;
+    Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows32;
     for (hsize_t r0 = 0; r0 < dims[0]; r0 += block) {
       const hsize_t h = std::min(block, dims[0] - r0);
       rows = G.middleRows(static_cast<Eigen::Index>(r0), static_cast<Eigen::Index>(h));
@@ -197,32 +279,43 @@ void write_compliance_file(const std::filesystem::path& path, const ComplianceMo
       check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr),
             "select rows of G");
       Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose, "create a dataspace");
-      check(H5Dwrite(set, H5T_NATIVE_DOUBLE, mem_space, file_space, H5P_DEFAULT, rows.data()),
-            "write /compliance/G");
+      if (single) {
+        rows32 = rows.cast<float>();
+        check(H5Dwrite(set, H5T_NATIVE_FLOAT, mem_space, file_space, H5P_DEFAULT, rows32.data()),
+              "write /compliance/G");
+        digest.update(rows32.data(), sizeof(float) * static_cast<std::size_t>(rows32.size()));
+      } else {
+        check(H5Dwrite(set, H5T_NATIVE_DOUBLE, mem_space, file_space, H5P_DEFAULT, rows.data()),
+              "write /compliance/G");
+        digest.update(rows.data(), sizeof(double) * static_cast<std::size_t>(rows.size()));
+      }
+      if (progress) progress(static_cast<long>(r0 + h), static_cast<long>(dims[0]));
     }
     write_string_attribute(set, "units", "m/N");
 
     // 1.1: per-vertex arrays for viewers (the XDMF sidecar, xdmf.hpp).
-    Handle visualization(H5Gcreate2(file, "visualization", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-                         H5Gclose, "create group /visualization");
-    write_vector(visualization, "softness", model.softness_m_per_n, H5T_NATIVE_DOUBLE,
-                 H5T_IEEE_F64LE);
+    hdf5::group(file, "visualization");
+    write_vector(file, "/visualization/softness", model.softness_m_per_n, H5T_NATIVE_DOUBLE,
+                 H5T_IEEE_F64LE, digest);
     {
-      Handle softness(H5Dopen2(visualization, "softness", H5P_DEFAULT), H5Dclose,
+      Handle softness(H5Dopen2(file, "/visualization/softness", H5P_DEFAULT), H5Dclose,
                       "open /visualization/softness");
       write_string_attribute(softness, "units", "m/N");
     }
     Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> fixed =
         Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>::Zero(model.vertices_m.rows());
     for (const int v : model.fixed_vertices) fixed[v] = 1;
-    write_vector(visualization, "fixed", fixed, H5T_NATIVE_INT8, H5T_STD_I8LE);
+    write_vector(file, "/visualization/fixed", fixed, H5T_NATIVE_INT8, H5T_STD_I8LE, digest);
+    // 1.2: written last, over everything above.
+    write_string_attribute(file, "content_sha256", digest.hex_digest());
     check(H5Fflush(file, H5F_SCOPE_GLOBAL), "flush the file");
   }
   out.commit();
 }
 
-ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::MatrixXd* G) {
-  silence_hdf5();
+namespace {
+
+ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw InputError(fmt::format("{}: no such file", path.string()));
   if (std::FILE* f = std::fopen(path.c_str(), "rb"))
@@ -234,9 +327,21 @@ ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::M
                                  "palpate compliance file written by palpate-precompute",
                                  path.string()));
   const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  if (id < 0) throw InputError(fmt::format("{}: HDF5 cannot open it (corrupt?)", path.string()));
+  if (id < 0) {
+    // HDF5 says "truncated file: eof = <size>, sblock->base_addr = 0, stored_eof = <expected>".
+    const std::string why = hdf5_error_message();
+    unsigned long long size = 0, base = 0, expected = 0;
+    if (std::sscanf(why.c_str(), "truncated file: eof = %llu, sblock->base_addr = %llu, stored_eof = %llu",
+                    &size, &base, &expected) == 3)
+      throw InputError(fmt::format(
+          "{}: truncated: {} bytes of the {} it was written with (an interrupted copy or a full "
+          "disk?); copy it again or regenerate it with palpate-precompute",
+          path.string(), size, expected));
+    throw InputError(fmt::format("{}: HDF5 cannot open it (corrupt?){}", path.string(),
+                                 why.empty() ? "" : ": " + why));
+  }
   Handle file(id, H5Fclose, "open");
-  Reader r{path.string(), file};
+  Reader r{path.string(), file, {}};
 
   if (r.string_attribute("format") != kComplianceFormatName)
     r.fail("attribute format", fmt::format("is '{}', expected '{}'", r.string_attribute("format"),
@@ -257,40 +362,100 @@ ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::M
   m.input_hash = r.string_attribute("input_hash");
   m.job_toml = r.string_attribute("job_toml", false);
   m.report_json = r.string_attribute("report_json", false);
+  // Since 1.2; verified once everything else is read and checked.
+  const std::string stored_digest =
+      m.format_version_minor >= 2 ? r.string_attribute("content_sha256") : std::string();
 
+  // The datasets in file order: the order of the content digest.
   m.vertices_m = r.matrix<double, 3>("/mesh/vertices", H5T_NATIVE_DOUBLE);
   m.tetrahedra = r.matrix<int, 4>("/mesh/tetrahedra", H5T_NATIVE_INT);
-  m.surface_triangles = r.matrix<int, 3>("/mesh/surface_triangles", H5T_NATIVE_INT);
   m.tet_material = r.ints("/mesh/tetrahedron_material");
+  m.surface_triangles = r.matrix<int, 3>("/mesh/surface_triangles", H5T_NATIVE_INT);
   m.fixed_vertices = r.ints("/mesh/fixed_vertex_ids");
   m.source_vertex_ids = r.ints("/mesh/source_vertex_ids");
-  m.compliance_vertices = r.ints("/compliance/vertex_ids");
-  const Eigen::VectorXd E = [&] {
-    const auto d = r.dims("/material/young_modulus_pa", 1);
-    Eigen::VectorXd v(static_cast<Eigen::Index>(d[0]));
-    if (v.size()) r.read("/material/young_modulus_pa", H5T_NATIVE_DOUBLE, v.data());
-    return v;
-  }();
-  const auto nu_dims = r.dims("/material/poisson_ratio", 1);
-  Eigen::VectorXd nu(static_cast<Eigen::Index>(nu_dims[0]));
-  if (nu.size()) r.read("/material/poisson_ratio", H5T_NATIVE_DOUBLE, nu.data());
-  if (nu.size() != E.size()) r.fail("/material", "young_modulus_pa and poisson_ratio differ in length");
-  std::vector<std::string> names(static_cast<size_t>(E.size()));
-  if (r.dims("/material/name", 1)[0] != static_cast<hsize_t>(E.size()))
-    r.fail("/material/name", "does not have one name per material");
-  if (E.size() > 0) {
+  const auto name_dims = r.dims("/material/name", 1);
+  std::vector<std::string> names(static_cast<size_t>(name_dims[0]));
+  if (!names.empty()) {
     Handle type = string_type();
-    std::vector<char*> raw(static_cast<size_t>(E.size()), nullptr);
+    std::vector<char*> raw(names.size(), nullptr);
     r.read("/material/name", type, raw.data());
     for (size_t i = 0; i < raw.size(); ++i) names[i] = raw[i] ? raw[i] : "";
     Handle set(H5Dopen2(file, "/material/name", H5P_DEFAULT), H5Dclose, "open /material/name");
     Handle space(H5Dget_space(set), H5Sclose, "get a dataspace");
     H5Dvlen_reclaim(type, space, H5P_DEFAULT, raw.data());
   }
+  hash_header(r.digest, "/material/name", name_dims);
+  for (const auto& name : names) r.digest.update(name.c_str(), name.size() + 1);
+  const Eigen::VectorXd E = r.vector<double>("/material/young_modulus_pa", H5T_NATIVE_DOUBLE);
+  const Eigen::VectorXd nu = r.vector<double>("/material/poisson_ratio", H5T_NATIVE_DOUBLE);
+  if (nu.size() != E.size()) r.fail("/material", "young_modulus_pa and poisson_ratio differ in length");
+  if (names.size() != static_cast<size_t>(E.size()))
+    r.fail("/material/name", "does not have one name per material");
   for (Eigen::Index i = 0; i < E.size(); ++i)
     m.materials.push_back({names[static_cast<size_t>(i)], E[i], nu[i]});
+  m.compliance_vertices = r.ints("/compliance/vertex_ids");
 
+  const auto gd = r.dims("/compliance/G", 2);
+  const auto n3 = static_cast<hsize_t>(3 * m.compliance_vertices.size());
+  if (gd[0] != n3 || gd[1] != n3)
+    r.fail("/compliance/G", fmt::format("is {} × {}, expected {} × {} (3 × /compliance/vertex_ids)",
+                                        gd[0], gd[1], n3, n3));
+  {
+    Handle set(H5Dopen2(file, "/compliance/G", H5P_DEFAULT), H5Dclose, "open /compliance/G");
+    Handle type(H5Dget_type(set), H5Tclose, "get the type of G");
+    m.precision = H5Tget_size(type) == 4 ? Precision::kFloat32 : Precision::kFloat64;
+    if (G) {
+      // In row blocks, as stored (float32 or float64), into the digest; then
+      // into G's column-major memory (row i of the file is row i of G).
+      const bool single = m.precision == Precision::kFloat32;
+      G->resize(static_cast<Eigen::Index>(n3), static_cast<Eigen::Index>(n3));
+      hash_header(r.digest, "/compliance/G", gd);
+      const hsize_t block = 256;
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows;
+      Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows32;
+      for (hsize_t r0 = 0; r0 < n3; r0 += block) {
+        const hsize_t h = std::min(block, n3 - r0);
+        hsize_t start[2] = {r0, 0}, count[2] = {h, n3};
+        Handle file_space(H5Dget_space(set), H5Sclose, "get a dataspace");
+        check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr),
+              "select rows of G");
+        Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose, "create a dataspace");
+        const auto rows_in_block = static_cast<Eigen::Index>(h), columns = static_cast<Eigen::Index>(n3);
+        herr_t status = 0;
+        if (single) {
+          rows32.resize(rows_in_block, columns);
+          status = H5Dread(set, H5T_NATIVE_FLOAT, mem_space, file_space, H5P_DEFAULT, rows32.data());
+          r.digest.update(rows32.data(), sizeof(float) * static_cast<std::size_t>(rows32.size()));
+          rows = rows32.cast<double>();
+        } else {
+          rows.resize(rows_in_block, columns);
+          status = H5Dread(set, H5T_NATIVE_DOUBLE, mem_space, file_space, H5P_DEFAULT, rows.data());
+          r.digest.update(rows.data(), sizeof(double) * static_cast<std::size_t>(rows.size()));
+        }
+        if (status < 0) r.fail("/compliance/G", "cannot be read (corrupt or of a wrong type)");
+        if (!rows.allFinite()) r.fail("/compliance/G", "holds a non-finite value");
+        G->middleRows(static_cast<Eigen::Index>(r0), rows_in_block) = rows;
+      }
+    }
+  }
+
+  // Since 1.1; absent from 1.0 files, which read all the same.
   const Eigen::Index nv = m.vertices_m.rows();
+  if (H5Lexists(file, "/visualization", H5P_DEFAULT) > 0 &&
+      H5Lexists(file, "/visualization/softness", H5P_DEFAULT) > 0) {
+    const auto d = r.dims("/visualization/softness", 1);
+    if (d[0] != static_cast<hsize_t>(nv))
+      r.fail("/visualization/softness",
+             fmt::format("has {} entries, expected one per vertex ({})", d[0], nv));
+    m.softness_m_per_n = r.vector<double>("/visualization/softness", H5T_NATIVE_DOUBLE);
+    if (!m.softness_m_per_n.allFinite())
+      r.fail("/visualization/softness", "holds a non-finite value");
+  }
+  if (!stored_digest.empty() && G != nullptr &&
+      H5Lexists(file, "/visualization", H5P_DEFAULT) > 0 &&
+      H5Lexists(file, "/visualization/fixed", H5P_DEFAULT) > 0)
+    r.vector<std::int8_t>("/visualization/fixed", H5T_NATIVE_INT8);
+
   if (!m.vertices_m.allFinite()) r.fail("/mesh/vertices", "holds a non-finite coordinate");
   auto in_range = [&](const auto& ids, const char* name, Eigen::Index limit) {
     for (Eigen::Index i = 0; i < ids.size(); ++i)
@@ -310,37 +475,48 @@ ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::M
   if (m.tet_material.size() != m.tetrahedra.rows())
     r.fail("/mesh/tetrahedron_material", "does not have one entry per tetrahedron");
 
-  // Since 1.1; absent from 1.0 files, which read all the same.
-  if (H5Lexists(file, "/visualization", H5P_DEFAULT) > 0 &&
-      H5Lexists(file, "/visualization/softness", H5P_DEFAULT) > 0) {
-    const auto d = r.dims("/visualization/softness", 1);
-    if (d[0] != static_cast<hsize_t>(nv))
-      r.fail("/visualization/softness",
-             fmt::format("has {} entries, expected one per vertex ({})", d[0], nv));
-    m.softness_m_per_n.resize(nv);
-    if (nv > 0) r.read("/visualization/softness", H5T_NATIVE_DOUBLE, m.softness_m_per_n.data());
-    if (!m.softness_m_per_n.allFinite())
-      r.fail("/visualization/softness", "holds a non-finite value");
-  }
-
-  const auto gd = r.dims("/compliance/G", 2);
-  const auto n3 = static_cast<hsize_t>(3 * m.compliance_vertices.size());
-  if (gd[0] != n3 || gd[1] != n3)
-    r.fail("/compliance/G", fmt::format("is {} × {}, expected {} × {} (3 × /compliance/vertex_ids)",
-                                        gd[0], gd[1], n3, n3));
-  {
-    Handle set(H5Dopen2(file, "/compliance/G", H5P_DEFAULT), H5Dclose, "open /compliance/G");
-    Handle type(H5Dget_type(set), H5Tclose, "get the type of G");
-    m.precision = H5Tget_size(type) == 4 ? Precision::kFloat32 : Precision::kFloat64;
-  }
-  if (G) {
-    // Row-major G read into column-major memory is Gᵀ; transpose back.
-    Eigen::MatrixXd transposed(static_cast<Eigen::Index>(n3), static_cast<Eigen::Index>(n3));
-    if (n3 > 0) r.read("/compliance/G", H5T_NATIVE_DOUBLE, transposed.data());
-    if (!transposed.allFinite()) r.fail("/compliance/G", "holds a non-finite value");
-    *G = transposed.transpose();
+  // Last: every check above gives its own message; what passes them all and
+  // still differs from what was written is a corrupt file, or one read while
+  // it was being overwritten in place.
+  if (!stored_digest.empty() && G != nullptr) {
+    const std::string computed = r.digest.hex_digest();
+    if (computed != stored_digest)
+      r.fail("attribute content_sha256",
+             fmt::format("the datasets do not match the digest they were written with ({} read, "
+                         "{} stored): the file is corrupt (damaged on disk or in a copy, or "
+                         "modified since); copy it again or regenerate it with palpate-precompute",
+                         computed.substr(0, 19), stored_digest.substr(0, 19)));
   }
   return m;
+}
+
+}  // namespace
+
+ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::MatrixXd* G) {
+  silence_hdf5();
+  // A file replaced (renamed over) or written while it is read would give a
+  // model made of two files: read again, until one read sees the same file
+  // from start to end (docs/faults.md, "Replacing a model").
+  constexpr int kAttempts = 5;
+  constexpr auto kPause = std::chrono::milliseconds(200);
+  for (int attempt = 1;; ++attempt) {
+    const auto before = identify(path);
+    try {
+      ComplianceModel m = read_once(path, G);
+      if (identify(path) == before) return m;
+    } catch (const InputError&) {
+      if (identify(path) == before) throw;
+    } catch (const SystemError&) {
+      if (identify(path) == before) throw;
+    }
+    if (attempt == kAttempts)
+      throw InputError(fmt::format(
+          "{}: changed while being read, {} times in a row: something is writing it; replace a "
+          "compliance file by renaming a complete one over it (palpate-precompute does), not by "
+          "writing into it",
+          path.string(), kAttempts));
+    std::this_thread::sleep_for(kPause);
+  }
 }
 
 }  // namespace palpate

@@ -5,6 +5,7 @@
 /// documented in docs/compliance-file.md; change both together.
 
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -14,7 +15,7 @@ namespace palpate {
 
 inline constexpr const char* kComplianceFormatName = "palpate-compliance";
 inline constexpr int kComplianceFormatMajor = 1;
-inline constexpr int kComplianceFormatMinor = 1;
+inline constexpr int kComplianceFormatMinor = 2;
 
 /// One material region (a Gmsh physical volume, or the default).
 struct MaterialRecord {
@@ -54,18 +55,26 @@ struct ComplianceModel {
 
 /// Writes the file atomically (AtomicOutput): nothing appears at @p path
 /// unless the whole file was written. /visualization/fixed is derived from
-/// model.fixed_vertices.
+/// model.fixed_vertices; the root attribute content_sha256 (1.2) is the
+/// digest of every dataset as stored (docs/compliance-file.md).
 /// @param G 3n × 3n compliance, m/N, in compliance order
+/// @param progress optional: rows of G written out of 3n
 /// @pre model.softness_m_per_n has one entry per vertex
 /// @throws SystemError on I/O failure.
 void write_compliance_file(const std::filesystem::path& path, const ComplianceModel& model,
-                           CRef<Eigen::MatrixXd> G);
+                           CRef<Eigen::MatrixXd> G,
+                           const std::function<void(long done, long total)>& progress = {});
 
 /// Reads and checks a compliance file: format name and major version, shapes,
 /// index ranges, finite values. Any minor version of major 1 is read; the
-/// 1.1 /visualization/softness is read and checked when present.
+/// 1.1 /visualization/softness is read and checked when present; from 1.2
+/// on, when @p G is read, the datasets must match content_sha256 (a corrupt
+/// file is refused). A file that changes on disk while it is read (written
+/// in place, or renamed over) is read again, up to 5 times 0.2 s apart, so
+/// that the model comes from one file, whole.
 /// @param G receives the 3n × 3n compliance (converted to double)
-/// @throws InputError naming the file and the dataset at fault.
+/// @throws InputError naming the file and the dataset at fault, or saying
+///   that the file kept changing.
 ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::MatrixXd* G);
 
 }  // namespace palpate
