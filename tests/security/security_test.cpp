@@ -101,7 +101,8 @@ class Child {
   Report wait() {
     std::string text;
     char buffer[4096];
-    for (ssize_t n; (n = read(fd_, buffer, sizeof buffer)) > 0;) text.append(buffer, static_cast<std::size_t>(n));
+    for (ssize_t n; (n = read(fd_, buffer, sizeof buffer)) > 0;)
+      text.append(buffer, static_cast<std::size_t>(n));
     int status = 0;
     waitpid(pid_, &status, 0);
     reaped_ = true;
@@ -126,7 +127,8 @@ Report run(const std::function<void(Report&)>& role) { return Child(role).wait()
 
 /// Reads one sample of @p T from @p reader by @p deadline; false if none came.
 template <typename T>
-bool take_one(dds_entity_t reader, Clock::time_point deadline, const std::function<void(const T&)>& use) {
+bool take_one(dds_entity_t reader, Clock::time_point deadline,
+              const std::function<void(const T&)>& use) {
   while (Clock::now() < deadline) {
     void* samples[1] = {nullptr};
     dds_sample_info_t info;
@@ -145,21 +147,28 @@ bool take_one(dds_entity_t reader, Clock::time_point deadline, const std::functi
 /// A reader only (what a viewer does): the model description and the
 /// surface stream, raw C API with palpated's QoS. Reports model=1 and
 /// surface=1 for what came within @p wait.
-void read_model_and_surface(const std::string& config, std::chrono::milliseconds wait, Report& report) {
+void read_model_and_surface(const std::string& config, std::chrono::milliseconds wait,
+                            Report& report) {
   dds::Participant p = dds::join_domain(0, config);
   const dds_entity_t models =
-      dds::check(dds_create_reader(p.get(), dds::topic(p.get(), &palpate_ModelDescription_desc, dds::kModelTopic),
-                                   dds::model_qos().get(), nullptr),
+      dds::check(dds_create_reader(
+                     p.get(), dds::topic(p.get(), &palpate_ModelDescription_desc, dds::kModelTopic),
+                     dds::model_qos().get(), nullptr),
                  "creating the model reader");
   const dds_entity_t surfaces = dds::check(
-      dds_create_reader(p.get(), dds::topic(p.get(), &palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic),
+      dds_create_reader(p.get(),
+                        dds::topic(p.get(), &palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic),
                         dds::surface_qos().get(), nullptr),
       "creating the surface reader");
   const auto deadline = Clock::now() + wait;
-  report["model"] = std::to_string(take_one<palpate_ModelDescription>(
-      models, deadline, [&](const auto& m) { report["model_vertices"] = std::to_string(m.compliance_vertex_count); }));
-  report["surface"] = std::to_string(take_one<palpate_SurfaceDisplacement>(
-      surfaces, deadline, [&](const auto& s) { report["surface_sequence"] = std::to_string(s.sequence_number); }));
+  report["model"] =
+      std::to_string(take_one<palpate_ModelDescription>(models, deadline, [&](const auto& m) {
+        report["model_vertices"] = std::to_string(m.compliance_vertex_count);
+      }));
+  report["surface"] =
+      std::to_string(take_one<palpate_SurfaceDisplacement>(surfaces, deadline, [&](const auto& s) {
+        report["surface_sequence"] = std::to_string(s.sequence_number);
+      }));
 }
 
 /// palpated's counters as its status heartbeat gives them: the second
@@ -167,13 +176,14 @@ void read_model_and_surface(const std::string& config, std::chrono::milliseconds
 /// of an earlier participant were taken).
 void read_counters(const std::string& config, Report& report) {
   dds::Participant p = dds::join_domain(0, config);
-  const dds_entity_t status =
-      dds::check(dds_create_reader(p.get(), dds::topic(p.get(), &palpate_DaemonStatus_desc, dds::kStatusTopic),
-                                   dds::status_qos().get(), nullptr),
-                 "creating the status reader");
+  const dds_entity_t status = dds::check(
+      dds_create_reader(p.get(), dds::topic(p.get(), &palpate_DaemonStatus_desc, dds::kStatusTopic),
+                        dds::status_qos().get(), nullptr),
+      "creating the status reader");
   int heartbeats = 0;
   const auto deadline = Clock::now() + 20s;
-  while (heartbeats < 2 && take_one<palpate_DaemonStatus>(status, deadline, [&](const palpate_DaemonStatus& s) {
+  while (heartbeats < 2 &&
+         take_one<palpate_DaemonStatus>(status, deadline, [&](const palpate_DaemonStatus& s) {
            report["requests_served"] = std::to_string(s.requests_served);
            report["error_replies"] = std::to_string(s.error_replies);
            report["tool_poses"] = std::to_string(s.tool_poses);
@@ -198,8 +208,11 @@ void press(const std::string& config, bool patient, Report& report) {
   // when the model came, the same point computed from the box's size otherwise.
   std::array<double, 3> top{0.050, 0.025, 0.040};
   if (model) {
-    const int v = testing::box_top_vertex(model->rest_positions_m, model->compliance_vertex_count, 50, 25);
-    for (int i = 0; i < 3; ++i) top[static_cast<std::size_t>(i)] = model->rest_positions_m[3 * static_cast<std::size_t>(v) + static_cast<std::size_t>(i)];
+    const int v =
+        testing::box_top_vertex(model->rest_positions_m, model->compliance_vertex_count, 50, 25);
+    for (int i = 0; i < 3; ++i)
+      top[static_cast<std::size_t>(i)] =
+          model->rest_positions_m[3 * static_cast<std::size_t>(v) + static_cast<std::size_t>(i)];
   }
   constexpr double kTipRadius = 0.002, kDepth = 0.001;
   int feedback = 0, touching = 0;
@@ -209,9 +222,11 @@ void press(const std::string& config, bool patient, Report& report) {
   for (int i = 0; i <= 400; ++i) {
     // 2 mm above, down to 1 mm deep in 200 ticks, then held.
     const double depth = std::min(kDepth, -0.002 + 0.003 * i / 200.0);
-    client.send_pose("probe", "box", ++sequence, {top[0], top[1], top[2] + kTipRadius - depth}, kPointingDown, 0);
+    client.send_pose("probe", "box", ++sequence, {top[0], top[1], top[2] + kTipRadius - depth},
+                     kPointingDown, 0);
     next += 1ms;
-    if (const auto f = client.wait_feedback("probe", sequence, std::max(next, Clock::now() + 2ms))) {
+    if (const auto f =
+            client.wait_feedback("probe", sequence, std::max(next, Clock::now() + 2ms))) {
       ++feedback;
       if (f->state == ToolState::kTouching) ++touching;
       max_force = std::max(max_force, std::hypot(f->force_n[0], f->force_n[1], f->force_n[2]));
@@ -227,7 +242,8 @@ void press(const std::string& config, bool patient, Report& report) {
 /// A request client pressing one vertex 2 mm down, state changing: with
 /// @p patient it waits for the model and the service; otherwise it sends
 /// 20 requests anyway and counts the replies.
-void request(const std::string& config, const std::string& client_id, bool patient, Report& report) {
+void request(const std::string& config, const std::string& client_id, bool patient,
+             Report& report) {
   ClientOptions options;
   options.client_id = client_id;
   options.dds_config = config;
@@ -239,8 +255,8 @@ void request(const std::string& config, const std::string& client_id, bool patie
     report["service"] = client.wait_for_service(20s) ? "1" : "0";
   }
   const std::uint32_t vertex =
-      model ? model->vertex_ids[static_cast<std::size_t>(
-                  testing::box_top_vertex(model->rest_positions_m, model->compliance_vertex_count, 50, 25))]
+      model ? model->vertex_ids[static_cast<std::size_t>(testing::box_top_vertex(
+                  model->rest_positions_m, model->compliance_vertex_count, 50, 25))]
             : 0;
   const std::vector<ConstraintSpec> press{ConstraintSpec::displacement(vertex, {0, 0, -0.002})};
   int replies = 0, ok = 0;
@@ -274,8 +290,8 @@ class SecuredDaemonTest : public ::testing::Test {
            "[[model]]\nid = \"box\"\nfile = \"box.h5\"\n"
            "[[tools]]\nid = \"probe\"\ntip = \"sphere\"\ntip_radius_mm = 2\njaw_length_mm = 0\n"
            "force_limit_n = 100\nmax_force_rate_n_per_s = 1e6\n";
-    daemon_ = new testing::Daemon({"--config", (box_dir_->path() / "palpated.toml").string(), "--dds-config",
-                                   config("palpated")},
+    daemon_ = new testing::Daemon({"--config", (box_dir_->path() / "palpated.toml").string(),
+                                   "--dds-config", config("palpated")},
                                   box_dir_->path() / "palpated.log");
   }
   static void TearDownTestSuite() {
@@ -286,8 +302,8 @@ class SecuredDaemonTest : public ::testing::Test {
   }
 
   static void generate(const fs::path& dir, const std::string& arguments) {
-    const std::string command = std::string(DDS_SECURITY_SCRIPT) + " " + dir.string() + " " + arguments + " > " +
-                                (dir.string() + ".log") + " 2>&1";
+    const std::string command = std::string(DDS_SECURITY_SCRIPT) + " " + dir.string() + " " +
+                                arguments + " > " + (dir.string() + ".log") + " 2>&1";
     ASSERT_EQ(std::system(command.c_str()), 0) << command;
   }
   static std::string config(const std::string& participant, const fs::path& dir = kWork / "certs") {
@@ -302,11 +318,13 @@ TEST_F(SecuredDaemonTest, AuthorisedParticipantsWork) {
   const Report pliers = run([](Report& r) { press(config("pliers"), true, r); });
   EXPECT_EQ(number(pliers, "model"), 1) << dump(pliers) << daemon_->log();
   EXPECT_EQ(number(pliers, "daemon"), 1) << dump(pliers);
-  EXPECT_GT(number(pliers, "feedback"), 200) << dump(pliers);  // of 401 poses, at 1 kHz on a shared machine
+  EXPECT_GT(number(pliers, "feedback"), 200)
+      << dump(pliers);  // of 401 poses, at 1 kHz on a shared machine
   EXPECT_GT(number(pliers, "touching"), 50) << dump(pliers);
   EXPECT_GT(number(pliers, "max_force_mn"), 10) << dump(pliers);  // 1 mm into the box: about 0.1 N
 
-  const Report client = run([](Report& r) { request(config("client"), "secured-client", true, r); });
+  const Report client =
+      run([](Report& r) { request(config("client"), "secured-client", true, r); });
   EXPECT_EQ(number(client, "service"), 1) << dump(client) << daemon_->log();
   EXPECT_EQ(number(client, "ok"), 1) << dump(client);
   EXPECT_GT(number(client, "force_mn"), 10) << dump(client);
@@ -354,7 +372,8 @@ void expect_shut_out(const std::string& pliers_config, const std::string& client
   EXPECT_EQ(number(viewed, "model"), 1) << dump(viewed);
   EXPECT_EQ(number(viewed, "surface"), 1) << dump(viewed);
   // palpated took none of its poses and requests, even to refuse them.
-  for (const char* counter : {"tool_poses", "tool_poses_refused", "requests_served", "error_replies"})
+  for (const char* counter :
+       {"tool_poses", "tool_poses_refused", "requests_served", "error_replies"})
     EXPECT_EQ(number(after, counter), number(before, counter)) << counter;
   EXPECT_EQ(daemon.log().find("client=" + client_id), std::string::npos) << daemon.log();
 }
@@ -365,8 +384,8 @@ TEST_F(SecuredDaemonTest, UnauthenticatedParticipantIsShutOut) {
 }
 
 TEST_F(SecuredDaemonTest, ParticipantOfAnotherCaIsShutOut) {
-  expect_shut_out(config("pliers", kWork / "other-ca"), config("client", kWork / "other-ca"), "stranger",
-                  config("viewer"), *daemon_);
+  expect_shut_out(config("pliers", kWork / "other-ca"), config("client", kWork / "other-ca"),
+                  "stranger", config("viewer"), *daemon_);
 }
 
 TEST_F(SecuredDaemonTest, ViewerCannotPublishPosesOrRequests) {
@@ -376,10 +395,11 @@ TEST_F(SecuredDaemonTest, ViewerCannotPublishPosesOrRequests) {
     // It may read poses (it draws the tools), so the topic exists for it...
     const dds_entity_t poses = dds::topic(p.get(), &palpate_ToolPose_desc, dds::kToolPoseTopic);
     // ...but Cyclone refuses it a writer.
-    r["pose_writer"] = std::to_string(dds_create_writer(p.get(), poses, dds::tool_stream_qos().get(), nullptr));
+    r["pose_writer"] =
+        std::to_string(dds_create_writer(p.get(), poses, dds::tool_stream_qos().get(), nullptr));
     // The request topic is in none of its rules: not even the topic.
-    r["request_topic"] = std::to_string(
-        dds_create_topic(p.get(), &palpate_ConstraintRequest_desc, dds::kRequestTopic, nullptr, nullptr));
+    r["request_topic"] = std::to_string(dds_create_topic(p.get(), &palpate_ConstraintRequest_desc,
+                                                         dds::kRequestTopic, nullptr, nullptr));
     try {
       ToolClient client({0, config("viewer"), false});
       r["tool_client"] = "created";
@@ -390,7 +410,8 @@ TEST_F(SecuredDaemonTest, ViewerCannotPublishPosesOrRequests) {
   const Report after = run([](Report& r) { read_counters(config("viewer"), r); });
   EXPECT_EQ(number(tried, "pose_writer"), DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) << dump(tried);
   EXPECT_EQ(number(tried, "request_topic"), DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) << dump(tried);
-  EXPECT_EQ(tried.at("tool_client"), "creating the tool pose writer: Not Allowed By Security") << dump(tried);
+  EXPECT_EQ(tried.at("tool_client"), "creating the tool pose writer: Not Allowed By Security")
+      << dump(tried);
   for (const char* counter : {"tool_poses", "tool_poses_refused", "requests_served"})
     EXPECT_EQ(number(after, counter), number(before, counter)) << counter;
 }
@@ -398,10 +419,10 @@ TEST_F(SecuredDaemonTest, ViewerCannotPublishPosesOrRequests) {
 TEST_F(SecuredDaemonTest, PliersCannotRequestOrReadTheStream) {
   const Report tried = run([](Report& r) {
     dds::Participant p = dds::join_domain(0, config("pliers"));
-    r["request_topic"] = std::to_string(
-        dds_create_topic(p.get(), &palpate_ConstraintRequest_desc, dds::kRequestTopic, nullptr, nullptr));
-    r["surface_topic"] = std::to_string(
-        dds_create_topic(p.get(), &palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic, nullptr, nullptr));
+    r["request_topic"] = std::to_string(dds_create_topic(p.get(), &palpate_ConstraintRequest_desc,
+                                                         dds::kRequestTopic, nullptr, nullptr));
+    r["surface_topic"] = std::to_string(dds_create_topic(p.get(), &palpate_SurfaceDisplacement_desc,
+                                                         dds::kSurfaceTopic, nullptr, nullptr));
   });
   EXPECT_EQ(number(tried, "request_topic"), DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) << dump(tried);
   EXPECT_EQ(number(tried, "surface_topic"), DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) << dump(tried);
