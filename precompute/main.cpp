@@ -6,15 +6,20 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <atomic>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <memory>
 
 #include "palpate/atomic_file.hpp"
 #include "palpate/error.hpp"
 #include "palpate/mesh_io.hpp"
 #include "palpate/precompute.hpp"
 #include "palpate/system_info.hpp"
+#include "palpate/xdmf.hpp"
 #include "progress_bar.hpp"
 
 namespace {
@@ -24,6 +29,43 @@ using palpate::ExitCode;
 Eigen::Vector3d vec3(const std::vector<double>& v, size_t offset) {
   return {v[offset], v[offset + 1], v[offset + 2]};
 }
+
+/// For the fault tests (tests/faults, docs/faults.md): with
+/// PALPATE_PRECOMPUTE_STOP_AT=<phase> the process stops itself (SIGSTOP) as
+/// that phase starts; with <phase>@half, halfway through a phase that
+/// reports progress (condensation, solves, write file). The test then kills
+/// it there, deterministically, whatever the machine's speed.
+class StopPoint {
+ public:
+  StopPoint() {
+    if (const char* at = std::getenv("PALPATE_PRECOMPUTE_STOP_AT")) {
+      const std::string_view v(at);
+      const auto half = v.find("@half");
+      halfway_ = half != std::string_view::npos;
+      phase_ = std::string(v.substr(0, half));
+    }
+  }
+  void at_phase(const std::string& phase) const {
+    if (!halfway_ && !phase_.empty() && phase == phase_) stop();
+  }
+  /// Wraps @p inner (may be empty) for the progress of @p label ("1098 solves").
+  palpate::ProgressFn progress(const std::string& label, palpate::ProgressFn inner) const {
+    if (!halfway_ || phase_.empty() || !label.ends_with(phase_)) return inner;
+    auto stopped = std::make_shared<std::atomic<bool>>(false);
+    return [inner = std::move(inner), stopped](long done, long total) {
+      if (inner) inner(done, total);
+      if (2 * done >= total && !stopped->exchange(true)) stop();
+    };
+  }
+
+ private:
+  static void stop() {
+    std::fflush(stderr);
+    std::raise(SIGSTOP);
+  }
+  std::string phase_;
+  bool halfway_ = false;
+};
 
 int run(int argc, char** argv) {
   CLI::App app{"palpate-precompute: surface compliance of an elastic organ (Cotin, Delingette & "
@@ -36,7 +78,7 @@ int run(int argc, char** argv) {
   std::vector<double> box, sphere, half_space;
   double young = 0, poisson = 0, fill_size = 0, tolerance = 0, memory_gb = 0;
   int block_columns = 0;
-  bool json_out = false, quiet = false, xdmf = true;
+  bool json_out = false, quiet = false, xdmf = true, phases = false;
 
   app.add_option("-j,--job", job_file, "TOML job file (config/*.toml); flags override it");
   app.add_option("--mesh", mesh, "tetrahedral mesh (.msh v2/v4, .mesh, .vtk) or closed surface (.stl)");
@@ -61,6 +103,8 @@ int run(int argc, char** argv) {
   app.add_option("--save-job", save_job, "write the effective job as TOML (to reproduce the run)");
   app.add_flag("--json", json_out, "print the report as JSON on stdout");
   app.add_flag("-q,--quiet", quiet, "no progress or report text on stderr");
+  app.add_flag("--phases", phases,
+               "print a line on stderr as each phase starts (for logs; a terminal shows progress bars)");
 
   app.fallthrough();  // -q and friends also after the subcommand
   auto* sample = app.add_subcommand("make-sample", "write palpate's sample organ (Gmsh .msh, metres)");
@@ -126,14 +170,30 @@ int run(int argc, char** argv) {
     out.commit();
   }
 
+  // Temporaries of earlier runs of this output that were killed (SIGKILL:
+  // no handler could remove them; docs/compliance-file.md, "Atomic writing").
+  for (const auto& target : {job.output, palpate::xdmf_sidecar_path(job.output)})
+    for (const auto& stale : palpate::remove_stale_temporaries(target))
+      log->warn("removed {}, left by an interrupted run (process {} is gone)",
+                stale.path.string(), stale.pid);
+
   palpate::PrecomputeHooks hooks;
   hooks.warn = [&](const std::string& s) { log->warn("{}", s); };
   const bool bars = !quiet && palpate::precompute::ProgressBar::wanted();
-  hooks.phase = [&](const std::string& s) { if (!quiet && !bars) log->debug("{}", s); };
-  if (bars)
-    hooks.progress = [](const std::string& label) -> palpate::ProgressFn {
-      return palpate::precompute::ProgressBar(label);
-    };
+  const StopPoint stop_point;
+  hooks.phase = [&](const std::string& s) {
+    if (phases) {
+      std::fprintf(stderr, "palpate-precompute: phase: %s\n", s.c_str());
+      std::fflush(stderr);
+    } else if (!quiet && !bars) {
+      log->debug("{}", s);
+    }
+    stop_point.at_phase(s);
+  };
+  hooks.progress = [&](const std::string& label) -> palpate::ProgressFn {
+    return stop_point.progress(label, bars ? palpate::ProgressFn(palpate::precompute::ProgressBar(label))
+                                           : palpate::ProgressFn{});
+  };
   palpate::install_interrupt_cleanup();
   const auto report = palpate::run_precompute(job, hooks);
   if (json_out) std::cout << report.dump(2) << std::endl;

@@ -1,8 +1,11 @@
 #include "palpate/atomic_file.hpp"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <charconv>
 #include <csignal>
 #include <cstring>
 #include <fmt/format.h>
@@ -74,6 +77,30 @@ void durable_rename(const std::filesystem::path& from, const std::filesystem::pa
     throw SystemError(fmt::format("cannot move '{}' to '{}': {}", from.string(), to.string(),
                                   ec.message()));
   fsync_path(to.has_parent_path() ? to.parent_path() : ".", O_RDONLY | O_DIRECTORY);
+}
+
+std::vector<StaleTemporary> remove_stale_temporaries(const std::filesystem::path& final_path) {
+  std::vector<StaleTemporary> removed;
+  if (final_path.filename().empty()) return removed;
+  const auto dir = final_path.has_parent_path() ? final_path.parent_path() : std::filesystem::path(".");
+  const std::string prefix = fmt::format(".{}.tmp-", final_path.filename().string());
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (!name.starts_with(prefix)) continue;
+    const std::string_view digits = std::string_view(name).substr(prefix.size());
+    long pid = 0;
+    const auto [rest, status] = std::from_chars(digits.data(), digits.data() + digits.size(), pid);
+    if (status != std::errc() || rest != digits.data() + digits.size() || pid <= 0 ||
+        pid == ::getpid())
+      continue;
+    // Only when that process is gone: a live one (another run writing the
+    // same output, or an unrelated process that reused the pid) keeps it.
+    if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;
+    std::error_code removal;
+    if (std::filesystem::remove(it->path(), removal)) removed.push_back({it->path(), pid});
+  }
+  return removed;
 }
 
 void install_interrupt_cleanup() {

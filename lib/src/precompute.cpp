@@ -554,7 +554,7 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
 
   phase("write file");
   phases.begin("write file");
-  write_compliance_file(job.output, model, G);
+  write_compliance_file(job.output, model, G, progress("write file"));
   // The sidecar refers to the file's datasets: only once the file is in place.
   if (job.write_xdmf) write_xdmf_sidecar(job.output, model);
   phases.end();

@@ -5,6 +5,7 @@
 /// never leaves a partial file at the output path.
 
 #include <filesystem>
+#include <vector>
 
 namespace palpate {
 
@@ -38,6 +39,19 @@ void durable_rename(const std::filesystem::path& from, const std::filesystem::pa
 /// Checks that @p final_path names a file in an existing directory.
 /// @throws InputError otherwise, naming the missing directory.
 void require_output_directory(const std::filesystem::path& final_path);
+
+/// A temporary file of an earlier run that was killed before it could remove it.
+struct StaleTemporary {
+  std::filesystem::path path;
+  long pid = 0;  ///< of the run that wrote it (gone)
+};
+
+/// Removes the temporaries ".<name>.tmp-<pid>" of @p final_path left by runs
+/// that were killed (SIGKILL, power loss: no handler ran), i.e. whose process
+/// <pid> no longer exists. A temporary of a live process, or of this one, is
+/// left alone (a pid reused by an unrelated process keeps its file too).
+/// @returns what was removed; errors are ignored (nothing removed).
+std::vector<StaleTemporary> remove_stale_temporaries(const std::filesystem::path& final_path);
 
 /// Installs handlers for SIGINT, SIGTERM and SIGHUP that remove the current
 /// AtomicOutput's temporary file and then end the process as the signal would.
