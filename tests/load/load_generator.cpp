@@ -50,6 +50,7 @@
 #include <fmt/format.h>
 #include <poll.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -557,7 +558,8 @@ struct Child {
   pid_t pid = -1;
   int ready_fd = -1, start_fd = -1;  // our ends
   bool ready = false, exited = false;
-  int status = -1;  // exit code, or 128 + signal
+  int status = -1;   // exit code, or 128 + signal
+  double cpu_s = 0;  // user + system time it used (wait4)
 };
 
 Child spawn(const std::string& role, const std::function<int(const Rendezvous&)>& body) {
@@ -616,12 +618,13 @@ void reap(std::vector<Child>& children, Clock::time_point deadline) {
   for (Child& c : children) {
     while (!c.exited) {
       int status = 0;
-      if (waitpid(c.pid, &status, WNOHANG) == c.pid) {
+      rusage usage{};
+      if (wait4(c.pid, &status, WNOHANG, &usage) == c.pid) {
         c.exited = true;
         c.status = decode(status);
       } else if (Clock::now() > deadline) {
         kill(c.pid, SIGKILL);
-        waitpid(c.pid, &status, 0);
+        wait4(c.pid, &status, 0, &usage);
         c.exited = true;
         c.status = decode(status);
         std::fprintf(stderr, "palpate_load_generator: %s did not finish in time: killed\n",
@@ -629,6 +632,9 @@ void reap(std::vector<Child>& children, Clock::time_point deadline) {
       } else {
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
       }
+      if (c.exited)
+        c.cpu_s = static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+                  static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) * 1e-6;
     }
     close(c.ready_fd);
     close(c.start_fd);
@@ -733,6 +739,14 @@ std::optional<ProcSample> sample_process(pid_t pid) {
 std::string read_text(const fs::path& file) {
   std::ifstream in(file);
   return {std::istreambuf_iterator<char>(in), {}};
+}
+
+/// /proc/loadavg's 1, 5 and 15 minute figures.
+json load_average() {
+  std::ifstream in("/proc/loadavg");
+  double a[3] = {};
+  in >> a[0] >> a[1] >> a[2];
+  return {a[0], a[1], a[2]};
 }
 
 std::string machine_model() {
@@ -912,6 +926,13 @@ void print_table(const json& s) {
         d["cpu_percent_of_one_core"]["max_1s"].get<double>(),
         d["machine_busy_percent"].get<double>());
   }
+  const json& cc = s["load"]["clients_cpu_percent_of_one_core"];
+  std::printf(
+      "clients' CPU (%% of one core, setup included): stations %.0f %%, viewers %.0f %%, requests "
+      "%.0f %%;"
+      " load average after %s\n          ",
+      cc["stations"].get<double>(), cc["viewers"].get<double>(), cc["requests"].get<double>(),
+      s["machine"]["load_average_after"].dump().c_str());
   std::printf("log: %llu warnings, %llu errors; exit status %d\n",
               d["log_warnings"].get<unsigned long long>(),
               d["log_errors"].get<unsigned long long>(), d["exit_status"].get<int>());
@@ -988,12 +1009,7 @@ int run(int argc, char** argv) {
   fs::create_directories(s.work);
   s.work = fs::absolute(s.work).string();
 
-  double load_before[3] = {};
-  if (FILE* f = std::fopen("/proc/loadavg", "r")) {
-    if (std::fscanf(f, "%lf %lf %lf", &load_before[0], &load_before[1], &load_before[2]) != 3) {
-    }
-    std::fclose(f);
-  }
+  const json load_before = load_average();
   const std::string started = utc_now();
 
   std::vector<std::string> daemon_args{"--config", s.config};
@@ -1078,7 +1094,8 @@ int run(int argc, char** argv) {
   summary["date"] = started;
   summary["machine"] = {{"cpus", std::thread::hardware_concurrency()},
                         {"model", machine_model()},
-                        {"load_average_before", {load_before[0], load_before[1], load_before[2]}}};
+                        {"load_average_before", load_before},
+                        {"load_average_after", load_average()}};
   summary["settings"] = {{"stations", s.stations},
                          {"tools", nullptr},
                          {"viewers", s.viewers},
@@ -1282,6 +1299,14 @@ int run(int argc, char** argv) {
   summary["load"] = {{"tools", load_tools},       {"all_tools", to_json(all, s.seconds)},
                      {"stations", stations_json}, {"requests", requests},
                      {"viewers", viewers},        {"timeline", timeline}};
+  json clients_cpu = {{"stations", 0.0}, {"viewers", 0.0}, {"requests", 0.0}};
+  for (const Child& c : children) {
+    const std::string kind = c.role.rfind("station", 0) == 0  ? "stations"
+                             : c.role.rfind("viewer", 0) == 0 ? "viewers"
+                                                              : "requests";
+    clients_cpu[kind] = clients_cpu[kind].get<double>() + 100 * c.cpu_s / s.seconds;
+  }
+  summary["load"]["clients_cpu_percent_of_one_core"] = clients_cpu;
   summary["ratios_to_baseline"] = ratios;
   summary["checks"] = checks;
   summary["passed"] = passed;
