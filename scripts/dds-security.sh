@@ -7,7 +7,8 @@
 #
 # Usage: scripts/dds-security.sh OUTDIR [--participant KIND:NAME]... [options]
 #   KIND     daemon   palpated: reads requests and poses, writes everything else
-#            pliers   palpate-pliers, a haptic device: writes poses, reads models, feedback, events
+#            pliers   palpate-pliers, a haptic device: writes poses, reads models, feedback,
+#                     events and status (whether palpated is there)
 #            viewer   palpate-viewer: reads models, the surface stream, status and the tool topics
 #            client   palpate-client, batch or scripted clients: writes requests, reads its
 #                     replies, models, the surface stream and status
@@ -228,7 +229,7 @@ kind_rules() {
       subscribe palpate_request palpate_tool_pose ;;
     pliers)
       publish palpate_tool_pose
-      subscribe palpate_model palpate_tool_feedback palpate_tool_event ;;
+      subscribe palpate_model palpate_status palpate_tool_feedback palpate_tool_event ;;
     viewer)
       subscribe palpate_model palpate_surface palpate_status palpate_tool_pose palpate_tool_feedback \
         palpate_tool_event ;;

@@ -11,6 +11,12 @@
 namespace palpate::dds {
 
 dds_return_t check(dds_return_t status, std::string_view what) {
+  // DDS Security refused this participant an entity its own permissions do
+  // not grant: a configuration matter, not a system failure.
+  if (status == DDS_RETCODE_NOT_ALLOWED_BY_SECURITY)
+    throw InputError(std::string(what) + ": " + dds_strretcode(status) +
+                     "; this participant's DDS Security permissions do not allow it "
+                     "(docs/security.md)");
   if (status < 0) throw SystemError(std::string(what) + ": " + dds_strretcode(status));
   return status;
 }
@@ -58,9 +64,20 @@ Participant join_domain(std::uint32_t domain_id, const std::string& user_config)
   Participant p;
   p.config = resolve_domain_config(user_config);
   p.domain = acquire_domain(domain_id, p.config);
-  p.entity = Entity(check(dds_create_participant(domain_id, nullptr, nullptr),
-                          "creating the DDS participant"));
+  p.entity = Entity(create_participant(domain_id, p.config));
   return p;
+}
+
+dds_entity_t create_participant(std::uint32_t domain_id, const DomainConfig& config) {
+  const dds_entity_t participant = dds_create_participant(domain_id, nullptr, nullptr);
+  // With DDS Security, Cyclone refuses the participant when its own
+  // credentials do not hold (certificate, key, permissions, governance) and
+  // prints why on stderr just before.
+  if (participant < 0 && config.origin != "built-in loopback")
+    throw InputError("creating the DDS participant: " + std::string(dds_strretcode(participant)) +
+                     "; check the Cyclone DDS configuration (" + config.origin +
+                     ") and, with DDS Security, the files it names (docs/security.md)");
+  return check(participant, "creating the DDS participant");
 }
 
 dds_entity_t topic(dds_entity_t participant, const dds_topic_descriptor_t* type,

@@ -281,8 +281,7 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
     throw InputError(std::string(e.what()) + "; check the Cyclone DDS configuration (" +
                      dds_config.origin + ")");
   }
-  participant = dds::Entity(dds::check(dds_create_participant(config.domain_id, nullptr, nullptr),
-                                       "creating the DDS participant"));
+  participant = dds::Entity(dds::create_participant(config.domain_id, dds_config));
   auto topic = [this](const dds_topic_descriptor_t* type, const char* name) {
     return dds::topic(participant.get(), type, name);
   };

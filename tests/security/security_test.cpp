@@ -403,14 +403,16 @@ TEST_F(SecuredDaemonTest, ViewerCannotPublishPosesOrRequests) {
     try {
       ToolClient client({0, config("viewer"), false});
       r["tool_client"] = "created";
-    } catch (const SystemError& e) {
+    } catch (const InputError& e) {
       r["tool_client"] = e.what();
     }
   });
   const Report after = run([](Report& r) { read_counters(config("viewer"), r); });
   EXPECT_EQ(number(tried, "pose_writer"), DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) << dump(tried);
   EXPECT_EQ(number(tried, "request_topic"), DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) << dump(tried);
-  EXPECT_EQ(tried.at("tool_client"), "creating the tool pose writer: Not Allowed By Security")
+  EXPECT_EQ(tried.at("tool_client"),
+            "creating the tool pose writer: Not Allowed By Security; this participant's DDS "
+            "Security permissions do not allow it (docs/security.md)")
       << dump(tried);
   for (const char* counter : {"tool_poses", "tool_poses_refused", "requests_served"})
     EXPECT_EQ(number(after, counter), number(before, counter)) << counter;

@@ -42,7 +42,8 @@ class Entity {
 };
 
 /// Throws SystemError "<what>: <Cyclone's message>" when @p status is an
-/// error code (negative); returns it otherwise (handles are positive).
+/// error code (negative), InputError when it is DDS Security's "not allowed"
+/// (the participant's permissions); returns it otherwise (handles are positive).
 dds_return_t check(dds_return_t status, std::string_view what);
 
 /// Owns a dds_qos_t.
@@ -79,6 +80,12 @@ struct Participant {
   Entity entity;
   dds_entity_t get() const { return entity.get(); }
 };
+
+/// A participant of domain @p domain_id (acquired with @p config).
+/// @throws InputError when a configuration given by the user is the cause
+/// (with DDS Security: this participant's own certificate, key, permissions
+/// or governance), SystemError otherwise.
+dds_entity_t create_participant(std::uint32_t domain_id, const DomainConfig& config);
 
 /// Joins domain @p domain_id with the configuration resolve_domain_config()
 /// gives for @p user_config: what every client of palpated does first.
