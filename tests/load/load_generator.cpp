@@ -98,11 +98,21 @@ constexpr int kNoStart = 3;
 struct Settings {
   std::string palpated, config, model_file, gesture_file, work = "load-work", json;
   int stations = 4, viewers = 4;
+  bool shared_organ = false;  ///< every station on one model ("organ") instead of its own
   double seconds = 600, baseline_s = 30, warmup_s = 30, rate_hz = 1000, request_hz = 100;
   double request_timeout_s = 2, rss_tolerance_mb = 8, start_timeout_s = 60;
 };
 
-std::string station_model(int station) { return "station" + std::to_string(station); }
+/// The models palpated serves: one per station, or the shared organ.
+std::vector<std::string> model_ids(const Settings& s) {
+  if (s.shared_organ) return {"organ"};
+  std::vector<std::string> ids;
+  for (int k = 1; k <= s.stations; ++k) ids.push_back("station" + std::to_string(k));
+  return ids;
+}
+std::string station_model(const Settings& s, int station) {
+  return s.shared_organ ? "organ" : "station" + std::to_string(station);
+}
 std::string station_tool(int station, const std::string& gesture_tool) {
   return "s" + std::to_string(station) + "-" + gesture_tool;
 }
@@ -167,13 +177,48 @@ void write_json(const fs::path& file, const json& j) {
   if (!out) throw palpate::SystemError(file.string() + ": write failed");
 }
 
-/// A station: the gesture's tools on model stationK, at the haptic rate,
-/// from the start time for @p seconds.
+/// Where station @p station's gesture is anchored on a shared organ: the
+/// "auto" anchor for station 1 (the compliance vertex farthest from the
+/// attachment), then each next station at the compliance vertex farthest
+/// from the anchors before it among those at least half as far from the
+/// attachment as the first: spread over the free part of the organ.
+std::uint32_t shared_anchor(const palpate::SurfaceView& surface, int station) {
+  const int n = surface.compliance_vertex_count;
+  const auto drawn = static_cast<int>(surface.vertex_ids.size());
+  auto at = [&](int j) {
+    return Eigen::Vector3d(&surface.rest_positions_m[3 * static_cast<std::size_t>(j)]);
+  };
+  std::vector<double> from_fixed(static_cast<std::size_t>(n), 1e9);
+  for (int j = 0; j < n; ++j)
+    for (int f = n; f < drawn; ++f)
+      from_fixed[static_cast<std::size_t>(j)] =
+          std::min(from_fixed[static_cast<std::size_t>(j)], (at(j) - at(f)).norm());
+  std::vector<int> anchors{palpate::auto_anchor(surface).drawn_index};
+  const double reach = from_fixed[static_cast<std::size_t>(anchors[0])];
+  while (static_cast<int>(anchors.size()) < station) {
+    int best = anchors[0];
+    double best_distance = -1;
+    for (int j = 0; j < n; ++j) {
+      if (from_fixed[static_cast<std::size_t>(j)] < reach / 2) continue;
+      double nearest = 1e9;
+      for (const int a : anchors) nearest = std::min(nearest, (at(j) - at(a)).norm());
+      if (nearest > best_distance) {
+        best_distance = nearest;
+        best = j;
+      }
+    }
+    anchors.push_back(best);
+  }
+  return surface.vertex_ids[static_cast<std::size_t>(anchors.back())];
+}
+
+/// A station: the gesture's tools on its model, at the haptic rate, from
+/// the start time for @p seconds.
 int station_child(const Settings& s, int station, const std::string& role, double seconds,
                   const Rendezvous& rendezvous) {
   palpate::Gesture gesture = palpate::read_gesture_file(s.gesture_file);
   for (auto& t : gesture.tools) t.id = station_tool(station, t.id);
-  const std::string model_id = station_model(station);
+  const std::string model_id = station_model(s, station);
   palpate::ToolClient client(palpate::ToolClientOptions{});
   const auto timeout =
       std::chrono::milliseconds(static_cast<std::int64_t>(s.start_timeout_s * 1e3));
@@ -181,6 +226,7 @@ int station_child(const Settings& s, int station, const std::string& role, doubl
   if (!model) throw palpate::SystemError("no description of model " + model_id);
   const palpate::SurfaceView surface{model->compliance_vertex_count, model->vertex_ids,
                                      model->rest_positions_m, model->triangles};
+  if (s.shared_organ) gesture.anchor_vertex_id = shared_anchor(surface, station);
   const palpate::GesturePlayer player(gesture, palpate::place_gesture(gesture, surface));
   if (!client.wait_for_daemon(timeout)) throw palpate::SystemError("palpated reads no tool poses");
 
@@ -459,9 +505,10 @@ int requester_child(const Settings& s, const std::string& role, double seconds,
   constexpr int kPatches = 12;
   constexpr std::array<int, 4> kSizes{1, 3, 5, 10};
   std::vector<std::vector<std::vector<palpate::ConstraintSpec>>> patches;
-  for (int station = 1; station <= s.stations; ++station) {
-    const auto model = client.wait_for_model(station_model(station), timeout);
-    if (!model) throw palpate::SystemError("no description of model " + station_model(station));
+  const std::vector<std::string> models = model_ids(s);
+  for (const std::string& model_id : models) {
+    const auto model = client.wait_for_model(model_id, timeout);
+    if (!model) throw palpate::SystemError("no description of model " + model_id);
     const palpate::SurfaceView surface{model->compliance_vertex_count, model->vertex_ids,
                                        model->rest_positions_m, model->triangles};
     const int n = model->compliance_vertex_count;
@@ -508,8 +555,8 @@ int requester_child(const Settings& s, const std::string& role, double seconds,
     if (sent_at >= end) break;
     const auto& patch = patches[i % patches.size()][(i / patches.size()) % kPatches];
     const bool want_surface = i % 10 == 9;
-    const std::uint64_t id = client.send(station_model(static_cast<int>(i % patches.size()) + 1),
-                                         patch, want_surface, /*update_state=*/false);
+    const std::uint64_t id =
+        client.send(models[i % models.size()], patch, want_surface, /*update_state=*/false);
     ++sent;
     const auto reply = client.wait_reply(id, reply_timeout);
     if (!reply) {
@@ -859,12 +906,15 @@ void print_tool_row(const char* phase, const json& t) {
 void print_table(const json& s) {
   const json& set = s["settings"];
   std::printf(
-      "palpate load test, %s: %d stations, %d tools at %.0f Hz, %d viewers, requests at %.0f Hz, "
+      "palpate load test, %s: %d stations (%s), %d tools at %.0f Hz, %d viewers, requests at %.0f "
+      "Hz, "
       "%.0f s"
       " (baseline: station 1 alone, %.0f s)\n",
-      s["date"].get<std::string>().c_str(), set["stations"].get<int>(), set["tools"].get<int>(),
-      set["rate_hz"].get<double>(), set["viewers"].get<int>(), set["request_hz"].get<double>(),
-      set["seconds"].get<double>(), set["baseline_s"].get<double>());
+      s["date"].get<std::string>().c_str(), set["stations"].get<int>(),
+      set["shared_organ"].get<bool>() ? "all on one organ" : "each on its own organ",
+      set["tools"].get<int>(), set["rate_hz"].get<double>(), set["viewers"].get<int>(),
+      set["request_hz"].get<double>(), set["seconds"].get<double>(),
+      set["baseline_s"].get<double>());
   const json& m = s["machine"];
   std::printf("machine: %u CPUs, %s; load average before: %s\n\n", m["cpus"].get<unsigned>(),
               m["model"].get<std::string>().c_str(), m["load_average_before"].dump().c_str());
@@ -981,6 +1031,8 @@ int run(int argc, char** argv) {
   app.add_option("--stations", s.stations,
                  "simulators, each with its model and the gesture's tools")
       ->check(CLI::Range(1, 8));
+  app.add_flag("--shared-organ", s.shared_organ,
+               "every station's tools on one model (\"organ\") instead of one model per station");
   app.add_option("--viewers", s.viewers, "surface-stream readers")->check(CLI::Range(0, 16));
   app.add_option("--seconds", s.seconds, "length of the load phase")
       ->check(CLI::Range(1.0, 86400.0));
@@ -1013,8 +1065,8 @@ int run(int argc, char** argv) {
   const std::string started = utc_now();
 
   std::vector<std::string> daemon_args{"--config", s.config};
-  for (int k = 1; k <= s.stations; ++k)
-    daemon_args.insert(daemon_args.end(), {"--model", station_model(k) + "=" + s.model_file});
+  for (const std::string& id : model_ids(s))
+    daemon_args.insert(daemon_args.end(), {"--model", id + "=" + s.model_file});
   Daemon daemon(s.palpated, daemon_args, fs::path(s.work) / "palpated.log");
   auto fail_start = [&](const std::string& what) {
     std::fprintf(stderr, "palpate_load_generator: %s; palpated's log:\n%s\n", what.c_str(),
@@ -1097,6 +1149,7 @@ int run(int argc, char** argv) {
                         {"load_average_before", load_before},
                         {"load_average_after", load_average()}};
   summary["settings"] = {{"stations", s.stations},
+                         {"shared_organ", s.shared_organ},
                          {"tools", nullptr},
                          {"viewers", s.viewers},
                          {"seconds", s.seconds},
@@ -1202,15 +1255,16 @@ int run(int argc, char** argv) {
     json vj = json::parse(read_text(f));
     int models_seen = 0;
     std::uint64_t fewest = std::numeric_limits<std::uint64_t>::max();
-    for (int k = 1; k <= s.stations; ++k) {
-      const auto it = vj["models"].find(station_model(k));
+    const std::vector<std::string> models = model_ids(s);
+    for (const std::string& id : models) {
+      const auto it = vj["models"].find(id);
       const std::uint64_t n = it == vj["models"].end() ? 0 : (*it)["samples"].get<std::uint64_t>();
       models_seen += n > 0 ? 1 : 0;
       fewest = std::min(fewest, n);
     }
     check(vj["role"].get<std::string>() + " received every model's surface",
-          models_seen == s.stations,
-          std::to_string(models_seen) + " of " + std::to_string(s.stations) +
+          models_seen == static_cast<int>(models.size()),
+          std::to_string(models_seen) + " of " + std::to_string(models.size()) +
               " models, fewest samples " + std::to_string(fewest));
     check(vj["role"].get<std::string>() + " received heartbeats", vj["heartbeats"] > 0,
           std::to_string(vj["heartbeats"].get<std::uint64_t>()) + " heartbeats");
