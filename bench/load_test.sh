@@ -17,6 +17,8 @@
 #   BUILD_DIR  default build (palpated, and palpate_load_generator: built with
 #              the tests in tests/load/, or with the benchmarks in bench/)
 #   MODEL.h5   default out/sample-organ.h5 (scripts/demo.sh writes it)
+# PALPATE_LOAD_FLAGS adds flags to palpate_load_generator, e.g.
+# --shared-organ (every station's tools on one model: 8 tools per solve).
 # Output: the table on stdout; summary.json, table.txt, palpated.log and the
 # raw per-tick data in $PALPATE_LOAD_OUT (default BUILD_DIR/load-test).
 #
@@ -59,7 +61,7 @@ status=0
   --model-file "$model" --gesture "$here/../config/gestures/demo.toml" \
   --stations 4 --viewers 4 --request-hz 100 --seconds "$seconds" --baseline "$quarter" \
   --warmup "$quarter" --rss-tolerance-mb 8 --work "$out/work" --json "$out/summary.json" \
-  >"$out/table.txt" || status=$?
+  ${PALPATE_LOAD_FLAGS:-} >"$out/table.txt" || status=$?
 cat "$out/table.txt"
 cp "$out/work/palpated.log" "$out/palpated.log"
 echo "load_test: $(uptime)"

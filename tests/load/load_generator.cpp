@@ -8,12 +8,15 @@
 //
 // - N stations (default 4), each a simulator with its own organ (model
 //   stationK) and two haptic tools: a ToolClient playing a gesture file
-//   (default config/gestures/demo.toml: one hand presses and glides, the
-//   other grasps, pulls and releases) in a loop at 1 kHz, tools renamed
+//   (the scripts give config/gestures/demo.toml: one hand presses and
+//   glides, the other grasps, pulls and releases) in a loop at 1 kHz, renamed
 //   sK-<gesture tool id>. Each tick sends both poses (best effort) and waits
 //   for their feedback until the next tick, as palpate-pliers does
 //   (docs/pliers.md). Stations start their ticks a fraction of a period
 //   apart and their gestures at different phases: devices are not in step.
+//   With --shared-organ every station works on one model ("organ"), its
+//   gesture anchored at its own place (shared_anchor()): palpated then
+//   solves all 8 tools' contacts together at every pose, its worst case.
 // - V viewers (default 4) reading the surface stream of every model and the
 //   status heartbeat with the raw C API (as palpate-viewer's bridge does),
 //   counting samples and sequence gaps per model.
