@@ -334,7 +334,14 @@ RequestStatus ConstraintSolver::solve() {
 
   // u_C = G_CC f_C.
   const Eigen::Map<const Eigen::MatrixXd> G_CC(slot.G_CC.data(), n3, n3);
-  Eigen::Map<Eigen::VectorXd>(displacement_.data(), n3).noalias() = G_CC * f;
+  Eigen::Map<Eigen::VectorXd> u(displacement_.data(), n3);
+  u.noalias() = G_CC * f;
+  // Finite values can still overflow (a displacement of 1e300 m needs an
+  // infinite force): no reply carries an infinity or a NaN.
+  if (!f.allFinite() || !u.allFinite() || !total_force().allFinite())
+    return fail(RequestStatus::kNonFiniteValue,
+                "the solution overflows (a force or displacement is not finite): the values are "
+                "too large for this model; give displacements in metres and forces in newtons");
   solved_ = true;
   return RequestStatus::kOk;
 }
