@@ -69,6 +69,13 @@ MeshCheck validate_and_compact(TetMesh& mesh) {
                          mesh.source_ids[mesh.tetrahedra(t, 2)],
                          mesh.source_ids[mesh.tetrahedra(t, 3)]);
     };
+    // Coordinates so large that the volume overflows (NaN or infinity) would
+    // pass both tests below.
+    if (!std::isfinite(V) || !std::isfinite(degenerate))
+      throw InputError(fmt::format("{}: tetrahedron {} (vertices {}) is too large: its volume "
+                                   "overflows double precision; coordinates must be lengths "
+                                   "(check the mesh's unit)",
+                                   where, t, ids()));
     if (std::abs(V) <= degenerate)
       throw InputError(fmt::format("{}: tetrahedron {} (vertices {}) has zero volume ({:.3g} m³); "
                                    "every tetrahedron must have a positive volume",
