@@ -177,7 +177,9 @@ std::string to_toml(const PrecomputeJob& job) {
   auto absolute = [](const std::filesystem::path& p) {
     return p.empty() ? std::string() : std::filesystem::absolute(p).string();
   };
-  toml::table mesh{{"file", absolute(job.mesh_file)}, {"unit", job.mesh_unit}};
+  // An empty path is left out: `file = ""` would read back as the job's directory.
+  toml::table mesh{{"unit", job.mesh_unit}};
+  if (!job.mesh_file.empty()) mesh.insert("file", absolute(job.mesh_file));
   if (job.fill_size > 0) mesh.insert("fill_size", job.fill_size);
   toml::array groups;
   for (const auto& g : job.group_materials)
@@ -208,7 +210,8 @@ std::string to_toml(const PrecomputeJob& job) {
                       {"block_columns", job.block_columns},
                       {"tolerance", job.tolerance}};
   if (job.memory_limit_bytes > 0) compute.insert("memory_limit_gb", job.memory_limit_bytes / 1e9);
-  toml::table output{{"file", absolute(job.output)}, {"xdmf", job.write_xdmf}};
+  toml::table output{{"xdmf", job.write_xdmf}};
+  if (!job.output.empty()) output.insert("file", absolute(job.output));
   toml::table root{{"mesh", mesh}, {"material", material}, {"attachment", attachment},
                    {"compute", compute}, {"output", output}};
   std::ostringstream out;
