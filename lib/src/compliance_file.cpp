@@ -100,20 +100,38 @@ struct Reader {
     throw InputError(fmt::format("{}: {}: {}", file, where, what));
   }
 
+  // A group or a dangling link where a dataset belongs is a malformed file
+  // (an InputError), not a failure of HDF5.
+  Handle open(const char* name) const {
+    const hid_t id = H5Dopen2(root, name, H5P_DEFAULT);
+    if (id < 0) fail(name, "is not a dataset (a group, or a link to nothing)");
+    return Handle(id, H5Dclose, fmt::format("open {}", name));
+  }
+
   std::vector<hsize_t> dims(const char* name, int rank) const {
     if (H5Lexists(root, name, H5P_DEFAULT) <= 0)
       fail(name, "missing; a palpate compliance file has it (docs/compliance-file.md)");
-    Handle set(H5Dopen2(root, name, H5P_DEFAULT), H5Dclose, fmt::format("open {}", name));
+    Handle set = open(name);
     Handle space(H5Dget_space(set), H5Sclose, "get a dataspace");
     const int r = H5Sget_simple_extent_ndims(space);
     if (r != rank) fail(name, fmt::format("has rank {}, expected {}", r, rank));
     std::vector<hsize_t> d(static_cast<size_t>(rank));
     H5Sget_simple_extent_dims(space, d.data(), nullptr);
+    // palpate stores every value (contiguous, at least a byte each): a
+    // dataset declaring more values than it stores bytes is damaged or forged,
+    // and reading it would allocate memory for data that is not there.
+    hsize_t values = 1;
+    for (const hsize_t n : d)
+      if (__builtin_mul_overflow(values, n, &values)) values = ~hsize_t{0};
+    if (const hsize_t stored = H5Dget_storage_size(set); stored < values)
+      fail(name, fmt::format("declares {} values but stores {} bytes: damaged, or not written "
+                             "by palpate-precompute",
+                             fmt::join(d, " × "), stored));
     return d;
   }
 
   void read(const char* name, hid_t mem_type, void* out) const {
-    Handle set(H5Dopen2(root, name, H5P_DEFAULT), H5Dclose, fmt::format("open {}", name));
+    Handle set = open(name);
     if (H5Dread(set, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out) < 0)
       fail(name, "cannot be read (corrupt or of a wrong type)");
   }
@@ -146,12 +164,22 @@ struct Reader {
 
   Eigen::VectorXi ints(const char* name) { return vector<int>(name, H5T_NATIVE_INT); }
 
+  // Root attribute @p name, refused unless it holds one value: H5Aread
+  // writes as many values as it holds.
+  Handle single_value_attribute(const char* name) const {
+    Handle attr(H5Aopen(root, name, H5P_DEFAULT), H5Aclose, fmt::format("open attribute {}", name));
+    Handle space(H5Aget_space(attr), H5Sclose, "get a dataspace");
+    if (const hssize_t n = H5Sget_simple_extent_npoints(space); n != 1)
+      fail(fmt::format("attribute {}", name), fmt::format("holds {} values, expected one", n));
+    return attr;
+  }
+
   std::string string_attribute(const char* name, bool required = true) const {
     if (H5Aexists(root, name) <= 0) {
       if (required) fail(fmt::format("attribute {}", name), "missing");
       return {};
     }
-    Handle attr(H5Aopen(root, name, H5P_DEFAULT), H5Aclose, fmt::format("open attribute {}", name));
+    Handle attr = single_value_attribute(name);
     Handle type = string_type();
     char* data = nullptr;
     if (H5Aread(attr, type, &data) < 0) fail(fmt::format("attribute {}", name), "not a string");
@@ -163,7 +191,7 @@ struct Reader {
 
   int int_attribute(const char* name) const {
     if (H5Aexists(root, name) <= 0) fail(fmt::format("attribute {}", name), "missing");
-    Handle attr(H5Aopen(root, name, H5P_DEFAULT), H5Aclose, fmt::format("open attribute {}", name));
+    Handle attr = single_value_attribute(name);
     int value = 0;
     if (H5Aread(attr, H5T_NATIVE_INT, &value) < 0) fail(fmt::format("attribute {}", name), "not an integer");
     return value;
