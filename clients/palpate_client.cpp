@@ -3,14 +3,17 @@
 //   request   send one constraint request, print the reply
 //   demo      a scripted palpation at the haptic rate: press, pinch, slide, release
 //   status    print one status heartbeat
+//   watch     report palpated going and coming back (its heartbeat), until stopped
 
 #include <fmt/format.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <thread>
 #include <vector>
@@ -107,6 +110,29 @@ std::vector<std::array<double, 3>> vertex_normals(const palpate::ModelInfo& m) {
   return n;
 }
 
+std::atomic<bool> stop_requested{false};
+extern "C" void on_stop_signal(int) { stop_requested = true; }
+
+/// Prints a line when palpated goes or comes back (docs/faults.md).
+class PresenceReport {
+ public:
+  explicit PresenceReport(palpate::Client& client) : client_(client), last_(client.daemon_presence()) {}
+  /// Polls the heartbeat; prints a change; returns the presence now.
+  const palpate::DaemonPresence& update() {
+    const palpate::DaemonPresence now = client_.daemon_presence();
+    if (const auto line = palpate::describe_presence_change(last_, now)) {
+      std::printf("palpate-client: %s\n", line->c_str());
+      std::fflush(stdout);
+    }
+    last_ = now;
+    return last_;
+  }
+
+ private:
+  palpate::Client& client_;
+  palpate::DaemonPresence last_;
+};
+
 double percentile(std::vector<double> values, double q) {
   std::sort(values.begin(), values.end());
   return palpate::sorted_percentile(values, q);
@@ -114,7 +140,7 @@ double percentile(std::vector<double> values, double q) {
 
 /// Press the top of the organ, pinch a triangle, slide along the surface,
 /// release: the gestures of brief.md at the haptic rate, with the forces.
-int demo(palpate::Client& client, const std::string& model_id, double rate_hz) {
+int demo(palpate::Client& client, const std::string& model_id, double rate_hz, int repeat) {
   const palpate::ModelInfo m = connect(client, model_id);
   std::printf("model %s: %d compliance vertices, %zu triangles; %s\n", m.model_id.c_str(),
               m.compliance_vertex_count, m.triangles.size() / 3, m.material_summary.c_str());
@@ -140,81 +166,100 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz) {
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate_hz));
   auto next = Clock::now();
 
+  PresenceReport presence(client);
+  std::size_t resent = 0;
+  // A request without a reply within 1 s is sent again until one comes:
+  // palpated was killed, hung or restarted (requests in flight are lost; a
+  // restarted palpated answers this same client). The lines say when it
+  // goes and comes back.
   auto step = [&](const std::vector<ConstraintSpec>& constraints) {
     std::this_thread::sleep_until(next);
     next += period;
-    const auto sent = Clock::now();
-    const palpate::Reply reply = client.request(model_id, constraints);
-    round_trip_us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - sent).count());
-    if (reply.status != palpate::RequestStatus::kOk)
-      throw palpate::SystemError(fmt::format("request refused: {}: {}",
-                                             palpate::status_name(reply.status), reply.message));
-    return reply;
+    for (;;) {
+      const auto sent = Clock::now();
+      auto reply = client.wait_reply(client.send(model_id, constraints), 1s);
+      presence.update();
+      if (!reply) {
+        ++resent;
+        next = Clock::now() + period;  // the schedule resumes when it answers
+        continue;
+      }
+      round_trip_us.push_back(
+          std::chrono::duration<double, std::micro>(Clock::now() - sent).count());
+      if (reply->status != palpate::RequestStatus::kOk)
+        throw palpate::SystemError(fmt::format("request refused: {}: {}",
+                                               palpate::status_name(reply->status), reply->message));
+      return std::move(*reply);
+    }
   };
   auto norm = [](const std::array<double, 3>& v) { return std::hypot(v[0], v[1], v[2]); };
   const int steps = static_cast<int>(rate_hz);  // one second per gesture
 
-  std::printf("\npress: vertex %u at the top, pushed 0 → 5 mm into the organ over 1 s\n",
-              m.vertex_ids[top]);
-  for (int s = 1; s <= steps; ++s) {
-    const double depth = 0.005 * s / steps;
-    const auto reply = step({ConstraintSpec::displacement(
-        m.vertex_ids[top],
-        {-depth * normals[top][0], -depth * normals[top][1], -depth * normals[top][2]})});
-    if (s % (steps / 5) == 0)
-      std::printf("  depth %5.1f mm   reaction on the tool %7.3f N\n", depth * 1e3,
-                  norm(reply.total_force_n));
-  }
+  for (int pass = 0; pass < repeat && !stop_requested; ++pass) {
+    std::printf("\npress: vertex %u at the top, pushed 0 → 5 mm into the organ over 1 s\n",
+                m.vertex_ids[top]);
+    for (int s = 1; s <= steps; ++s) {
+      const double depth = 0.005 * s / steps;
+      const auto reply = step({ConstraintSpec::displacement(
+          m.vertex_ids[top],
+          {-depth * normals[top][0], -depth * normals[top][1], -depth * normals[top][2]})});
+      if (s % (steps / 5) == 0)
+        std::printf("  depth %5.1f mm   reaction on the tool %7.3f N\n", depth * 1e3,
+                    norm(reply.total_force_n));
+    }
 
-  std::printf("\npinch: vertices %u %u %u pulled out 5 mm together\n", m.vertex_ids[triangle[0]],
-              m.vertex_ids[triangle[std::min<std::size_t>(1, triangle.size() - 1)]],
-              m.vertex_ids[triangle.back()]);
-  for (int s = 1; s <= steps; ++s) {
-    const double lift = 0.005 * s / steps;
-    std::vector<ConstraintSpec> constraints;
-    for (int v : triangle)
-      constraints.push_back(ConstraintSpec::displacement(
-          m.vertex_ids[v],
-          {lift * normals[top][0], lift * normals[top][1], lift * normals[top][2]}));
-    const auto reply = step(constraints);
-    if (s % (steps / 5) == 0)
-      std::printf("  lift  %5.1f mm   pull on the tool %7.3f N\n", lift * 1e3,
-                  norm(reply.total_force_n));
-  }
+    std::printf("\npinch: vertices %u %u %u pulled out 5 mm together\n", m.vertex_ids[triangle[0]],
+                m.vertex_ids[triangle[std::min<std::size_t>(1, triangle.size() - 1)]],
+                m.vertex_ids[triangle.back()]);
+    for (int s = 1; s <= steps; ++s) {
+      const double lift = 0.005 * s / steps;
+      std::vector<ConstraintSpec> constraints;
+      for (int v : triangle)
+        constraints.push_back(ConstraintSpec::displacement(
+            m.vertex_ids[v],
+            {lift * normals[top][0], lift * normals[top][1], lift * normals[top][2]}));
+      const auto reply = step(constraints);
+      if (s % (steps / 5) == 0)
+        std::printf("  lift  %5.1f mm   pull on the tool %7.3f N\n", lift * 1e3,
+                    norm(reply.total_force_n));
+    }
 
-  // Slide: 4 mm normal indentation that moves from vertex to vertex along a path of neighbours.
-  std::printf(
-      "\nslide: 4 mm indentation gliding over the surface (normal imposed, tangential free)\n");
-  int at = top;
-  std::vector<int> visited{top};
-  for (int s = 1; s <= steps; ++s) {
-    if (s % (steps / 10) == 0) {
-      // Move to the unvisited free neighbour farthest along +x.
-      int best = -1;
-      for (std::size_t t = 0; t + 2 < m.triangles.size(); t += 3) {
-        const std::uint32_t* tri = &m.triangles[t];
-        if (std::find(tri, tri + 3, static_cast<std::uint32_t>(at)) == tri + 3) continue;
-        for (int c = 0; c < 3; ++c) {
-          const int v = static_cast<int>(tri[c]);
-          if (v < n && std::find(visited.begin(), visited.end(), v) == visited.end() &&
-              (best < 0 || p[3 * v] > p[3 * best]))
-            best = v;
+    // Slide: 4 mm normal indentation that moves from vertex to vertex along a path of neighbours.
+    std::printf(
+        "\nslide: 4 mm indentation gliding over the surface (normal imposed, tangential free)\n");
+    int at = top;
+    std::vector<int> visited{top};
+    for (int s = 1; s <= steps; ++s) {
+      if (s % (steps / 10) == 0) {
+        // Move to the unvisited free neighbour farthest along +x.
+        int best = -1;
+        for (std::size_t t = 0; t + 2 < m.triangles.size(); t += 3) {
+          const std::uint32_t* tri = &m.triangles[t];
+          if (std::find(tri, tri + 3, static_cast<std::uint32_t>(at)) == tri + 3) continue;
+          for (int c = 0; c < 3; ++c) {
+            const int v = static_cast<int>(tri[c]);
+            if (v < n && std::find(visited.begin(), visited.end(), v) == visited.end() &&
+                (best < 0 || p[3 * v] > p[3 * best]))
+              best = v;
+          }
+        }
+        if (best >= 0) {
+          at = best;
+          visited.push_back(at);
         }
       }
-      if (best >= 0) {
-        at = best;
-        visited.push_back(at);
-      }
+      const auto& nn = normals[at];
+      const auto reply = step({ConstraintSpec::normal_displacement(m.vertex_ids[at], nn, -0.004)});
+      if (s % (steps / 5) == 0)
+        std::printf("  at vertex %5u   normal force %7.3f N\n", m.vertex_ids[at],
+                    norm(reply.total_force_n));
     }
-    const auto& nn = normals[at];
-    const auto reply = step({ConstraintSpec::normal_displacement(m.vertex_ids[at], nn, -0.004)});
-    if (s % (steps / 5) == 0)
-      std::printf("  at vertex %5u   normal force %7.3f N\n", m.vertex_ids[at],
-                  norm(reply.total_force_n));
-  }
 
-  step({});
-  std::printf("\nrelease: no constraint, the organ is back at rest\n");
+    step({});
+    std::printf("\nrelease: no constraint, the organ is back at rest\n");
+  }
+  if (resent > 0)
+    std::printf("\n%zu requests sent again (no reply within 1 s: palpated was away)", resent);
   std::printf(
       "\n%zu requests at %.0f Hz; round trip seen by this client p50 %.0f µs, p99 %.0f µs, max "
       "%.0f µs\n",
@@ -261,6 +306,15 @@ int run(int argc, char** argv) {
   demo_command->add_option("--model", model_id, "model id");
   demo_command->add_option("--rate", rate_hz, "requests per second (default 1000)")
       ->check(CLI::Range(10.0, 20000.0));
+  int repeat = 1;
+  demo_command->add_option("--repeat", repeat, "play the palpation this many times (default 1)")
+      ->check(CLI::Range(1, 1000000));
+
+  auto* watch = app.add_subcommand(
+      "watch", "report palpated going and coming back (its status heartbeat) until SIGINT/SIGTERM");
+  double watch_seconds = 0;
+  watch->add_option("--seconds", watch_seconds, "stop after this many seconds (default: never)")
+      ->check(CLI::NonNegativeNumber);
 
   auto* status = app.add_subcommand("status", "print one status heartbeat");
   try {
@@ -301,7 +355,25 @@ int run(int argc, char** argv) {
                ? 0
                : static_cast<int>(palpate::ExitCode::kUsage);
   }
-  if (*demo_command) return demo(client, model_id, rate_hz);
+  if (*demo_command) return demo(client, model_id, rate_hz, repeat);
+  if (*watch) {
+    std::signal(SIGINT, on_stop_signal);
+    std::signal(SIGTERM, on_stop_signal);
+    PresenceReport presence(client);
+    bool seen = false;
+    const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                          std::chrono::duration<double>(watch_seconds));
+    while (!stop_requested && (watch_seconds == 0 || Clock::now() < until)) {
+      const auto& p = presence.update();
+      if (!seen && p.state == palpate::DaemonState::kPresent) {
+        seen = true;
+        std::printf("palpate-client: palpated present (up %.1f s)\n", p.uptime_s);
+        std::fflush(stdout);
+      }
+      std::this_thread::sleep_for(20ms);
+    }
+    return 0;
+  }
   const auto s = client.wait_status(10s);
   if (!s) throw palpate::SystemError("no status heartbeat within 10 s (is palpated running?)");
   std::printf(
@@ -320,6 +392,9 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Line by line into a file or a pipe too: a log of the demo or of `watch`
+  // shows each line as it happens (and keeps it if the client is killed).
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
   try {
     return run(argc, argv);
   } catch (...) {

@@ -86,6 +86,10 @@ struct TickRecord {
   double compute_us = kNaN;
   Eigen::Vector3d tip_m = Eigen::Vector3d::Zero();
   double jaw_rad = 0;
+  /// |ToolClient::force_to_render()| after this tick's wait: what a device
+  /// would render (zero while palpated is lost).
+  double rendered_n = 0;
+  palpate::DaemonState daemon = palpate::DaemonState::kUnknown;  ///< at that time
 };
 
 struct ToolRun {
@@ -131,6 +135,9 @@ struct ToolSummary {
   std::uint32_t max_contacts = 0;
   std::size_t force_limited = 0, watchdog = 0;
   std::array<std::size_t, 3> states{};  // ticks answered in each state
+  double max_rendered_n = 0;
+  std::size_t ticks_while_lost = 0;  // palpated lost (heartbeat silent)
+  double max_rendered_while_lost_n = 0;
 };
 
 ToolSummary summarize(const ToolRun& run, std::size_t first_counted, double budget_us) {
@@ -140,6 +147,11 @@ ToolSummary summarize(const ToolRun& run, std::size_t first_counted, double budg
     const TickRecord& r = run.ticks[i];
     ++s.ticks;
     lag.push_back(r.lag_us);
+    s.max_rendered_n = std::max(s.max_rendered_n, r.rendered_n);
+    if (r.daemon == palpate::DaemonState::kLost) {
+      ++s.ticks_while_lost;
+      s.max_rendered_while_lost_n = std::max(s.max_rendered_while_lost_n, r.rendered_n);
+    }
     s.newer += r.newer ? 1 : 0;
     s.duplicates += static_cast<std::size_t>(r.duplicates);
     if (r.outcome == Outcome::kMissing) {
@@ -162,6 +174,18 @@ ToolSummary summarize(const ToolRun& run, std::size_t first_counted, double budg
   s.compute = percentiles(std::move(compute));
   s.lag = percentiles(std::move(lag));
   return s;
+}
+
+const char* daemon_state_name(palpate::DaemonState state) {
+  switch (state) {
+    case palpate::DaemonState::kUnknown:
+      return "unknown";
+    case palpate::DaemonState::kPresent:
+      return "present";
+    case palpate::DaemonState::kLost:
+      return "lost";
+  }
+  return "?";
 }
 
 double share(std::size_t part, std::size_t whole) {
@@ -189,21 +213,21 @@ void write_csv(const std::string& path, const std::vector<ToolRun>& runs, std::s
   out << "tick,tool,counted,time_s,sequence,send_ms,lag_us,outcome,newer_sequence,duplicates,rtt_"
          "us,"
          "force_x_n,force_y_n,force_z_n,grip_n,contacts,state,force_limited,watchdog,compute_us,"
-         "tip_x_m,tip_y_m,tip_z_m,jaw_deg\n";
+         "tip_x_m,tip_y_m,tip_z_m,jaw_deg,rendered_n,daemon\n";
   for (std::size_t i = 0; !runs.empty() && i < runs.front().ticks.size(); ++i)
     for (const ToolRun& run : runs) {
       const TickRecord& r = run.ticks[i];
       out << fmt::format(
           "{},{},{},{:.4f},{},{:.4f},{:.1f},{},{},{},{:.1f},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},"
           "{:d},{:.2f},"
-          "{:.6f},{:.6f},{:.6f},{:.2f}\n",
+          "{:.6f},{:.6f},{:.6f},{:.2f},{:.6g},{}\n",
           i, run.id, i >= first_counted ? 1 : 0, r.time_s, r.sequence,
           static_cast<double>(r.send_ns - start_ns) * 1e-6, r.lag_us, outcome_name(r.outcome),
           r.newer ? std::to_string(r.newer_sequence) : "", r.duplicates, r.rtt_us, r.force_n[0],
           r.force_n[1], r.force_n[2], r.grip_n, r.contacts,
           r.outcome == Outcome::kMissing ? "" : palpate::tool_state_name(r.state), r.force_limited,
           r.watchdog, r.compute_us, r.tip_m.x(), r.tip_m.y(), r.tip_m.z(),
-          r.jaw_rad * 180 / std::numbers::pi);
+          r.jaw_rad * 180 / std::numbers::pi, r.rendered_n, daemon_state_name(r.daemon));
     }
   if (!out) throw palpate::SystemError(fmt::format("--csv {}: write failed", path));
 }
@@ -350,6 +374,8 @@ int run(int argc, char** argv) {
   };
   int event_lines = 0;
   constexpr int kMaxEventLines = 24;
+  // palpated going and coming back: one line each, however quiet (docs/faults.md).
+  palpate::DaemonPresence presence = client.daemon_presence();
   std::size_t played = 0;
   const auto start = Clock::now() + std::chrono::milliseconds(5);
   const std::int64_t start_ns =
@@ -388,6 +414,20 @@ int run(int argc, char** argv) {
       }
       collect_late(run, i);
     }
+    const palpate::DaemonPresence now_presence = client.daemon_presence();
+    if (const auto line = palpate::describe_presence_change(presence, now_presence)) {
+      std::printf("  %7.3f s  %s\n",
+                  static_cast<double>(palpate::ToolClient::now_ns() - start_ns) * 1e-9,
+                  line->c_str());
+      std::fflush(stdout);
+    }
+    presence = now_presence;
+    const std::int64_t render_ns = palpate::ToolClient::now_ns();
+    for (ToolRun& run : runs) {
+      const auto f = client.force_to_render(run.id, render_ns);
+      run.ticks[i].rendered_n = std::hypot(f[0], f[1], f[2]);
+      run.ticks[i].daemon = presence.state;
+    }
     for (const auto& e : client.take_events()) {
       const auto it = std::find_if(runs.begin(), runs.end(),
                                    [&](const ToolRun& r) { return r.id == e.tool_id; });
@@ -404,6 +444,7 @@ int run(int argc, char** argv) {
                     static_cast<unsigned long long>(e.pose_sequence - first_sequence + 1));
         if (event_lines == kMaxEventLines)
           std::printf("  … further events are only counted (summary)\n");
+        std::fflush(stdout);
       }
     }
   }
@@ -450,6 +491,9 @@ int run(int argc, char** argv) {
     }
     std::printf("    events: %s; palpated's compute p50 %.1f µs p99 %.1f µs\n",
                 events.empty() ? "none" : events.c_str(), s.compute.p50, s.compute.p99);
+    if (s.ticks_while_lost > 0)
+      std::printf("    while palpated was lost: %zu ticks, force rendered max %.3f N\n",
+                  s.ticks_while_lost, s.max_rendered_while_lost_n);
     tools_json.push_back(
         {{"id", run.id},
          {"anchor_vertex", player.anchor(run.gesture_index).vertex_id},
@@ -469,6 +513,9 @@ int run(int argc, char** argv) {
          {"states", {{"free", s.states[0]}, {"touching", s.states[1]}, {"grasping", s.states[2]}}},
          {"force_limited", s.force_limited},
          {"watchdog", s.watchdog},
+         {"max_rendered_force_n", s.max_rendered_n},
+         {"ticks_while_daemon_lost", s.ticks_while_lost},
+         {"max_rendered_force_while_daemon_lost_n", s.max_rendered_while_lost_n},
          {"events", events_json}});
   }
   if (client.foreign_feedback() > 0 || client.dropped_late_feedback() > 0 || other_sessions > 0)
@@ -478,6 +525,10 @@ int run(int argc, char** argv) {
         static_cast<unsigned long long>(client.foreign_feedback()),
         static_cast<unsigned long long>(other_sessions),
         static_cast<unsigned long long>(client.dropped_late_feedback()));
+  if (presence.losses > 0 || presence.restarts > 0)
+    std::printf("  palpated lost %llu time(s), restarted %llu time(s); now %s\n",
+                static_cast<unsigned long long>(presence.losses),
+                static_cast<unsigned long long>(presence.restarts), daemon_state_name(presence.state));
   if (!o.csv.empty()) write_csv(o.csv, runs, first_counted, start_ns);
   if (!o.json.empty()) {
     const nlohmann::json summary = {{"gesture", gesture.name},
@@ -494,6 +545,8 @@ int run(int argc, char** argv) {
                                     {"foreign_feedback", client.foreign_feedback()},
                                     {"other_session_feedback", other_sessions},
                                     {"dropped_late_feedback", client.dropped_late_feedback()},
+                                    {"daemon_losses", presence.losses},
+                                    {"daemon_restarts", presence.restarts},
                                     {"tools", tools_json}};
     std::ofstream out(o.json);
     out << summary.dump(2) << "\n";

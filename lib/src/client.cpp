@@ -34,6 +34,7 @@ struct Client::Impl {
   dds_entity_t request_writer = 0;
   detail::ModelDescriptions models;
   WaitableReader replies, surfaces, statuses;
+  detail::DaemonWatch watch;
   std::uint64_t next_request_id = 1;
   std::uint64_t foreign_replies = 0;
   palpate_ConstraintRequest request{};
@@ -67,9 +68,11 @@ Client::Client(const ClientOptions& options) : impl_(std::make_unique<Impl>()) {
   if (options.subscribe_surface)
     c.surfaces = WaitableReader(p, p, topic(&palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic),
                                 dds::surface_qos().get(), "creating the surface reader");
+  const dds_entity_t status_topic = topic(&palpate_DaemonStatus_desc, dds::kStatusTopic);
   if (options.subscribe_status)
-    c.statuses = WaitableReader(p, p, topic(&palpate_DaemonStatus_desc, dds::kStatusTopic),
-                                dds::status_qos().get(), "creating the status reader");
+    c.statuses = WaitableReader(p, p, status_topic, dds::status_qos().get(),
+                                "creating the status reader");
+  c.watch = detail::DaemonWatch(p, status_topic, options.daemon_timeout);
   std::strncpy(c.request.client_id, options.client_id.c_str(), sizeof c.request.client_id - 1);
 }
 
@@ -216,6 +219,21 @@ std::optional<StatusSample> Client::wait_status(std::chrono::milliseconds timeou
         return true;
       });
   return status;
+}
+
+DaemonPresence Client::daemon_presence() { return impl_->watch.poll(Clock::now()); }
+
+std::optional<std::string> describe_presence_change(const DaemonPresence& before,
+                                                    const DaemonPresence& now) {
+  if (now.state == DaemonState::kLost && before.state != DaemonState::kLost)
+    return fmt::format("palpated lost: no status heartbeat for {:.1f} s", now.silent_s);
+  const bool restarted = now.restarts > before.restarts;
+  if (now.state == DaemonState::kPresent && before.state == DaemonState::kLost)
+    return fmt::format("palpated is back (up {:.1f} s{})", now.uptime_s,
+                       restarted ? "; restarted" : "");
+  if (now.state == DaemonState::kPresent && restarted)
+    return fmt::format("palpated restarted (up {:.1f} s)", now.uptime_s);
+  return std::nullopt;
 }
 
 }  // namespace palpate

@@ -8,9 +8,11 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstring>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -143,6 +145,91 @@ class ModelDescriptions {
 
   WaitableReader reader_;
   std::map<std::string, ModelInfo> known_;
+};
+
+/// palpated's presence from its status heartbeat (DaemonPresence, docs/faults.md).
+/// poll() takes the heartbeats that came and allocates nothing. A heartbeat's
+/// time is when it arrived (the reader's listener stamps it), not when it was
+/// taken: a client that polls seldom does not take an old heartbeat for news.
+class DaemonWatch {
+ public:
+  DaemonWatch() = default;
+  /// A reader of @p status_topic (palpate_status) in @p participant.
+  DaemonWatch(dds_entity_t participant, dds_entity_t status_topic, std::chrono::milliseconds timeout)
+      : state_(std::make_unique<State>()) {
+    state_->timeout_s = std::chrono::duration<double>(timeout).count();
+    dds_listener_t* listener = dds_create_listener(state_.get());
+    dds_lset_data_available(listener, &DaemonWatch::on_heartbeat);
+    const dds_entity_t reader =
+        dds_create_reader(participant, status_topic, dds::status_qos().get(), listener);
+    dds_delete_listener(listener);
+    reader_ = dds::Entity(dds::check(reader, "creating the status reader"));
+  }
+
+  const DaemonPresence& poll(ClientClock::time_point now) {
+    State& s = *state_;
+    void* samples[4] = {};
+    dds_sample_info_t infos[4];
+    for (;;) {
+      const dds_return_t n = dds_take(reader_.get(), samples, infos, 4, 4);
+      if (n <= 0) break;
+      for (dds_return_t i = 0; i < n; ++i)
+        if (infos[i].valid_data) heard(*static_cast<const palpate_DaemonStatus*>(samples[i]));
+      dds_return_loan(reader_.get(), samples, n);
+      if (n < 4) break;
+    }
+    DaemonPresence& p = s.presence;
+    p.heartbeat_period_s = static_cast<double>(s.period_ns) * 1e-9;
+    p.timeout_s = s.timeout_s > 0 ? s.timeout_s
+                                  : 3 * (s.period_ns > 0 ? p.heartbeat_period_s : 1.0) + 1.0;
+    if (s.heard_any) {
+      const auto arrived = ClientClock::time_point(ClientClock::duration(s.last_arrival.load()));
+      p.silent_s = std::max(0.0, std::chrono::duration<double>(now - arrived).count());
+      const DaemonState state = p.silent_s > p.timeout_s ? DaemonState::kLost : DaemonState::kPresent;
+      if (p.state == DaemonState::kPresent && state == DaemonState::kLost) ++p.losses;
+      p.state = state;
+    }
+    return p;
+  }
+
+ private:
+  struct State {
+    double timeout_s = 0;  // 0: automatic
+    std::atomic<ClientClock::rep> last_arrival{0};  // steady clock, by the listener
+    bool heard_any = false;
+    char daemon_id[64] = {};
+    std::uint64_t last_uptime_ns = 0, period_ns = 0;
+    DaemonPresence presence;
+  };
+
+  static void on_heartbeat(dds_entity_t, void* arg) {
+    static_cast<State*>(arg)->last_arrival.store(ClientClock::now().time_since_epoch().count());
+  }
+
+  void heard(const palpate_DaemonStatus& status) {
+    State& s = *state_;
+    const bool same = s.heard_any && std::strncmp(status.daemon_id, s.daemon_id, sizeof s.daemon_id) == 0;
+    if (!same) {
+      std::memcpy(s.daemon_id, status.daemon_id, sizeof s.daemon_id);
+      s.period_ns = 0;
+    } else if (status.uptime_ns < s.last_uptime_ns) {
+      ++s.presence.restarts;  // a new process: its uptime starts again
+      s.period_ns = 0;
+    } else if (status.uptime_ns > s.last_uptime_ns) {
+      // Consecutive heartbeats of one process: its period (the smallest gap:
+      // a keep-last-1 reader polled seldom skips some).
+      const std::uint64_t gap = status.uptime_ns - s.last_uptime_ns;
+      s.period_ns = s.period_ns == 0 ? gap : std::min(s.period_ns, gap);
+    }
+    s.last_uptime_ns = status.uptime_ns;
+    s.presence.uptime_s = static_cast<double>(status.uptime_ns) * 1e-9;
+    if (!s.heard_any || s.last_arrival.load() == 0)
+      s.last_arrival.store(ClientClock::now().time_since_epoch().count());
+    s.heard_any = true;
+  }
+
+  std::unique_ptr<State> state_;  // its address is the listener's argument
+  dds::Entity reader_;            // declared after state_: deleted first
 };
 
 }  // namespace palpate::detail

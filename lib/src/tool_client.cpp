@@ -53,6 +53,19 @@ struct ToolSlot {
   std::uint64_t done = 0;
   Ring<ToolFeedbackSample, 16> pending;  // taken while waiting for another tool
   Ring<ToolFeedbackSample, 64> late;
+  // The newest feedback taken (highest sequence), for force_to_render().
+  bool has_feedback = false;
+  std::uint64_t newest_sequence = 0;
+  std::int64_t newest_receive_ns = 0;
+  std::array<double, 3> newest_force_n{};
+
+  void saw(const ToolFeedbackSample& s) {
+    if (has_feedback && s.sequence < newest_sequence) return;
+    has_feedback = true;
+    newest_sequence = s.sequence;
+    newest_receive_ns = s.receive_time_ns;
+    newest_force_n = s.force_n;
+  }
 
   bool is(std::string_view tool_id) const {
     return id_length == tool_id.size() && std::memcmp(id, tool_id.data(), id_length) == 0;
@@ -88,6 +101,7 @@ struct ToolClient::Impl {
   detail::ModelDescriptions models;
   dds_entity_t pose_writer = 0;
   WaitableReader feedback, events;
+  detail::DaemonWatch watch;
   palpate_ToolPose pose{};
   std::array<ToolSlot, kMaxTools> tools;
   int tool_count = 0;
@@ -123,6 +137,8 @@ ToolClient::ToolClient(const ToolClientOptions& options) : impl_(std::make_uniqu
   c.feedback.busy_wait = options.busy_wait;
   c.events = WaitableReader(p, p, topic(&palpate_ToolEvent_desc, dds::kToolEventTopic),
                             dds::tool_event_qos().get(), "creating the tool event reader");
+  c.watch = detail::DaemonWatch(p, topic(&palpate_DaemonStatus_desc, dds::kStatusTopic),
+                                options.daemon_timeout);
 }
 
 ToolClient::~ToolClient() = default;
@@ -220,6 +236,7 @@ std::optional<ToolFeedbackSample> ToolClient::wait_feedback(
         return false;
       }
       const ToolFeedbackSample s = from_idl(f, received);
+      owner->saw(s);
       if (owner == slot) return consider(s);
       if (s.sequence <= owner->done)
         c.keep_late(*owner, s);
@@ -262,6 +279,23 @@ std::vector<ToolEventSample> ToolClient::take_events() {
     return false;
   });
   return events;
+}
+
+DaemonPresence ToolClient::daemon_presence() { return impl_->watch.poll(Clock::now()); }
+
+std::array<double, 3> ToolClient::force_to_render(std::string_view tool_id, std::int64_t now_ns) {
+  Impl& c = *impl_;
+  const ToolSlot* const slot = c.find(tool_id);
+  if (slot == nullptr || !slot->has_feedback ||
+      c.watch.poll(Clock::now()).state == DaemonState::kLost)
+    return {0, 0, 0};
+  const double age_s = static_cast<double>(now_ns - slot->newest_receive_ns) * 1e-9;
+  const double hold_s = std::chrono::duration<double>(c.options.feedback_timeout).count();
+  const double ramp_s = std::chrono::duration<double>(c.options.feedback_ramp).count();
+  const double scale =
+      age_s <= hold_s ? 1.0 : (ramp_s > 0 ? std::clamp(1 - (age_s - hold_s) / ramp_s, 0.0, 1.0) : 0.0);
+  return {scale * slot->newest_force_n[0], scale * slot->newest_force_n[1],
+          scale * slot->newest_force_n[2]};
 }
 
 }  // namespace palpate

@@ -28,7 +28,36 @@ struct ClientOptions {
   /// sleeping on a waitset: saves the wake-up of the waiting thread, costs
   /// its core while waiting. What a 1 kHz haptic loop does anyway.
   bool busy_wait = false;
+  /// Silence of palpated's status heartbeat after which daemon_presence()
+  /// says it is lost; 0: 3 heartbeat periods (as measured) + 1 s, i.e.
+  /// 4 s at the default 1 Hz (docs/faults.md).
+  std::chrono::milliseconds daemon_timeout{0};
 };
+
+/// What a client knows of palpated from its status heartbeat (palpate_status,
+/// docs/dds.md): whether it is there, and whether it was restarted.
+enum class DaemonState : std::uint8_t {
+  kUnknown,  ///< no heartbeat yet
+  kPresent,  ///< a heartbeat within the timeout
+  kLost,     ///< silent for longer than the timeout: killed, hung, or unreachable
+};
+
+struct DaemonPresence {
+  DaemonState state = DaemonState::kUnknown;
+  std::uint64_t losses = 0;       ///< times it went from present to lost
+  std::uint64_t restarts = 0;     ///< heartbeats whose uptime went back: a new palpated process
+  double silent_s = 0;            ///< since the last heartbeat (0 before the first)
+  double uptime_s = 0;            ///< palpated's uptime in the last heartbeat
+  double heartbeat_period_s = 0;  ///< measured (0 until two heartbeats came)
+  double timeout_s = 0;           ///< the silence that means lost, now
+};
+
+/// One line saying what changed from @p before to @p now ("palpated lost: no
+/// status heartbeat for 3.6 s", "palpated is back (up 0.4 s; restarted)",
+/// "palpated restarted (up 0.2 s)"), or std::nullopt if nothing did. For
+/// clients to report the daemon going and coming back.
+std::optional<std::string> describe_presence_change(const DaemonPresence& before,
+                                                    const DaemonPresence& now);
 
 /// A model as ModelDescription gives it.
 struct ModelInfo {
@@ -137,6 +166,12 @@ class Client {
                                             std::chrono::milliseconds timeout);
   /// The next status heartbeat. Needs subscribe_status.
   std::optional<StatusSample> wait_status(std::chrono::milliseconds timeout);
+
+  /// palpated's presence now, from the heartbeats taken so far (takes those
+  /// that came; does not wait). While it is lost, requests get no reply
+  /// (request() times out): send them again once it is back; a restarted
+  /// palpated answers this same client (docs/faults.md).
+  DaemonPresence daemon_presence();
 
  private:
   struct Impl;

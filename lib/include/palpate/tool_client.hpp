@@ -39,6 +39,14 @@ struct ToolClientOptions {
   /// sleeping on a waitset: saves the wake-up of the waiting thread, costs
   /// its core while waiting (as ClientOptions::busy_wait).
   bool busy_wait = false;
+  /// As ClientOptions::daemon_timeout: heartbeat silence after which
+  /// daemon_presence() says palpated is lost (0: 3 periods + 1 s).
+  std::chrono::milliseconds daemon_timeout{0};
+  /// force_to_render(): a tool's last feedback is rendered for this long
+  /// after it came, then ramped to zero over feedback_ramp, as palpated's
+  /// watchdog does when poses stop (docs/tools.md; its defaults).
+  std::chrono::milliseconds feedback_timeout{50};
+  std::chrono::milliseconds feedback_ramp{250};
 };
 
 /// One ToolFeedback sample as this client took it.
@@ -131,6 +139,22 @@ class ToolClient {
   /// Every tool event received since the last call (any tool, this client's
   /// or not), in arrival order. Allocates only when there are events.
   std::vector<ToolEventSample> take_events();
+
+  /// palpated's presence from its status heartbeat (Client::daemon_presence()).
+  /// While it is lost, poses get no feedback; once it is back (the same
+  /// process after a hang, or a restarted one) the next poses are answered:
+  /// nothing to do but keep sending (docs/faults.md).
+  DaemonPresence daemon_presence();
+
+  /// The force the device should render now for tool @p tool_id (N, model
+  /// frame): the latest feedback's force while it is fresh (at most
+  /// feedback_timeout old); then that force ramped linearly to zero over
+  /// feedback_ramp; zero before any feedback and while palpated is lost
+  /// (daemon_presence()). A device renders this rather than the feedback's
+  /// force, so that a daemon that dies, hangs or becomes unreachable leaves
+  /// the hand with no force within feedback_timeout + feedback_ramp, not with
+  /// the last force held. @p now_ns: now_ns(). Allocates nothing.
+  std::array<double, 3> force_to_render(std::string_view tool_id, std::int64_t now_ns);
 
  private:
   struct Impl;
