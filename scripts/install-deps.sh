@@ -22,6 +22,9 @@ packages=(
   python3 python3-h5py python3-numpy
   # DDS middleware and its tools (ddsperf), network namespaces
   cyclonedds-dev cyclonedds-tools iproute2 util-linux
+  # DDS Security: Cyclone's plugins (libddsc0debian, with cyclonedds-dev) and
+  # the openssl program scripts/dds-security.sh makes certificates with
+  libddsc0debian openssl
   # the browser viewer: Boost.Beast (HTTP/WebSocket bridge), Node.js and npm
   # for three.js, Chromium for its end-to-end test and the demo's screenshots
   libboost-dev nodejs chromium
