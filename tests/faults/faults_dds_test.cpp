@@ -406,28 +406,45 @@ TEST(Faults, ClientsSeeTheDaemonGoAndComeBackAndResumeWithoutRestarting) {
   const auto killed = Clock::now();
   // Each client notices (heartbeat silent for 3 × 0.1 s + 1 s).
   const auto noticed_by = killed + kLiveness;
+  // Sequential waits: each time is an upper bound of when that client said it.
+  double noticed_s[4] = {};
   EXPECT_TRUE(pliers.wait_for_output("palpated lost: no status heartbeat", noticed_by))
       << pliers.output();
+  noticed_s[0] = seconds(Clock::now() - killed);
   EXPECT_TRUE(watch.wait_for_output("palpated lost: no status heartbeat", noticed_by))
       << watch.output();
-  EXPECT_TRUE(demo.wait_for_output("palpated lost: no status heartbeat", noticed_by))
-      << demo.output();
+  noticed_s[1] = seconds(Clock::now() - killed);
   while (!state_after(killed, DaemonState::kLost) && Clock::now() < noticed_by)
     std::this_thread::sleep_for(10ms);
   EXPECT_TRUE(state_after(killed, DaemonState::kLost));
+  noticed_s[2] = seconds(Clock::now() - killed);
+  EXPECT_TRUE(demo.wait_for_output("palpated lost: no status heartbeat", noticed_by))
+      << demo.output();
+  noticed_s[3] = seconds(Clock::now() - killed);
+  std::printf("loss reported after the kill by: pliers %.2f s, watch %.2f s, in-process client "
+              "%.2f s, demo %.2f s (at most)\n",
+              noticed_s[0], noticed_s[1], noticed_s[2], noticed_s[3]);
   std::printf("%s", watch.output().c_str());
 
   // A new palpated, same configuration: the same client processes resume.
   daemon = std::make_unique<Daemon>(args, dir / "palpated-2.log");
   const auto restarted = Clock::now();
   const auto resumed_by = restarted + 2 * kLiveness;
+  double back_s[4] = {};
   EXPECT_TRUE(pliers.wait_for_output("palpated is back", resumed_by)) << pliers.output();
+  back_s[0] = seconds(Clock::now() - restarted);
   EXPECT_TRUE(watch.wait_for_output("palpated is back", resumed_by)) << watch.output();
-  EXPECT_TRUE(demo.wait_for_output("palpated is back", resumed_by)) << demo.output();
+  back_s[1] = seconds(Clock::now() - restarted);
   while (answered_after(restarted) == 0 && Clock::now() < resumed_by)
     std::this_thread::sleep_for(10ms);
   ASSERT_GT(answered_after(restarted), 0) << "the request client got replies again\n"
                                           << daemon->log();
+  back_s[2] = seconds(Clock::now() - restarted);
+  EXPECT_TRUE(demo.wait_for_output("palpated is back", resumed_by)) << demo.output();
+  back_s[3] = seconds(Clock::now() - restarted);
+  std::printf("back after the restart (palpated's start included) for: pliers %.2f s, watch "
+              "%.2f s, in-process client's first reply %.2f s, demo %.2f s (at most)\n",
+              back_s[0], back_s[1], back_s[2], back_s[3]);
   std::this_thread::sleep_for(700ms);  // feedback flows for a while
   asking = false;
   asker.join();
