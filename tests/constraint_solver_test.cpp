@@ -270,6 +270,23 @@ TEST_F(ConstraintSolverTest, EveryBadRequestGetsItsStatusAndMessage) {
   }
 }
 
+TEST_F(ConstraintSolverTest, RefusesASolutionThatOverflows) {
+  // Finite values so large that a force or the total force is infinite
+  // (found by fuzz_request): refused, never an ok reply carrying inf or NaN.
+  ConstraintSolver solver(model(), {.max_constraints = 4, .cache_slots = 2, .max_condition = 1e12});
+  const std::vector<std::vector<Request>> cases{
+      {{vertex(1), ConstraintKind::kDisplacement, {1e308, 0, 0}}},
+      {{vertex(1), ConstraintKind::kForce, {1.5e308, 0, 0}},
+       {vertex(2), ConstraintKind::kForce, {1.5e308, 0, 0}}}};
+  for (const auto& requests : cases) {
+    EXPECT_EQ(run(solver, requests), RequestStatus::kNonFiniteValue);
+    EXPECT_NE(std::string(solver.message()).find("overflows"), std::string::npos)
+        << solver.message();
+    ASSERT_EQ(run(solver, {{vertex(1), ConstraintKind::kDisplacement, {0, 0, -0.001}}}),
+              RequestStatus::kOk);
+  }
+}
+
 TEST_F(ConstraintSolverTest, RefusesSystemsAboveTheConditionLimit) {
   // Two neighbouring vertices with full imposed displacements give a system
   // whose condition is well above 1; a limit of 2 refuses it and says why.

@@ -123,6 +123,13 @@ TEST(Validation, RejectsEachKindOfBadMeshWithItsLocation) {
     m.source_ids.resize(0);
     expect_input_error([&] { validate_and_compact(m); }, {"tetrahedron 0", "zero volume"});
   }
+  {
+    // Finite coordinates whose volume overflows (NaN) passed both volume
+    // tests before (found by fuzz_tet_mesh).
+    TetMesh m = good;
+    m.vertices *= 1e200;
+    expect_input_error([&] { validate_and_compact(m); }, {"tetrahedron 0", "overflows"});
+  }
 }
 
 TEST(Boundary, RejectsNonManifoldMeshes) {

@@ -62,6 +62,16 @@ TEST(Precompute, WritesAFileThatReadsBackWithTheContract) {
   EXPECT_LE(max_relative_difference(G, G32), 1e-6);
 }
 
+TEST(Precompute, JobWithoutPathsRoundTripsThroughToml) {
+  // No `file = ""` for a missing mesh or output: it would read back as the
+  // job file's directory (found by fuzz_job).
+  TempDir dir;
+  std::ofstream(dir / "job.toml") << to_toml(PrecomputeJob{});
+  const PrecomputeJob back = read_job_file(dir / "job.toml");
+  EXPECT_TRUE(back.mesh_file.empty()) << back.mesh_file;
+  EXPECT_TRUE(back.output.empty()) << back.output;
+}
+
 TEST(Precompute, JobFileRoundTripsThroughToml) {
   TempDir dir;
   PrecomputeJob job = box_job(dir);
