@@ -68,8 +68,10 @@ case $protection in
 esac
 command -v openssl >/dev/null || fail "openssl is missing (Debian package openssl; scripts/install-deps.sh)"
 
-# Cyclone DDS finds its plugins by file path: Debian installs them outside
-# the library search path (libddsc's RUNPATH does not name their directory).
+# Debian installs Cyclone's plugins outside the library search path, in a
+# directory its libddsc searches by itself for a plugin given by name
+# ("dds_security_auth" → <that directory>/libdds_security_auth.so): the
+# configurations name them so, valid on any Debian architecture.
 plugin_dir=
 for d in /usr/lib/*/libddsc0debian /usr/lib/libddsc0debian; do
   [ -f "$d/libdds_security_auth.so" ] && plugin_dir=$d && break
@@ -283,19 +285,19 @@ cyclone_xml() {  # KIND NAME
     </Discovery>
     <Security>
       <Authentication>
-        <Library path="$plugin_dir/libdds_security_auth.so" initFunction="init_authentication" finalizeFunction="finalize_authentication"/>
+        <Library path="dds_security_auth" initFunction="init_authentication" finalizeFunction="finalize_authentication"/>
         <IdentityCA>file:$ca_cert</IdentityCA>
         <IdentityCertificate>file:$dir/$2.pem</IdentityCertificate>
         <PrivateKey>file:$dir/$2.key</PrivateKey>
       </Authentication>
       <AccessControl>
-        <Library path="$plugin_dir/libdds_security_ac.so" initFunction="init_access_control" finalizeFunction="finalize_access_control"/>
+        <Library path="dds_security_ac" initFunction="init_access_control" finalizeFunction="finalize_access_control"/>
         <PermissionsCA>file:$ca_cert</PermissionsCA>
         <Governance>file:$outdir/governance.p7s</Governance>
         <Permissions>file:$dir/permissions.p7s</Permissions>
       </AccessControl>
       <Cryptographic>
-        <Library path="$plugin_dir/libdds_security_crypto.so" initFunction="init_crypto" finalizeFunction="finalize_crypto"/>
+        <Library path="dds_security_crypto" initFunction="init_crypto" finalizeFunction="finalize_crypto"/>
       </Cryptographic>
     </Security>
   </Domain>
