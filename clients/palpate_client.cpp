@@ -116,7 +116,8 @@ extern "C" void on_stop_signal(int) { stop_requested = true; }
 /// Prints a line when palpated goes or comes back (docs/faults.md).
 class PresenceReport {
  public:
-  explicit PresenceReport(palpate::Client& client) : client_(client), last_(client.daemon_presence()) {}
+  explicit PresenceReport(palpate::Client& client)
+      : client_(client), last_(client.daemon_presence()) {}
   /// Polls the heartbeat; prints a change; returns the presence now.
   const palpate::DaemonPresence& update() {
     const palpate::DaemonPresence now = client_.daemon_presence();
@@ -187,8 +188,8 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz, i
       round_trip_us.push_back(
           std::chrono::duration<double, std::micro>(Clock::now() - sent).count());
       if (reply->status != palpate::RequestStatus::kOk)
-        throw palpate::SystemError(fmt::format("request refused: {}: {}",
-                                               palpate::status_name(reply->status), reply->message));
+        throw palpate::SystemError(fmt::format(
+            "request refused: {}: {}", palpate::status_name(reply->status), reply->message));
       return std::move(*reply);
     }
   };

@@ -528,7 +528,8 @@ int run(int argc, char** argv) {
   if (presence.losses > 0 || presence.restarts > 0)
     std::printf("  palpated lost %llu time(s), restarted %llu time(s); now %s\n",
                 static_cast<unsigned long long>(presence.losses),
-                static_cast<unsigned long long>(presence.restarts), daemon_state_name(presence.state));
+                static_cast<unsigned long long>(presence.restarts),
+                daemon_state_name(presence.state));
   if (!o.csv.empty()) write_csv(o.csv, runs, first_counted, start_ns);
   if (!o.json.empty()) {
     const nlohmann::json summary = {{"gesture", gesture.name},

@@ -2,10 +2,10 @@
 // compliance file (HDF5). Argument parsing and wiring only; the work is in
 // the palpate library (precompute.hpp).
 
-#include <CLI/CLI.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <CLI/CLI.hpp>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -103,8 +103,9 @@ int run(int argc, char** argv) {
   app.add_option("--save-job", save_job, "write the effective job as TOML (to reproduce the run)");
   app.add_flag("--json", json_out, "print the report as JSON on stdout");
   app.add_flag("-q,--quiet", quiet, "no progress or report text on stderr");
-  app.add_flag("--phases", phases,
-               "print a line on stderr as each phase starts (for logs; a terminal shows progress bars)");
+  app.add_flag(
+      "--phases", phases,
+      "print a line on stderr as each phase starts (for logs; a terminal shows progress bars)");
 
   app.fallthrough();  // -q and friends also after the subcommand
   auto* sample = app.add_subcommand("make-sample", "write palpate's sample organ (Gmsh .msh, metres)");
@@ -174,8 +175,8 @@ int run(int argc, char** argv) {
   // no handler could remove them; docs/compliance-file.md, "Atomic writing").
   for (const auto& target : {job.output, palpate::xdmf_sidecar_path(job.output)})
     for (const auto& stale : palpate::remove_stale_temporaries(target))
-      log->warn("removed {}, left by an interrupted run (process {} is gone)",
-                stale.path.string(), stale.pid);
+      log->warn("removed {}, left by an interrupted run (process {} is gone)", stale.path.string(),
+                stale.pid);
 
   palpate::PrecomputeHooks hooks;
   hooks.warn = [&](const std::string& s) { log->warn("{}", s); };
@@ -191,8 +192,9 @@ int run(int argc, char** argv) {
     stop_point.at_phase(s);
   };
   hooks.progress = [&](const std::string& label) -> palpate::ProgressFn {
-    return stop_point.progress(label, bars ? palpate::ProgressFn(palpate::precompute::ProgressBar(label))
-                                           : palpate::ProgressFn{});
+    return stop_point.progress(label,
+                               bars ? palpate::ProgressFn(palpate::precompute::ProgressBar(label))
+                                    : palpate::ProgressFn{});
   };
   palpate::install_interrupt_cleanup();
   const auto report = palpate::run_precompute(job, hooks);

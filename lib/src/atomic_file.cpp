@@ -1,6 +1,7 @@
 #include "palpate/atomic_file.hpp"
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -8,7 +9,6 @@
 #include <charconv>
 #include <csignal>
 #include <cstring>
-#include <fmt/format.h>
 
 #include "palpate/error.hpp"
 
@@ -82,7 +82,8 @@ void durable_rename(const std::filesystem::path& from, const std::filesystem::pa
 std::vector<StaleTemporary> remove_stale_temporaries(const std::filesystem::path& final_path) {
   std::vector<StaleTemporary> removed;
   if (final_path.filename().empty()) return removed;
-  const auto dir = final_path.has_parent_path() ? final_path.parent_path() : std::filesystem::path(".");
+  const auto dir =
+      final_path.has_parent_path() ? final_path.parent_path() : std::filesystem::path(".");
   const std::string prefix = fmt::format(".{}.tmp-", final_path.filename().string());
   std::error_code ec;
   for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {

@@ -70,8 +70,8 @@ Client::Client(const ClientOptions& options) : impl_(std::make_unique<Impl>()) {
                                 dds::surface_qos().get(), "creating the surface reader");
   const dds_entity_t status_topic = topic(&palpate_DaemonStatus_desc, dds::kStatusTopic);
   if (options.subscribe_status)
-    c.statuses = WaitableReader(p, p, status_topic, dds::status_qos().get(),
-                                "creating the status reader");
+    c.statuses =
+        WaitableReader(p, p, status_topic, dds::status_qos().get(), "creating the status reader");
   c.watch = detail::DaemonWatch(p, status_topic, options.daemon_timeout);
   std::strncpy(c.request.client_id, options.client_id.c_str(), sizeof c.request.client_id - 1);
 }

@@ -155,7 +155,8 @@ class DaemonWatch {
  public:
   DaemonWatch() = default;
   /// A reader of @p status_topic (palpate_status) in @p participant.
-  DaemonWatch(dds_entity_t participant, dds_entity_t status_topic, std::chrono::milliseconds timeout)
+  DaemonWatch(dds_entity_t participant, dds_entity_t status_topic,
+              std::chrono::milliseconds timeout)
       : state_(std::make_unique<State>()) {
     state_->timeout_s = std::chrono::duration<double>(timeout).count();
     dds_listener_t* listener = dds_create_listener(state_.get());
@@ -180,12 +181,13 @@ class DaemonWatch {
     }
     DaemonPresence& p = s.presence;
     p.heartbeat_period_s = static_cast<double>(s.period_ns) * 1e-9;
-    p.timeout_s = s.timeout_s > 0 ? s.timeout_s
-                                  : 3 * (s.period_ns > 0 ? p.heartbeat_period_s : 1.0) + 1.0;
+    p.timeout_s =
+        s.timeout_s > 0 ? s.timeout_s : 3 * (s.period_ns > 0 ? p.heartbeat_period_s : 1.0) + 1.0;
     if (s.heard_any) {
       const auto arrived = ClientClock::time_point(ClientClock::duration(s.last_arrival.load()));
       p.silent_s = std::max(0.0, std::chrono::duration<double>(now - arrived).count());
-      const DaemonState state = p.silent_s > p.timeout_s ? DaemonState::kLost : DaemonState::kPresent;
+      const DaemonState state =
+          p.silent_s > p.timeout_s ? DaemonState::kLost : DaemonState::kPresent;
       if (p.state == DaemonState::kPresent && state == DaemonState::kLost) ++p.losses;
       p.state = state;
     }
@@ -194,7 +196,7 @@ class DaemonWatch {
 
  private:
   struct State {
-    double timeout_s = 0;  // 0: automatic
+    double timeout_s = 0;                           // 0: automatic
     std::atomic<ClientClock::rep> last_arrival{0};  // steady clock, by the listener
     bool heard_any = false;
     char daemon_id[64] = {};
@@ -208,7 +210,8 @@ class DaemonWatch {
 
   void heard(const palpate_DaemonStatus& status) {
     State& s = *state_;
-    const bool same = s.heard_any && std::strncmp(status.daemon_id, s.daemon_id, sizeof s.daemon_id) == 0;
+    const bool same =
+        s.heard_any && std::strncmp(status.daemon_id, s.daemon_id, sizeof s.daemon_id) == 0;
     if (!same) {
       std::memcpy(s.daemon_id, status.daemon_id, sizeof s.daemon_id);
       s.period_ns = 0;

@@ -1,5 +1,7 @@
 #include "palpate/compliance_file.hpp"
 
+#include <fmt/format.h>
+#include <hdf5.h>
 #include <sys/stat.h>
 
 #include <cerrno>
@@ -9,10 +11,6 @@
 #include <cstring>
 #include <optional>
 #include <thread>
-
-#include <hdf5.h>
-
-#include <fmt/format.h>
 
 #include "hdf5_support.hpp"
 #include "palpate/atomic_file.hpp"
@@ -150,7 +148,8 @@ struct Reader {
     if (Cols != Eigen::Dynamic && d[1] != static_cast<hsize_t>(Cols))
       fail(name, fmt::format("has {} columns, expected {}", d[1], Cols));
     Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows(d[0], d[1]);
-    read_hashed(name, d, mem_type, rows.data(), sizeof(Scalar) * static_cast<std::size_t>(rows.size()));
+    read_hashed(name, d, mem_type, rows.data(),
+                sizeof(Scalar) * static_cast<std::size_t>(rows.size()));
     return rows;
   }
 
@@ -359,7 +358,8 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
     // HDF5 says "truncated file: eof = <size>, sblock->base_addr = 0, stored_eof = <expected>".
     const std::string why = hdf5_error_message();
     unsigned long long size = 0, base = 0, expected = 0;
-    if (std::sscanf(why.c_str(), "truncated file: eof = %llu, sblock->base_addr = %llu, stored_eof = %llu",
+    if (std::sscanf(why.c_str(),
+                    "truncated file: eof = %llu, sblock->base_addr = %llu, stored_eof = %llu",
                     &size, &base, &expected) == 3)
       throw InputError(fmt::format(
           "{}: truncated: {} bytes of the {} it was written with (an interrupted copy or a full "
@@ -416,7 +416,8 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
   for (const auto& name : names) r.digest.update(name.c_str(), name.size() + 1);
   const Eigen::VectorXd E = r.vector<double>("/material/young_modulus_pa", H5T_NATIVE_DOUBLE);
   const Eigen::VectorXd nu = r.vector<double>("/material/poisson_ratio", H5T_NATIVE_DOUBLE);
-  if (nu.size() != E.size()) r.fail("/material", "young_modulus_pa and poisson_ratio differ in length");
+  if (nu.size() != E.size())
+    r.fail("/material", "young_modulus_pa and poisson_ratio differ in length");
   if (names.size() != static_cast<size_t>(E.size()))
     r.fail("/material/name", "does not have one name per material");
   for (Eigen::Index i = 0; i < E.size(); ++i)
@@ -448,11 +449,13 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
         check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr),
               "select rows of G");
         Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose, "create a dataspace");
-        const auto rows_in_block = static_cast<Eigen::Index>(h), columns = static_cast<Eigen::Index>(n3);
+        const auto rows_in_block = static_cast<Eigen::Index>(h),
+                   columns = static_cast<Eigen::Index>(n3);
         herr_t status = 0;
         if (single) {
           rows32.resize(rows_in_block, columns);
-          status = H5Dread(set, H5T_NATIVE_FLOAT, mem_space, file_space, H5P_DEFAULT, rows32.data());
+          status =
+              H5Dread(set, H5T_NATIVE_FLOAT, mem_space, file_space, H5P_DEFAULT, rows32.data());
           r.digest.update(rows32.data(), sizeof(float) * static_cast<std::size_t>(rows32.size()));
           rows = rows32.cast<double>();
         } else {

@@ -293,7 +293,8 @@ std::array<double, 3> ToolClient::force_to_render(std::string_view tool_id, std:
   const double hold_s = std::chrono::duration<double>(c.options.feedback_timeout).count();
   const double ramp_s = std::chrono::duration<double>(c.options.feedback_ramp).count();
   const double scale =
-      age_s <= hold_s ? 1.0 : (ramp_s > 0 ? std::clamp(1 - (age_s - hold_s) / ramp_s, 0.0, 1.0) : 0.0);
+      age_s <= hold_s ? 1.0
+                      : (ramp_s > 0 ? std::clamp(1 - (age_s - hold_s) / ramp_s, 0.0, 1.0) : 0.0);
   return {scale * slot->newest_force_n[0], scale * slot->newest_force_n[1],
           scale * slot->newest_force_n[2]};
 }

@@ -50,7 +50,9 @@ struct Box {
   int drawn(double x_mm, double y_mm) const {
     return testing::box_top_vertex(info.rest_positions_m, info.compliance_vertex_count, x_mm, y_mm);
   }
-  std::uint32_t id(int drawn_index) const { return info.vertex_ids[static_cast<std::size_t>(drawn_index)]; }
+  std::uint32_t id(int drawn_index) const {
+    return info.vertex_ids[static_cast<std::size_t>(drawn_index)];
+  }
   Vector3d at(int drawn_index) const { return rest.at(id(drawn_index)); }
 };
 
@@ -321,7 +323,8 @@ TEST(Faults, AClientKilledMidSessionLetsGoOfItsToolAfterTheWatchdogAndTheOtherTo
   int in_window = 0;
   for (const auto& f : feedback) {
     if (f.at < killed - 200ms || f.at > released + 400ms) continue;
-    if (previous != Clock::time_point{}) largest_gap_s = std::max(largest_gap_s, seconds(f.at - previous));
+    if (previous != Clock::time_point{})
+      largest_gap_s = std::max(largest_gap_s, seconds(f.at - previous));
     previous = f.at;
     ++in_window;
     EXPECT_EQ(f.state, ToolState::kTouching);
@@ -388,16 +391,17 @@ TEST(Faults, ClientsSeeTheDaemonGoAndComeBackAndResumeWithoutRestarting) {
   };
 
   // The other clients, as processes: a tool loop, a palpation demo and a watcher.
-  ChildProcess pliers(PLIERS_PATH,
-                      {write_hold_gesture(dir, box.id(box.drawn(75, 25))).string(), "--model", "box",
-                       "--timeout", "20", "--csv", (dir / "pliers.csv").string(), "--json",
-                       (dir / "pliers.json").string()},
-                      dir / "pliers.out");
+  ChildProcess pliers(
+      PLIERS_PATH,
+      {write_hold_gesture(dir, box.id(box.drawn(75, 25))).string(), "--model", "box", "--timeout",
+       "20", "--csv", (dir / "pliers.csv").string(), "--json", (dir / "pliers.json").string()},
+      dir / "pliers.out");
   ChildProcess demo(CLIENT_PATH, {"demo", "--model", "box", "--rate", "100", "--repeat", "1000"},
                     dir / "demo.out");
   ChildProcess watch(CLIENT_PATH, {"watch"}, dir / "watch.out");
   ASSERT_TRUE(pliers.wait_for_output("left   touch", Clock::now() + kLiveness)) << pliers.output();
-  ASSERT_TRUE(watch.wait_for_output("palpated present", Clock::now() + kLiveness)) << watch.output();
+  ASSERT_TRUE(watch.wait_for_output("palpated present", Clock::now() + kLiveness))
+      << watch.output();
   ASSERT_TRUE(demo.wait_for_output("depth", Clock::now() + kLiveness)) << demo.output();
   std::this_thread::sleep_for(300ms);
   ASSERT_GT(answered_after(Clock::now() - 300ms), 5);
@@ -421,10 +425,10 @@ TEST(Faults, ClientsSeeTheDaemonGoAndComeBackAndResumeWithoutRestarting) {
   EXPECT_TRUE(demo.wait_for_output("palpated lost: no status heartbeat", noticed_by))
       << demo.output();
   noticed_s[3] = seconds(Clock::now() - killed);
-  std::printf("loss reported after the kill by: pliers %.2f s, watch %.2f s, in-process client "
-              "%.2f s, demo %.2f s (at most)\n",
-              noticed_s[0], noticed_s[1], noticed_s[2], noticed_s[3]);
-  std::printf("%s", watch.output().c_str());
+  std::printf(
+      "loss reported after the kill by: pliers %.2f s, watch %.2f s, in-process client "
+      "%.2f s, demo %.2f s (at most)\n",
+      noticed_s[0], noticed_s[1], noticed_s[2], noticed_s[3]);
 
   // A new palpated, same configuration: the same client processes resume.
   daemon = std::make_unique<Daemon>(args, dir / "palpated-2.log");
@@ -442,9 +446,10 @@ TEST(Faults, ClientsSeeTheDaemonGoAndComeBackAndResumeWithoutRestarting) {
   back_s[2] = seconds(Clock::now() - restarted);
   EXPECT_TRUE(demo.wait_for_output("palpated is back", resumed_by)) << demo.output();
   back_s[3] = seconds(Clock::now() - restarted);
-  std::printf("back after the restart (palpated's start included) for: pliers %.2f s, watch "
-              "%.2f s, in-process client's first reply %.2f s, demo %.2f s (at most)\n",
-              back_s[0], back_s[1], back_s[2], back_s[3]);
+  std::printf(
+      "back after the restart (palpated's start included) for: pliers %.2f s, watch "
+      "%.2f s, in-process client's first reply %.2f s, demo %.2f s (at most)\n",
+      back_s[0], back_s[1], back_s[2], back_s[3]);
   std::this_thread::sleep_for(700ms);  // feedback flows for a while
   asking = false;
   asker.join();
@@ -495,7 +500,8 @@ TEST(Faults, ClientsSeeTheDaemonGoAndComeBackAndResumeWithoutRestarting) {
   }
   for (const auto& [tick, outcome] : outcomes)
     in_time_after += tick > last_lost_tick && outcome == "in_time" ? 1 : 0;
-  EXPECT_GT(lost, 100) << "ticks while palpated was lost (from 1.3 s after the kill to the restart)";
+  EXPECT_GT(lost, 100)
+      << "ticks while palpated was lost (from 1.3 s after the kill to the restart)";
   EXPECT_GT(in_time_after, 100) << "feedback in the tick after palpated came back";
   EXPECT_EQ(daemon->stop(SIGTERM), 0) << daemon->log();
 }
@@ -642,9 +648,9 @@ TEST(Faults, AFileReplacedWhileTheDaemonServesChangesNothingItServes) {
   Daemon again({"--model", "box=" + served.string(), "--domain", "8"}, dir / "again.log");
   const auto fresh = ask(client, press);
   ASSERT_TRUE(fresh) << again.log();
-  EXPECT_LT((Vector3d(fresh->total_force_n.data()) - 2 * Vector3d(original->total_force_n.data()))
-                .norm(),
-            1e-9 * Vector3d(fresh->total_force_n.data()).norm());
+  EXPECT_LT(
+      (Vector3d(fresh->total_force_n.data()) - 2 * Vector3d(original->total_force_n.data())).norm(),
+      1e-9 * Vector3d(fresh->total_force_n.data()).norm());
   EXPECT_EQ(again.stop(SIGTERM), 0);
 }
 
@@ -691,8 +697,8 @@ TEST(Faults, AFileOverwrittenWhileTheDaemonLoadsItIsServedWholeOrRefused) {
       {
         std::fstream out(file, std::ios::in | std::ios::out | std::ios::binary);  // no truncation
         for (std::size_t at = 0; at < content[m].size() && writing; at += 16384) {
-          out.write(content[m].data() + at,
-                    static_cast<std::streamsize>(std::min<std::size_t>(16384, content[m].size() - at)));
+          out.write(content[m].data() + at, static_cast<std::streamsize>(std::min<std::size_t>(
+                                                16384, content[m].size() - at)));
           out.flush();
           std::this_thread::sleep_for(1ms);
         }
