@@ -93,6 +93,14 @@ struct Reader {
   std::string file;
   hid_t root;
   Sha256 digest;  // of the datasets read, in file order (hash_header)
+  bool hashing = false;  // only for files that carry a digest (1.2 on)
+
+  void hash(const void* data, std::size_t bytes) {
+    if (hashing) digest.update(data, bytes);
+  }
+  void hash_dataset(const char* path, const std::vector<hsize_t>& dims) {
+    if (hashing) hash_header(digest, path, dims);
+  }
 
   [[noreturn]] void fail(const std::string& where, const std::string& what) const {
     throw InputError(fmt::format("{}: {}: {}", file, where, what));
@@ -138,8 +146,8 @@ struct Reader {
   void read_hashed(const char* name, const std::vector<hsize_t>& d, hid_t mem_type, void* out,
                    std::size_t bytes) {
     if (bytes > 0) read(name, mem_type, out);
-    hash_header(digest, name, d);
-    digest.update(out, bytes);
+    hash_dataset(name, d);
+    hash(out, bytes);
   }
 
   template <typename Scalar, int Cols>
@@ -393,6 +401,7 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
   // Since 1.2; verified once everything else is read and checked.
   const std::string stored_digest =
       m.format_version_minor >= 2 ? r.string_attribute("content_sha256") : std::string();
+  r.hashing = !stored_digest.empty() && G != nullptr;
 
   // The datasets in file order: the order of the content digest.
   m.vertices_m = r.matrix<double, 3>("/mesh/vertices", H5T_NATIVE_DOUBLE);
@@ -412,8 +421,8 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
     Handle space(H5Dget_space(set), H5Sclose, "get a dataspace");
     H5Dvlen_reclaim(type, space, H5P_DEFAULT, raw.data());
   }
-  hash_header(r.digest, "/material/name", name_dims);
-  for (const auto& name : names) r.digest.update(name.c_str(), name.size() + 1);
+  r.hash_dataset("/material/name", name_dims);
+  for (const auto& name : names) r.hash(name.c_str(), name.size() + 1);
   const Eigen::VectorXd E = r.vector<double>("/material/young_modulus_pa", H5T_NATIVE_DOUBLE);
   const Eigen::VectorXd nu = r.vector<double>("/material/poisson_ratio", H5T_NATIVE_DOUBLE);
   if (nu.size() != E.size())
@@ -438,7 +447,7 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
       // into G's column-major memory (row i of the file is row i of G).
       const bool single = m.precision == Precision::kFloat32;
       G->resize(static_cast<Eigen::Index>(n3), static_cast<Eigen::Index>(n3));
-      hash_header(r.digest, "/compliance/G", gd);
+      r.hash_dataset("/compliance/G", gd);
       const hsize_t block = 256;
       Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows;
       Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows32;
@@ -456,12 +465,12 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
           rows32.resize(rows_in_block, columns);
           status =
               H5Dread(set, H5T_NATIVE_FLOAT, mem_space, file_space, H5P_DEFAULT, rows32.data());
-          r.digest.update(rows32.data(), sizeof(float) * static_cast<std::size_t>(rows32.size()));
+          r.hash(rows32.data(), sizeof(float) * static_cast<std::size_t>(rows32.size()));
           rows = rows32.cast<double>();
         } else {
           rows.resize(rows_in_block, columns);
           status = H5Dread(set, H5T_NATIVE_DOUBLE, mem_space, file_space, H5P_DEFAULT, rows.data());
-          r.digest.update(rows.data(), sizeof(double) * static_cast<std::size_t>(rows.size()));
+          r.hash(rows.data(), sizeof(double) * static_cast<std::size_t>(rows.size()));
         }
         if (status < 0) r.fail("/compliance/G", "cannot be read (corrupt or of a wrong type)");
         if (!rows.allFinite()) r.fail("/compliance/G", "holds a non-finite value");
