@@ -130,6 +130,16 @@ TEST(Validation, RejectsEachKindOfBadMeshWithItsLocation) {
     m.vertices *= 1e200;
     expect_input_error([&] { validate_and_compact(m); }, {"tetrahedron 0", "overflows"});
   }
+  {
+    // A tetrahedron given twice (found by fuzz_tet_mesh: a mesh of doubled
+    // tetrahedra had no boundary at all).
+    TetMesh m = good;
+    m.tetrahedra.conservativeResize(m.tetrahedra.rows() + 1, 4);
+    m.tetrahedra.row(m.tetrahedra.rows() - 1) = m.tetrahedra.row(2);
+    m.tet_group.resize(0);
+    expect_input_error([&] { validate_and_compact(m); },
+                       {"tetrahedra 2 and 6", "same four vertices"});
+  }
 }
 
 TEST(Boundary, RejectsNonManifoldMeshes) {

@@ -50,6 +50,29 @@ MeshCheck validate_and_compact(TetMesh& mesh) {
     }
   }
 
+  // The same four vertices twice would count that element's stiffness twice
+  // and hide its faces from the boundary.
+  {
+    struct TetHash {
+      size_t operator()(const std::array<int, 4>& a) const {
+        uint64_t h = 1469598103934665603ull;
+        for (int x : a) h = (h ^ static_cast<uint32_t>(x)) * 1099511628211ull;
+        return h;
+      }
+    };
+    std::unordered_map<std::array<int, 4>, Eigen::Index, TetHash> first;
+    first.reserve(static_cast<size_t>(nt));
+    for (Eigen::Index t = 0; t < nt; ++t) {
+      std::array<int, 4> key{mesh.tetrahedra(t, 0), mesh.tetrahedra(t, 1), mesh.tetrahedra(t, 2),
+                             mesh.tetrahedra(t, 3)};
+      std::sort(key.begin(), key.end());
+      if (auto [it, inserted] = first.try_emplace(key, t); !inserted)
+        throw InputError(fmt::format("{}: tetrahedra {} and {} have the same four vertices; each "
+                                     "tetrahedron must appear once",
+                                     where, it->second, t));
+    }
+  }
+
   MeshCheck check;
   check.min_volume_m3 = INFINITY;
   check.max_volume_m3 = 0;
