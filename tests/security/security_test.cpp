@@ -449,5 +449,53 @@ TEST_F(SecuredDaemonTest, PliersCannotRequestOrReadTheStream) {
   EXPECT_EQ(number(tried, "surface_topic"), DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) << dump(tried);
 }
 
+/// The viewer's configuration with its permissions document replaced by
+/// @p permissions (a file written next to it).
+std::string viewer_with_permissions(const std::string& name, const std::string& permissions) {
+  const fs::path dir = kWork / name;
+  fs::create_directories(dir);
+  std::ofstream(dir / "permissions.p7s") << permissions;
+  std::ifstream in(kWork / "certs" / "viewer" / "cyclonedds.xml");
+  std::string xml{std::istreambuf_iterator<char>(in), {}};
+  const std::string own = (kWork / "certs" / "viewer" / "permissions.p7s").string();
+  xml.replace(xml.find(own), own.size(), (dir / "permissions.p7s").string());
+  std::ofstream(dir / "cyclonedds.xml") << xml;
+  return (dir / "cyclonedds.xml").string();
+}
+
+std::string read_text(const fs::path& path) {
+  std::ifstream in(path);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+/// What joining with @p config gives: "joined", or the error.
+std::string try_to_join(const std::string& config) {
+  const Report joined = run([&](Report& r) {
+    dds::Participant p = dds::join_domain(0, config);
+    r["joined"] = "1";
+    finish(r);
+  });
+  return joined.count("joined") ? "joined" : dump(joined);
+}
+
+TEST_F(SecuredDaemonTest, ViewerCannotMakeItselfPliers) {
+  const std::string refused =
+      "error=creating the DDS participant: Error; check the Cyclone DDS configuration (file ";
+  // The pliers' permissions, signed by the CA, but for the pliers' subject.
+  const std::string borrowed = viewer_with_permissions(
+      "borrowed", read_text(kWork / "certs" / "pliers" / "permissions.p7s"));
+  EXPECT_EQ(try_to_join(borrowed).rfind(refused, 0), 0u) << try_to_join(borrowed);
+  // Its own permissions, edited to publish poses: the CA's signature no longer holds.
+  std::string edited = read_text(kWork / "certs" / "viewer" / "permissions.p7s");
+  const std::string subscribe = "<subscribe>";
+  ASSERT_NE(edited.find(subscribe), std::string::npos);
+  edited.replace(edited.find(subscribe), subscribe.size(),
+                 "<publish><topics><topic>palpate_tool_pose</topic></topics></publish><subscribe>");
+  const std::string forged = viewer_with_permissions("forged", edited);
+  EXPECT_EQ(try_to_join(forged).rfind(refused, 0), 0u) << try_to_join(forged);
+  // The unchanged configuration joins (the two refusals above are not the test's doing).
+  EXPECT_EQ(try_to_join(config("viewer")), "joined");
+}
+
 }  // namespace
 }  // namespace palpate
