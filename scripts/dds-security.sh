@@ -116,7 +116,9 @@ ca_dir=$outdir/ca
 ca_cert=$ca_dir/ca.pem
 : "${ca_key:=$ca_dir/ca.key}"
 if [ ! -e "$ca_cert" ]; then
-  [ ! -e "$ca_key" ] || fail "$ca_key exists without $ca_cert: restore the certificate, or remove both to start a new CA"
+  [ "$ca_key" = "$ca_dir/ca.key" ] ||
+    fail "--ca-key $ca_key: $outdir has no CA certificate (ca/ca.pem); copy the CA's ca.pem there first"
+  [ ! -e "$ca_dir" ] || fail "$ca_dir exists without ca.pem: restore the certificate, or remove $ca_dir to start a new CA"
   mkdir -p "$staging/ca"
   ossl genpkey -algorithm EC -pkeyopt ec_paramgen_curve:P-256 -out "$staging/ca/ca.key"
   ossl req -new -x509 -sha256 -days 3650 -key "$staging/ca/ca.key" -out "$staging/ca/ca.pem" \
@@ -125,7 +127,7 @@ if [ ! -e "$ca_cert" ]; then
   chmod 0600 "$staging/ca/ca.key"
   chmod 0644 "$staging/ca/ca.pem"
   chmod 0755 "$staging/ca"
-  mv "$staging/ca" "$ca_dir"  # one rename: the CA is there whole or not at all
+  mv -T "$staging/ca" "$ca_dir"  # one rename: the CA is there whole or not at all
   echo "dds-security: new CA $ca_cert (key $ca_dir/ca.key, mode 0600: keep it offline, docs/security.md)"
 else
   echo "dds-security: CA $ca_cert kept"
@@ -330,6 +332,6 @@ for p in "${participants[@]}"; do
   cyclone_xml "$kind" "$name" >"$s/cyclonedds.xml"
   chmod 0644 "$s/permissions.xml" "$s/cyclonedds.xml"
   chmod 0755 "$s"
-  mv "$s" "$outdir/$name"  # one rename: the participant is there whole or not at all
+  mv -T "$s" "$outdir/$name"  # one rename: the participant is there whole or not at all
   echo "dds-security: participant $name ($kind): --dds-config $outdir/$name/cyclonedds.xml (valid $days days)"
 done

@@ -75,6 +75,9 @@ check "its certificate is signed by the same CA" \
 check "another key is refused as the CA key" \
   refused "is not the key of" "$out" --participant pliers:station-3 --ca-key "$out/pliers/pliers.key"
 
+check "--ca-key for a directory without the CA certificate is refused" \
+  refused "has no CA certificate" "$work/elsewhere" --ca-key "$work/offline.key"
+
 # Bad input: one message, exit 2, nothing written.
 check "unknown kind" refused "kind 'admin' is not one of" "$work/bad" --participant admin:x
 check "bad name" refused "name 'a b'" "$work/bad" --participant "pliers:a b"
