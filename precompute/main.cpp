@@ -73,7 +73,7 @@ int run(int argc, char** argv) {
                "cross-checked, written to one HDF5 file"};
   app.set_version_flag("--version", "palpate-precompute " PALPATE_VERSION);
 
-  std::string job_file, mesh, mesh_unit, fix_ids, method, precision, output, save_job;
+  std::string job_file, mesh, mesh_unit, fix_ids, method, precision, output, save_job, shard, columns;
   std::vector<std::string> fix_groups, materials;
   std::vector<double> box, sphere, half_space;
   double young = 0, poisson = 0, fill_size = 0, tolerance = 0, memory_gb = 0;
@@ -98,6 +98,12 @@ int run(int argc, char** argv) {
   app.add_option("--tolerance", tolerance, "largest accepted relative difference between the methods (default 1e-8)");
   app.add_option("--memory-limit-gb", memory_gb, "refuse jobs needing more than this (default: available memory)");
   app.add_option("-o,--output", output, "compliance file to write (HDF5, written atomically)");
+  app.add_option("--shard", shard,
+                 "compute only shard INDEX/COUNT of G's columns (0-based, whole blocks) into "
+                 "OUTPUT-stem.part-BEGIN-END.h5, for merge (docs/precompute.md, \"Batch precomputation\")");
+  app.add_option("--columns", columns,
+                 "compute only columns BEGIN:END of G (BEGIN a multiple of --block-columns) into "
+                 "a shard file, for merge");
   app.add_flag("--xdmf,!--no-xdmf", xdmf,
                "write (default) or not the XDMF sidecar X.xdmf next to X.h5, for ParaView");
   app.add_option("--save-job", save_job, "write the effective job as TOML (to reproduce the run)");
@@ -113,6 +119,14 @@ int run(int argc, char** argv) {
   double sample_size = 0.012;
   sample->add_option("-o,--output", sample_out, "mesh file to write (format from the extension: .msh, .mesh, .vtk...)")->required();
   sample->add_option("--size", sample_size, "target tetrahedron size, m (default 0.012)");
+
+  auto* merge = app.add_subcommand(
+      "merge", "assemble the shards of one job (--shard/--columns) into the compliance file, "
+               "identical to a single run");
+  std::string merge_out;
+  std::vector<std::string> merge_shards;
+  merge->add_option("-o,--output", merge_out, "compliance file to write")->required();
+  merge->add_option("shards", merge_shards, "the shard files, e.g. liver.part-*.h5")->required();
 
   try {
     app.parse(argc, argv);
@@ -130,6 +144,43 @@ int run(int argc, char** argv) {
   if (*sample) {
     palpate::write_sample_organ(sample_out, sample_size);
     if (!quiet) log->info("sample organ written to {}", sample_out);
+    return 0;
+  }
+
+  palpate::PrecomputeHooks hooks;
+  hooks.warn = [&](const std::string& s) { log->warn("{}", s); };
+  hooks.info = [&](const std::string& s) { log->info("{}", s); };
+  const bool bars = !quiet && palpate::precompute::ProgressBar::wanted();
+  const StopPoint stop_point;
+  hooks.phase = [&](const std::string& s) {
+    if (phases) {
+      std::fprintf(stderr, "palpate-precompute: phase: %s\n", s.c_str());
+      std::fflush(stderr);
+    } else if (!quiet && !bars) {
+      log->debug("{}", s);
+    }
+    stop_point.at_phase(s);
+  };
+  hooks.progress = [&](const std::string& label) -> palpate::ProgressFn {
+    return stop_point.progress(label,
+                               bars ? palpate::ProgressFn(palpate::precompute::ProgressBar(label))
+                                    : palpate::ProgressFn{});
+  };
+
+  if (*merge) {
+    palpate::MergeJob job;
+    job.output = merge_out;
+    for (const auto& s : merge_shards) job.shards.emplace_back(s);
+    if (app.count("--xdmf")) job.write_xdmf = xdmf;
+    if (app.count("--memory-limit-gb")) job.memory_limit_bytes = 1e9 * memory_gb;
+    for (const auto& target : {job.output, palpate::xdmf_sidecar_path(job.output)})
+      for (const auto& stale : palpate::remove_stale_temporaries(target))
+        log->warn("removed {}, left by an interrupted run (process {} is gone)",
+                  stale.path.string(), stale.pid);
+    palpate::install_interrupt_cleanup();
+    const auto report = palpate::merge_shards(job, hooks);
+    if (json_out) std::cout << report.dump(2) << std::endl;
+    if (!quiet) std::cerr << palpate::format_report(report);
     return 0;
   }
 
@@ -164,6 +215,14 @@ int run(int argc, char** argv) {
   if (app.count("--memory-limit-gb")) job.memory_limit_bytes = 1e9 * memory_gb;
   if (!output.empty()) job.output = output;
   if (app.count("--xdmf")) job.write_xdmf = xdmf;  // either spelling
+  if (!shard.empty() && !columns.empty())
+    throw palpate::InputError("--shard and --columns both given: use one");
+  if (!shard.empty()) palpate::parse_shard(shard, &job.shard);
+  if (!columns.empty()) palpate::parse_shard(columns, &job.shard);
+  if (!shard.empty() && job.shard.count == 0)
+    throw palpate::InputError(fmt::format("--shard '{}': expected INDEX/COUNT, e.g. 0/4", shard));
+  if (!columns.empty() && job.shard.begin < 0)
+    throw palpate::InputError(fmt::format("--columns '{}': expected BEGIN:END, e.g. 0:1024", columns));
 
   if (!save_job.empty()) {
     palpate::AtomicOutput out(save_job);
@@ -178,24 +237,6 @@ int run(int argc, char** argv) {
       log->warn("removed {}, left by an interrupted run (process {} is gone)", stale.path.string(),
                 stale.pid);
 
-  palpate::PrecomputeHooks hooks;
-  hooks.warn = [&](const std::string& s) { log->warn("{}", s); };
-  const bool bars = !quiet && palpate::precompute::ProgressBar::wanted();
-  const StopPoint stop_point;
-  hooks.phase = [&](const std::string& s) {
-    if (phases) {
-      std::fprintf(stderr, "palpate-precompute: phase: %s\n", s.c_str());
-      std::fflush(stderr);
-    } else if (!quiet && !bars) {
-      log->debug("{}", s);
-    }
-    stop_point.at_phase(s);
-  };
-  hooks.progress = [&](const std::string& label) -> palpate::ProgressFn {
-    return stop_point.progress(label,
-                               bars ? palpate::ProgressFn(palpate::precompute::ProgressBar(label))
-                                    : palpate::ProgressFn{});
-  };
   palpate::install_interrupt_cleanup();
   const auto report = palpate::run_precompute(job, hooks);
   if (json_out) std::cout << report.dump(2) << std::endl;

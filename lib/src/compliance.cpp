@@ -7,6 +7,8 @@
 #include <mutex>
 #include <thread>
 #include <dlfcn.h>
+#include <sched.h>
+#include <atomic>
 #include <exception>
 
 #include "palpate/dense.hpp"
@@ -45,7 +47,8 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Columns to check, spread evenly over [0, m), always including both ends.
+}  // namespace
+
 std::vector<int> sample_columns(int m, int count) {
   std::vector<int> cols;
   if (m == 0 || count <= 0) return cols;
@@ -55,6 +58,8 @@ std::vector<int> sample_columns(int m, int count) {
   cols.erase(std::unique(cols.begin(), cols.end()), cols.end());
   return cols;
 }
+
+namespace {
 
 // Re-solves the sampled columns with `factor` and measures the residual of
 // the full system and the agreement with the stored columns of G.
@@ -82,7 +87,114 @@ void check_columns(const SparseMatrixd& K_upper, SparseCholesky& factor, CRef<Ei
 
 }  // namespace
 
-int solve_threads() { return std::max(1, static_cast<int>(std::thread::hardware_concurrency())); }
+int solve_threads() {
+  // The cores this process may run on (taskset, a Slurm task's allocation),
+  // not the machine's: shards side by side must not oversubscribe it.
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof(set), &set) == 0 && CPU_COUNT(&set) > 0) return CPU_COUNT(&set);
+  return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+}
+
+namespace {
+
+// The factor of the `solves` method, on single-threaded BLAS: OpenBLAS's
+// threads change the factor's last bits, and G's columns must be the same
+// bits on any machine of the same CPU kind whatever its core count (shards on
+// a cluster, a single run on a workstation). The factor is a small part of
+// the method's work (4 nnz(L) flops per column of G follow it).
+SparseCholesky single_threaded_factor(const SparseMatrixd& K_upper) {
+  BlasThreads single(1);
+  return SparseCholesky(K_upper);
+}
+
+// Solves the given blocks of unit columns with @p factor, one thread per core
+// taking every c-th block, each with its own workspace. BLAS is single-threaded
+// throughout, whatever the number of blocks: CHOLMOD's supernodes are too
+// small for OpenBLAS's own threads to pay off, and a block's bits must not
+// depend on how many blocks a run has (shards, resumed runs).
+void solve_blocks(const SparseMatrixd& K_upper, const SparseCholesky& factor, int m, int block,
+                  const std::vector<int>& blocks, const std::vector<int>& check_columns,
+                  const std::function<void(const SolvedBlock&)>& sink) {
+  const int n = static_cast<int>(K_upper.rows());
+  const int threads = std::min<int>(solve_threads(), static_cast<int>(blocks.size()));
+  if (threads == 0) return;
+  std::mutex serialize;  // one sink call at a time
+  std::atomic<bool> failed{false};
+  std::vector<std::exception_ptr> errors(static_cast<size_t>(threads));
+  auto work = [&](int t) {
+    try {
+      auto ws = factor.make_workspace();
+      Eigen::MatrixXd E = Eigen::MatrixXd::Zero(n, std::min(block, m));
+      Eigen::MatrixXd U(n, E.cols());
+      Eigen::VectorXd e(n), u(n);
+      for (size_t i = static_cast<size_t>(t); i < blocks.size() && !failed; i += static_cast<size_t>(threads)) {
+        const int b = blocks[i];
+        const int c0 = b * block;
+        const int width = std::min(block, m - c0);
+        PALPATE_DEMAND(c0 >= 0 && width > 0);
+        // Column (k, d) of the block is the unit force e_(k,d).
+        E.setZero();
+        for (int j = 0; j < width; ++j) E(c0 + j, j) = 1;
+        factor.solve(E.leftCols(width), U.leftCols(width), *ws);
+        std::vector<ColumnCheck> checks;
+        for (const int c : check_columns) {
+          if (c < c0 || c >= c0 + width) continue;
+          // Alone, as a fresh solve: the residual of the full system and the
+          // agreement with the blocked solve's column.
+          e.setZero();
+          e[c] = 1;
+          factor.solve(e, u, *ws);
+          const Eigen::VectorXd r = K_upper.selfadjointView<Eigen::Upper>() * u - e;
+          const auto g = U.col(c - c0).head(m);
+          checks.push_back({c, r.norm(), (u.head(m) - g).norm() / g.norm()});
+        }
+        std::lock_guard<std::mutex> lock(serialize);
+        if (failed) break;
+        sink(SolvedBlock{b, c0, U.topLeftCorner(m, width), std::move(checks)});
+      }
+    } catch (...) {
+      failed = true;
+      errors[static_cast<size_t>(t)] = std::current_exception();
+    }
+  };
+  BlasThreads single(1);
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work, t);
+  work(0);
+  for (auto& th : pool) th.join();
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+}
+
+}  // namespace
+
+void solve_compliance_blocks(const SparseMatrixd& K_upper, int m, int block_columns,
+                             const std::vector<int>& blocks, const std::vector<int>& check_columns,
+                             const std::function<void(const SolvedBlock&)>& sink,
+                             ComplianceStats* stats,
+                             const std::function<void(const FactorInfo&)>& on_factored) {
+  PALPATE_DEMAND(m > 0 && m <= K_upper.rows() && block_columns > 0);
+  ComplianceStats local;
+  if (!stats) stats = &local;
+  const SparseCholesky factor = single_threaded_factor(K_upper);
+  stats->factor = factor.info();
+  if (on_factored) on_factored(stats->factor);
+  const auto t0 = std::chrono::steady_clock::now();
+  long columns = 0;
+  for (const int b : blocks) columns += std::min(block_columns, m - b * block_columns);
+  solve_blocks(K_upper, factor, m, block_columns, blocks, check_columns, [&](const SolvedBlock& s) {
+    for (const auto& c : s.checks) {
+      stats->max_residual = std::max(stats->max_residual, c.residual);
+      stats->max_column_mismatch = std::max(stats->max_column_mismatch, c.mismatch);
+      stats->checked_columns.push_back(c.column);
+    }
+    sink(s);
+  });
+  stats->dense_seconds = seconds_since(t0);
+  // Forward and backward substitution: 2 flops per nonzero of L each, per column.
+  stats->dense_flops = 4.0 * stats->factor.nnz_L * static_cast<double>(columns);
+}
 
 Eigen::MatrixXd compliance_by_solves(const SparseMatrixd& K_upper, int m,
                                      const ComplianceOptions& options, ComplianceStats* stats) {
@@ -97,51 +209,20 @@ void compliance_by_solves(const SparseMatrixd& K_upper, int m, const ComplianceO
   PALPATE_DEMAND(G.rows() == m && G.cols() == m);
   ComplianceStats local;
   if (!stats) stats = &local;
-  const int n = static_cast<int>(K_upper.rows());
-  SparseCholesky factor(K_upper);
+  SparseCholesky factor = single_threaded_factor(K_upper);
   stats->factor = factor.info();
 
   const auto t0 = std::chrono::steady_clock::now();
   const int block = std::min(options.block_columns, m);
-  const int blocks = (m + block - 1) / block;
-  // Blocks of columns are independent: one thread per core, each with its
-  // own workspace and single-threaded BLAS (CHOLMOD's supernodes are too
-  // small for OpenBLAS's own threads to pay off).
-  const int threads = std::min(solve_threads(), blocks);
-  std::mutex report;  // serializes on_block and progress
+  std::vector<int> blocks((m + block - 1) / block);
+  std::iota(blocks.begin(), blocks.end(), 0);
   long done = 0;
-  std::vector<std::exception_ptr> errors(static_cast<size_t>(threads));
-  auto work = [&](int t) {
-    try {
-      auto ws = factor.make_workspace();
-      Eigen::MatrixXd E = Eigen::MatrixXd::Zero(n, block);
-      Eigen::MatrixXd U(n, block);
-      for (int b = t; b < blocks; b += threads) {
-        const int c0 = b * block;
-        const int width = std::min(block, m - c0);
-        // Column (k, d) of the block is the unit force e_(k,d).
-        E.setZero();
-        for (int i = 0; i < width; ++i) E(c0 + i, i) = 1;
-        factor.solve(E.leftCols(width), U.leftCols(width), *ws);
-        std::lock_guard<std::mutex> lock(report);
-        if (options.on_block) options.on_block(c0, U.topLeftCorner(m, width));
-        G.middleCols(c0, width) = U.topLeftCorner(m, width);
-        done += width;
-        if (options.progress) options.progress(done, m);
-      }
-    } catch (...) {
-      errors[static_cast<size_t>(t)] = std::current_exception();
-    }
-  };
-  {
-    BlasThreads single(threads > 1 ? 1 : 0);
-    std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (auto& th : pool) th.join();
-  }
-  for (const auto& e : errors)
-    if (e) std::rethrow_exception(e);
+  solve_blocks(K_upper, factor, m, block, blocks, {}, [&](const SolvedBlock& s) {
+    if (options.on_block) options.on_block(s.first, s.columns);
+    G.middleCols(s.first, s.columns.cols()) = s.columns;
+    done += s.columns.cols();
+    if (options.progress) options.progress(done, m);
+  });
   stats->dense_seconds = seconds_since(t0);
   // Forward and backward substitution: 2 flops per nonzero of L each, per column.
   stats->dense_flops = 4.0 * stats->factor.nnz_L * m;

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "hdf5_support.hpp"
+#include "compliance_file_internal.hpp"
 #include "palpate/atomic_file.hpp"
 #include "palpate/error.hpp"
 #include "palpate/hash.hpp"
@@ -239,90 +240,117 @@ std::string hdf5_error_message() {
 
 }  // namespace
 
+namespace detail {
+
+void write_root_attributes(hid_t file, const ComplianceModel& model, const char* format) {
+  write_string_attribute(file, "format", format);
+  write_int_attribute(file, "format_version_major", kComplianceFormatMajor);
+  write_int_attribute(file, "format_version_minor", kComplianceFormatMinor);
+  write_string_attribute(file, "producer", model.producer);
+  write_string_attribute(file, "method", model.method);
+  write_string_attribute(file, "units", "SI: lengths in m, forces in N, moduli in Pa; G in m/N");
+  write_string_attribute(file, "material_summary", model.material_summary);
+  write_string_attribute(file, "created_utc", model.created_utc);
+  write_string_attribute(file, "input_hash", model.input_hash);
+  write_string_attribute(file, "job_toml", model.job_toml);
+  write_string_attribute(file, "report_json", model.report_json);
+}
+
+void write_model_datasets(hid_t file, const ComplianceModel& model, Sha256& digest) {
+  hdf5::group(file, "mesh");
+  write_matrix(file, "/mesh/vertices", model.vertices_m, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE,
+               digest);
+  write_matrix(file, "/mesh/tetrahedra", model.tetrahedra, H5T_NATIVE_INT, H5T_STD_I32LE, digest);
+  write_vector(file, "/mesh/tetrahedron_material", model.tet_material, H5T_NATIVE_INT,
+               H5T_STD_I32LE, digest);
+  write_matrix(file, "/mesh/surface_triangles", model.surface_triangles, H5T_NATIVE_INT,
+               H5T_STD_I32LE, digest);
+  write_vector(file, "/mesh/fixed_vertex_ids", model.fixed_vertices, H5T_NATIVE_INT,
+               H5T_STD_I32LE, digest);
+  write_vector(file, "/mesh/source_vertex_ids", model.source_vertex_ids, H5T_NATIVE_INT,
+               H5T_STD_I32LE, digest);
+
+  hdf5::group(file, "material");
+  std::vector<std::string> names;
+  Eigen::VectorXd E(static_cast<Eigen::Index>(model.materials.size())), nu(E.size());
+  for (size_t i = 0; i < model.materials.size(); ++i) {
+    names.push_back(model.materials[i].name);
+    E[static_cast<Eigen::Index>(i)] = model.materials[i].young_modulus_pa;
+    nu[static_cast<Eigen::Index>(i)] = model.materials[i].poisson_ratio;
+  }
+  write_strings(file, "/material/name", names, digest);
+  write_vector(file, "/material/young_modulus_pa", E, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, digest);
+  write_vector(file, "/material/poisson_ratio", nu, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, digest);
+
+  hdf5::group(file, "compliance");
+  write_vector(file, "/compliance/vertex_ids", model.compliance_vertices, H5T_NATIVE_INT,
+               H5T_STD_I32LE, digest);
+}
+
+}  // namespace detail
+
 void write_compliance_file(const std::filesystem::path& path, const ComplianceModel& model,
                            CRef<Eigen::MatrixXd> G,
                            const std::function<void(long done, long total)>& progress) {
   const Eigen::Index n = model.compliance_vertices.size();
   PALPATE_DEMAND(G.rows() == 3 * n && G.cols() == 3 * n);
-  PALPATE_DEMAND(model.softness_m_per_n.size() == model.vertices_m.rows());
+  // Column j of Eigen's storage is row j of the file: copy row bands, so the
+  // transpose is exact for any G, symmetric or not.
+  write_compliance_file(
+      path, model,
+      [&](long first, long count, double* rows) {
+        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+            rows, count, G.cols()) = G.middleRows(first, count);
+      },
+      256, progress);
+}
+
+void write_compliance_file(const std::filesystem::path& path, const ComplianceModel& model,
+                           const GRowSource& G_rows, long band_rows,
+                           const std::function<void(long done, long total)>& progress) {
+  const auto n3 = static_cast<hsize_t>(3 * model.compliance_vertices.size());
+  PALPATE_DEMAND(model.softness_m_per_n.size() == model.vertices_m.rows() && band_rows > 0);
   silence_hdf5();
   AtomicOutput out(path);
   {
     Handle file(H5Fcreate(out.temp_path().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT),
                 H5Fclose, fmt::format("create {}", out.temp_path().string()));
-    write_string_attribute(file, "format", kComplianceFormatName);
-    write_int_attribute(file, "format_version_major", kComplianceFormatMajor);
-    write_int_attribute(file, "format_version_minor", kComplianceFormatMinor);
-    write_string_attribute(file, "producer", model.producer);
-    write_string_attribute(file, "method", model.method);
-    write_string_attribute(file, "units", "SI: lengths in m, forces in N, moduli in Pa; G in m/N");
-    write_string_attribute(file, "material_summary", model.material_summary);
-    write_string_attribute(file, "created_utc", model.created_utc);
-    write_string_attribute(file, "input_hash", model.input_hash);
-    write_string_attribute(file, "job_toml", model.job_toml);
-    write_string_attribute(file, "report_json", model.report_json);
+    detail::write_root_attributes(file, model, kComplianceFormatName);
 
     // Every dataset goes into the digest, in this order (the reader's too).
     Sha256 digest;
-    hdf5::group(file, "mesh");
-    write_matrix(file, "/mesh/vertices", model.vertices_m, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE,
-                 digest);
-    write_matrix(file, "/mesh/tetrahedra", model.tetrahedra, H5T_NATIVE_INT, H5T_STD_I32LE, digest);
-    write_vector(file, "/mesh/tetrahedron_material", model.tet_material, H5T_NATIVE_INT,
-                 H5T_STD_I32LE, digest);
-    write_matrix(file, "/mesh/surface_triangles", model.surface_triangles, H5T_NATIVE_INT,
-                 H5T_STD_I32LE, digest);
-    write_vector(file, "/mesh/fixed_vertex_ids", model.fixed_vertices, H5T_NATIVE_INT,
-                 H5T_STD_I32LE, digest);
-    write_vector(file, "/mesh/source_vertex_ids", model.source_vertex_ids, H5T_NATIVE_INT,
-                 H5T_STD_I32LE, digest);
-
-    hdf5::group(file, "material");
-    std::vector<std::string> names;
-    Eigen::VectorXd E(static_cast<Eigen::Index>(model.materials.size())), nu(E.size());
-    for (size_t i = 0; i < model.materials.size(); ++i) {
-      names.push_back(model.materials[i].name);
-      E[static_cast<Eigen::Index>(i)] = model.materials[i].young_modulus_pa;
-      nu[static_cast<Eigen::Index>(i)] = model.materials[i].poisson_ratio;
-    }
-    write_strings(file, "/material/name", names, digest);
-    write_vector(file, "/material/young_modulus_pa", E, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, digest);
-    write_vector(file, "/material/poisson_ratio", nu, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, digest);
-
-    hdf5::group(file, "compliance");
-    write_vector(file, "/compliance/vertex_ids", model.compliance_vertices, H5T_NATIVE_INT,
-                 H5T_STD_I32LE, digest);
-    hsize_t dims[2] = {static_cast<hsize_t>(G.rows()), static_cast<hsize_t>(G.cols())};
+    detail::write_model_datasets(file, model, digest);
+    hsize_t dims[2] = {n3, n3};
     Handle space(H5Screate_simple(2, dims, nullptr), H5Sclose, "create a dataspace");
     const bool single = model.precision == Precision::kFloat32;
     Handle set(H5Dcreate2(file, "/compliance/G", single ? H5T_IEEE_F32LE : H5T_IEEE_F64LE, space,
                           H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
                H5Dclose, "create dataset /compliance/G");
     hash_header(digest, "/compliance/G", {dims[0], dims[1]});
-    // Column j of Eigen's storage is row j of the file: write in row blocks
-    // so the transpose is exact for any G, symmetric or not. float32 is
-    // rounded here (round to nearest, as HDF5 would), so that the digest
-    // covers the bytes stored.
-    const hsize_t block = 256;
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows;
-    Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows32;
+    // In row bands, as the file stores them. float32 is rounded here (round
+    // to nearest, as HDF5 would), so that the digest covers the bytes stored.
+    const auto block = static_cast<hsize_t>(band_rows);
+    std::vector<double> rows;
+    std::vector<float> rows32;
     for (hsize_t r0 = 0; r0 < dims[0]; r0 += block) {
       const hsize_t h = std::min(block, dims[0] - r0);
-      rows = G.middleRows(static_cast<Eigen::Index>(r0), static_cast<Eigen::Index>(h));
+      const std::size_t values = static_cast<std::size_t>(h * dims[1]);
+      rows.resize(values);
+      G_rows(static_cast<long>(r0), static_cast<long>(h), rows.data());
       hsize_t start[2] = {r0, 0}, count[2] = {h, dims[1]};
       Handle file_space(H5Dget_space(set), H5Sclose, "get a dataspace");
       check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr),
             "select rows of G");
       Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose, "create a dataspace");
       if (single) {
-        rows32 = rows.cast<float>();
+        rows32.assign(rows.begin(), rows.end());
         check(H5Dwrite(set, H5T_NATIVE_FLOAT, mem_space, file_space, H5P_DEFAULT, rows32.data()),
               "write /compliance/G");
-        digest.update(rows32.data(), sizeof(float) * static_cast<std::size_t>(rows32.size()));
+        digest.update(rows32.data(), sizeof(float) * values);
       } else {
         check(H5Dwrite(set, H5T_NATIVE_DOUBLE, mem_space, file_space, H5P_DEFAULT, rows.data()),
               "write /compliance/G");
-        digest.update(rows.data(), sizeof(double) * static_cast<std::size_t>(rows.size()));
+        digest.update(rows.data(), sizeof(double) * values);
       }
       if (progress) progress(static_cast<long>(r0 + h), static_cast<long>(dims[0]));
     }
@@ -350,7 +378,16 @@ void write_compliance_file(const std::filesystem::path& path, const ComplianceMo
 
 namespace {
 
-ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G) {
+// Where read_once puts G: nowhere, in double, or as stored.
+struct GTarget {
+  Eigen::MatrixXd* G = nullptr;
+  Eigen::MatrixXf* G32 = nullptr;  // with G: float32 files go here, G is left empty
+};
+
+ComplianceModel read_once(const std::filesystem::path& path, GTarget target,
+                          const char* format = kComplianceFormatName) {
+  Eigen::MatrixXd* G = target.G;
+  const bool partial = std::strcmp(format, kPartialFormatName) == 0;
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw InputError(fmt::format("{}: no such file", path.string()));
   if (std::FILE* f = std::fopen(path.c_str(), "rb"))
@@ -379,9 +416,15 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
   Handle file(id, H5Fclose, "open");
   Reader r{path.string(), file, {}};
 
-  if (r.string_attribute("format") != kComplianceFormatName)
-    r.fail("attribute format", fmt::format("is '{}', expected '{}'", r.string_attribute("format"),
-                                           kComplianceFormatName));
+  if (const std::string found = r.string_attribute("format"); found != format) {
+    if (found == kPartialFormatName)
+      r.fail("attribute format",
+             fmt::format("is '{}': a shard holding some columns of G, not a compliance file; "
+                         "assemble the shards with palpate-precompute merge (docs/precompute.md, "
+                         "\"Batch precomputation\")",
+                         found));
+    r.fail("attribute format", fmt::format("is '{}', expected '{}'", found, format));
+  }
   const int major = r.int_attribute("format_version_major");
   if (major != kComplianceFormatMajor)
     r.fail("attribute format_version_major",
@@ -400,7 +443,7 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
   m.report_json = r.string_attribute("report_json", false);
   // Since 1.2; verified once everything else is read and checked.
   const std::string stored_digest =
-      m.format_version_minor >= 2 ? r.string_attribute("content_sha256") : std::string();
+      m.format_version_minor >= 2 && !partial ? r.string_attribute("content_sha256") : std::string();
   r.hashing = !stored_digest.empty() && G != nullptr;
 
   // The datasets in file order: the order of the content digest.
@@ -435,18 +478,31 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
 
   const auto gd = r.dims("/compliance/G", 2);
   const auto n3 = static_cast<hsize_t>(3 * m.compliance_vertices.size());
-  if (gd[0] != n3 || gd[1] != n3)
+  if (partial) {
+    // A shard's G is 3n × (its columns); partial_file.cpp checks it.
+    if (gd[0] != n3)
+      r.fail("/compliance/G", fmt::format("has {} rows, expected {} (3 × /compliance/vertex_ids)",
+                                          gd[0], n3));
+  } else if (gd[0] != n3 || gd[1] != n3)
     r.fail("/compliance/G", fmt::format("is {} × {}, expected {} × {} (3 × /compliance/vertex_ids)",
                                         gd[0], gd[1], n3, n3));
   {
     Handle set(H5Dopen2(file, "/compliance/G", H5P_DEFAULT), H5Dclose, "open /compliance/G");
     Handle type(H5Dget_type(set), H5Tclose, "get the type of G");
     m.precision = H5Tget_size(type) == 4 ? Precision::kFloat32 : Precision::kFloat64;
-    if (G) {
+    if (G && !partial) {
       // In row blocks, as stored (float32 or float64), into the digest; then
       // into G's column-major memory (row i of the file is row i of G).
       const bool single = m.precision == Precision::kFloat32;
-      G->resize(static_cast<Eigen::Index>(n3), static_cast<Eigen::Index>(n3));
+      // float32 kept as stored when asked (half the memory), else in double.
+      const bool keep32 = single && target.G32 != nullptr;
+      if (keep32) {
+        G->resize(0, 0);
+        target.G32->resize(static_cast<Eigen::Index>(n3), static_cast<Eigen::Index>(n3));
+      } else {
+        if (target.G32) target.G32->resize(0, 0);
+        G->resize(static_cast<Eigen::Index>(n3), static_cast<Eigen::Index>(n3));
+      }
       r.hash_dataset("/compliance/G", gd);
       const hsize_t block = 256;
       Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows;
@@ -466,6 +522,12 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
           status =
               H5Dread(set, H5T_NATIVE_FLOAT, mem_space, file_space, H5P_DEFAULT, rows32.data());
           r.hash(rows32.data(), sizeof(float) * static_cast<std::size_t>(rows32.size()));
+          if (keep32) {
+            if (status < 0) r.fail("/compliance/G", "cannot be read (corrupt or of a wrong type)");
+            if (!rows32.allFinite()) r.fail("/compliance/G", "holds a non-finite value");
+            target.G32->middleRows(static_cast<Eigen::Index>(r0), rows_in_block) = rows32;
+            continue;
+          }
           rows = rows32.cast<double>();
         } else {
           rows.resize(rows_in_block, columns);
@@ -533,6 +595,18 @@ ComplianceModel read_once(const std::filesystem::path& path, Eigen::MatrixXd* G)
 }  // namespace
 
 ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::MatrixXd* G) {
+  return detail::read_compliance_file(path, G, nullptr, kComplianceFormatName);
+}
+
+ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::MatrixXd* G,
+                                     Eigen::MatrixXf* G32) {
+  PALPATE_DEMAND(G != nullptr && G32 != nullptr);
+  return detail::read_compliance_file(path, G, G32, kComplianceFormatName);
+}
+
+ComplianceModel detail::read_compliance_file(const std::filesystem::path& path,
+                                             Eigen::MatrixXd* G, Eigen::MatrixXf* G32,
+                                             const char* format) {
   silence_hdf5();
   // A file replaced (renamed over) or written while it is read would give a
   // model made of two files: read again, until one read sees the same file
@@ -542,7 +616,7 @@ ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::M
   for (int attempt = 1;; ++attempt) {
     const auto before = identify(path);
     try {
-      ComplianceModel m = read_once(path, G);
+      ComplianceModel m = read_once(path, GTarget{G, G32}, format);
       if (identify(path) == before) return m;
     } catch (const InputError&) {
       if (identify(path) == before) throw;

@@ -1,12 +1,14 @@
 #include "palpate/precompute.hpp"
 
 #include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fmt/format.h>
 #include <map>
 #include <set>
+#include <charconv>
 #include <sstream>
 #include <toml++/toml.h>
 
@@ -14,6 +16,7 @@
 #include "palpate/error.hpp"
 #include "palpate/fem.hpp"
 #include "palpate/hash.hpp"
+#include "palpate/partial_file.hpp"
 #include "palpate/system_info.hpp"
 #include "palpate/xdmf.hpp"
 #include "toml_reader.hpp"
@@ -54,6 +57,43 @@ Precision parse_precision(const std::string& name) {
 
 std::string to_string(Precision precision) {
   return precision == Precision::kFloat32 ? "float32" : "float64";
+}
+
+void parse_shard(const std::string& text, ColumnShard* shard) {
+  auto number = [&](std::string_view digits, int* out) {
+    const auto [rest, status] = std::from_chars(digits.data(), digits.data() + digits.size(), *out);
+    return status == std::errc() && rest == digits.data() + digits.size() && !digits.empty();
+  };
+  const auto slash = text.find('/'), colon = text.find(':');
+  const std::string_view t(text);
+  if (slash != std::string::npos && colon == std::string::npos) {
+    ColumnShard s;
+    if (number(t.substr(0, slash), &s.index) && number(t.substr(slash + 1), &s.count) &&
+        s.count > 0 && s.index >= 0 && s.index < s.count) {
+      *shard = s;
+      return;
+    }
+    throw InputError(fmt::format("shard '{}' is not accepted: use INDEX/COUNT with 0 ≤ INDEX < "
+                                 "COUNT, e.g. 0/4 … 3/4",
+                                 text));
+  }
+  if (colon != std::string::npos && slash == std::string::npos) {
+    ColumnShard s;
+    if (number(t.substr(0, colon), &s.begin) && number(t.substr(colon + 1), &s.end) &&
+        s.begin >= 0 && s.begin < s.end) {
+      *shard = s;
+      return;
+    }
+  }
+  throw InputError(fmt::format("columns '{}' are not accepted: use BEGIN:END with 0 ≤ BEGIN < END "
+                               "(columns of G, END excluded), or a shard INDEX/COUNT",
+                               text));
+}
+
+std::filesystem::path shard_output_path(const std::filesystem::path& output, int begin, int end) {
+  auto name = fmt::format("{}.part-{}-{}{}", output.stem().string(), begin, end,
+                          output.extension().string());
+  return output.has_parent_path() ? output.parent_path() / name : std::filesystem::path(name);
 }
 
 // ---- job file ----------------------------------------------------------------
@@ -305,12 +345,243 @@ std::string input_hash(const TetMesh& mesh, const std::vector<MaterialRecord>& m
   return h.hex_digest();
 }
 
+// ---- batch precomputation: the streaming solves, shards, merge -----------------
+
+// Largest relative residual or column mismatch accepted: larger means K is
+// singular to working precision (a part held too loosely, a degenerate
+// region), and G would be meaningless.
+constexpr double kMaxResidual = 1e-6;
+
+void refuse_bad_residual(double residual, double mismatch) {
+  if (!(residual <= kMaxResidual) || !(mismatch <= kMaxResidual))
+    throw NumericalError(fmt::format(
+        "the solution does not satisfy K u = e: residual {:.3g}, column mismatch {:.3g} (accepted: "
+        "≤ {:.0e}); K is numerically singular: check that the attachment holds every part of the "
+        "organ and that no region is degenerate; no file written",
+        residual, mismatch, kMaxResidual));
+}
+
+// Rows of G per band when writing the final file from shards, within
+// @p budget bytes: a band in double and float, plus the sampled rows.
+long band_rows_within(double budget, int m) {
+  const double per_row = 12.0 * m;
+  return static_cast<long>(std::clamp(std::floor(budget / per_row), 1.0, 256.0));
+}
+
+// Prints one line at the first block (the estimate), then at every tenth of
+// the columns: done / total, columns per second, time left.
+class SolveProgress {
+ public:
+  SolveProgress(std::function<void(const std::string&)> info, long done, long total, int threads)
+      : info_(std::move(info)), resumed_(done), done_(done), total_(total), threads_(threads),
+        t0_(std::chrono::steady_clock::now()) {}
+  void add(long columns, int block_columns, long pending_blocks) {
+    done_ += columns;
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+    if (!info_) return;
+    if (!first_reported_) {
+      first_reported_ = true;
+      // The threads solve their first blocks side by side.
+      const double estimate = s * static_cast<double>(pending_blocks) / threads_;
+      info_(fmt::format("first block of {} columns solved in {:.2f} s: about {:.0f} s for the {} "
+                        "blocks left ({} thread{})",
+                        block_columns, s, estimate, pending_blocks, threads_, threads_ > 1 ? "s" : ""));
+    }
+    const long tenth = 10 * done_ / std::max(1L, total_);
+    if (tenth <= last_tenth_) return;
+    last_tenth_ = tenth;
+    const double rate = s > 0 ? static_cast<double>(done_ - resumed_) / s : 0;
+    info_(fmt::format("solves: {}/{} columns ({:.0f} %), {:.0f} columns/s, about {:.0f} s left",
+                      done_, total_, 100.0 * static_cast<double>(done_) / static_cast<double>(total_),
+                      rate, rate > 0 ? static_cast<double>(total_ - done_) / rate : 0.0));
+  }
+  double rate() const {
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+    return s > 0 ? static_cast<double>(done_ - resumed_) / s : 0;
+  }
+
+ private:
+  std::function<void(const std::string&)> info_;
+  long resumed_, done_, total_;
+  int threads_;
+  std::chrono::steady_clock::time_point t0_;
+  bool first_reported_ = false;
+  long last_tenth_ = 0;
+};
+
+// Shards sorted by their first column; refused unless they come from one
+// problem, with one storage and block size, and cover [0, m) once.
+void check_shards_tile(std::vector<std::unique_ptr<PartialFile>>& shards,
+                       const std::function<void(const std::string&)>& warn) {
+  if (shards.empty()) throw InputError("merge: no shard given");
+  std::sort(shards.begin(), shards.end(), [](const auto& a, const auto& b) {
+    return a->identity().columns_begin < b->identity().columns_begin;
+  });
+  const auto& ref = *shards.front();
+  const ShardIdentity& r = ref.identity();
+  for (const auto& s : shards) {
+    const ShardIdentity& i = s->identity();
+    const auto names = fmt::format("{} and {}", ref.path().string(), s->path().string());
+    if (i.input_hash != r.input_hash || i.columns_total != r.columns_total)
+      throw InputError(fmt::format(
+          "merge: {} come from different inputs (input hash {}… and {}…): merge only the shards "
+          "of one job (same mesh, materials and attachment)",
+          names, r.input_hash.substr(0, 19), i.input_hash.substr(0, 19)));
+    if (i.precision != r.precision)
+      throw InputError(fmt::format("merge: {} store G in {} and {}: compute every shard with the "
+                                   "same --precision",
+                                   names, to_string(r.precision), to_string(i.precision)));
+    if (i.block_columns != r.block_columns)
+      throw InputError(fmt::format("merge: {} were solved in blocks of {} and {} columns: compute "
+                                   "every shard with the same --block-columns (the merged file "
+                                   "must equal one run)",
+                                   names, r.block_columns, i.block_columns));
+    if (s->blas() != ref.blas())
+      warn(fmt::format("merge: {} were computed with different BLAS ({} and {}): G agrees to "
+                       "round-off but may differ in the last bits from a single run",
+                       names, ref.blas(), s->blas()));
+  }
+  int expected = 0;
+  const PartialFile* previous = nullptr;
+  for (const auto& s : shards) {
+    const ShardIdentity& i = s->identity();
+    if (i.columns_begin > expected)
+      throw InputError(fmt::format(
+          "merge: columns {}:{} of {} are in no shard (a gap {}): compute them with --columns "
+          "{}:{}, or pass the shard that holds them",
+          expected, i.columns_begin, r.columns_total,
+          previous ? fmt::format("between {} and {}", previous->path().string(), s->path().string())
+                   : fmt::format("before {}", s->path().string()),
+          expected, i.columns_begin));
+    if (i.columns_begin < expected)
+      throw InputError(fmt::format(
+          "merge: {} and {} both hold columns {}:{} (overlapping shards, e.g. from two different "
+          "splits): pass each column once",
+          previous->path().string(), s->path().string(), i.columns_begin,
+          std::min(expected, i.columns_end)));
+    expected = i.columns_end;
+    previous = s.get();
+  }
+  if (expected < r.columns_total)
+    throw InputError(fmt::format(
+        "merge: columns {}:{} of {} are in no shard (a gap after {}): compute them with --columns "
+        "{}:{}, or pass the shard that holds them",
+        expected, r.columns_total, r.columns_total, previous->path().string(), expected,
+        r.columns_total));
+}
+
+// The compliance file from complete shards that tile G: the diagonal blocks
+// (definiteness, softness) from their float64 entries, the checks, then G
+// in row bands, and the sidecar. Fills report's checks and output.
+void write_from_shards(std::vector<std::unique_ptr<PartialFile>>& shards,
+                       const std::filesystem::path& output, bool write_xdmf, double limit,
+                       const PrecomputeHooks& hooks, json& report, Phases& phases) {
+  auto phase = [&](const std::string& s) { if (hooks.phase) hooks.phase(s); };
+  ComplianceModel model = shards.front()->model();
+  const int m = shards.front()->identity().columns_total;
+
+  // Diagonal blocks: entries (3k + i, c) for the 3 columns c of vertex k.
+  Eigen::MatrixX3d diagonal(m, 3);
+  double residual = 0, mismatch = 0;
+  std::vector<int> checked;
+  for (const auto& s : shards) {
+    const ShardIdentity& i = s->identity();
+    diagonal.middleRows(i.columns_begin, i.columns_end - i.columns_begin) = s->diagonal_entries();
+    for (const auto& c : s->checks()) {
+      residual = std::max(residual, c.residual);
+      mismatch = std::max(mismatch, c.mismatch);
+      checked.push_back(c.column);
+    }
+  }
+  const int n = m / 3;
+  Eigen::MatrixXd blocks(3, m);  // [G^00 G^11 …], each block's column j = diagonal.row(3k + j)
+  for (int c = 0; c < m; ++c) blocks.col(c) = diagonal.row(c).transpose();
+  // diagonal_block_*() read blocks G(3k:3k+3, 3k:3k+3): give them a block-diagonal view.
+  double lowest = INFINITY;
+  int weakest = 0;
+  Eigen::VectorXd softness(n);
+  for (int k = 0; k < n; ++k) {
+    const Eigen::Matrix3d B = blocks.middleCols<3>(3 * k);
+    const Eigen::Matrix3d S = 0.5 * (B + B.transpose());
+    const Eigen::Vector3d e =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(S, Eigen::EigenvaluesOnly).eigenvalues();
+    softness[k] = e[2];
+    if (e[0] < lowest) lowest = e[0], weakest = k;
+  }
+  model.softness_m_per_n = Eigen::VectorXd::Zero(model.vertices_m.rows());
+  for (int k = 0; k < n; ++k) model.softness_m_per_n[model.compliance_vertices[k]] = softness[k];
+  const int weakest_vertex = model.source_vertex_ids[model.compliance_vertices[weakest]];
+  refuse_bad_residual(residual, mismatch);
+  if (!(lowest > 0))
+    throw NumericalError(fmt::format("G has a diagonal block that is not positive definite (vertex {}, "
+                                     "eigenvalue {:.3g} m/N); no file written",
+                                     weakest_vertex, lowest));
+
+  // Symmetry, sampled: for spread columns c, column c against row c, both
+  // seen as the row bands go by (G itself is never whole in memory).
+  std::vector<int> sampled = sample_columns(m, 32);
+  std::vector<Eigen::VectorXd> column(sampled.size(), Eigen::VectorXd(m)), row(sampled.size());
+  double largest = 0;
+  std::sort(checked.begin(), checked.end());
+  json checks = {{"max_residual", residual},
+                 {"max_column_mismatch", mismatch},
+                 {"min_diagonal_block_eigenvalue_m_per_n", lowest},
+                 {"min_diagonal_block_vertex", weakest_vertex},
+                 {"checked_columns", checked}};
+  report["checks"] = checks;
+  report["method"] = "solves";
+  model.method = "solves";
+  model.created_utc = report["created_utc"];
+  model.producer = report["producer"];
+  report["output"] = {{"file", output.string()},
+                      {"precision", to_string(model.precision)},
+                      {"xdmf", write_xdmf ? json(xdmf_sidecar_path(output).string()) : json(nullptr)}};
+  // The symmetry error is only known once G is written: the stored report
+  // says it was sampled, the returned one has the value.
+  report["checks"]["symmetry_error_sampled_columns"] = sampled.size();
+  model.report_json = report.dump();
+
+  const double fixed_bytes = 8.0 * m * static_cast<double>(sampled.size()) + 48.0 * m;
+  const long band = band_rows_within(limit - fixed_bytes, m);
+  report["memory"]["merge_band_rows"] = band;
+
+  phase("write file");
+  phases.begin("write file");
+  auto progress = hooks.progress ? hooks.progress("write file") : ProgressFn{};
+  write_compliance_file(
+      output, model,
+      [&](long first, long count, double* rows) {
+        for (const auto& s : shards) s->read_rows(first, count, rows);
+        const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>
+            band_rows(rows, count, m);
+        if (!band_rows.allFinite())
+          throw InputError(fmt::format("rows {}:{} of G in the shards hold a non-finite value "
+                                       "(a damaged shard?)",
+                                       first, first + count));
+        largest = std::max(largest, band_rows.cwiseAbs().maxCoeff());
+        for (size_t j = 0; j < sampled.size(); ++j) {
+          column[j].segment(first, count) = band_rows.col(sampled[j]);
+          if (sampled[j] >= first && sampled[j] < first + count)
+            row[j] = band_rows.row(sampled[j] - first).transpose();
+        }
+      },
+      band, progress);
+  if (write_xdmf) write_xdmf_sidecar(output, model);
+  phases.end();
+  double asymmetry = 0;
+  for (size_t j = 0; j < sampled.size(); ++j)
+    asymmetry = std::max(asymmetry, (column[j] - row[j]).cwiseAbs().maxCoeff());
+  report["checks"]["symmetry_error"] = largest > 0 ? asymmetry / largest : asymmetry;
+  report["output"]["bytes"] = std::filesystem::file_size(output);
+}
+
 }  // namespace
 
 json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
   auto warn = [&](const std::string& s) { if (hooks.warn) hooks.warn(s); };
   auto phase = [&](const std::string& s) { if (hooks.phase) hooks.phase(s); };
   auto progress = [&](const std::string& label) { return hooks.progress ? hooks.progress(label) : ProgressFn{}; };
+  auto info = [&](const std::string& s) { if (hooks.info) hooks.info(s); };
 
   validate_job(job);
   json report;
@@ -397,42 +668,90 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
   for (const auto& mat : materials)
     report["materials"].push_back({{"name", mat.name}, {"young_modulus_pa", mat.young_modulus_pa}, {"poisson_ratio", mat.poisson_ratio}});
 
+  // The file's content but G, known before any solve: the streaming
+  // method's checkpoint holds it from the start.
+  ComplianceModel model;
+  model.vertices_m = mesh.vertices;
+  model.tetrahedra = mesh.tetrahedra;
+  model.tet_material = tet_material;
+  model.materials = materials;
+  model.surface_triangles = boundary.triangles;
+  model.fixed_vertices = Eigen::Map<const Eigen::VectorXi>(fixed.data(), static_cast<Eigen::Index>(fixed.size()));
+  model.source_vertex_ids = mesh.source_ids;
+  model.compliance_vertices = Eigen::Map<const Eigen::VectorXi>(
+      dofs.compliance_vertices.data(), static_cast<Eigen::Index>(dofs.compliance_vertices.size()));
+  model.precision = job.precision;
+  model.method = to_string(job.method);
+  model.producer = report["producer"];
+  model.created_utc = report["created_utc"];
+  model.input_hash = input_hash(mesh, materials, tet_material, fixed);
+  report["input_hash"] = model.input_hash;
+  std::string summary;
+  for (const auto& mat : materials)
+    summary += fmt::format("{}{}: E = {:.6g} Pa, nu = {:.6g}", summary.empty() ? "" : "; ", mat.name,
+                           mat.young_modulus_pa, mat.poisson_ratio);
+  model.material_summary = summary;
+  // The `solves` method streams G through a checkpoint: out of core and
+  // resumable. Its columns: all, or the shard's whole blocks. Shards are
+  // computed by solves (condensation needs the whole G).
+  if (job.shard.any() && job.method == Method::kCondensation)
+    throw InputError("--shard and --columns compute columns of G by solves: use --method solves "
+                     "(condensation computes the whole G at once)");
+  const bool streaming = job.method == Method::kSolves || job.shard.any();
+  {
+    PrecomputeJob stored = job;
+    stored.shard = {};
+    if (streaming) stored.method = Method::kSolves;
+    model.method = to_string(stored.method);
+    report["method"] = model.method;
+    model.job_toml = to_toml(stored);
+  }
+  const int block_columns = job.block_columns;
+  int first_column = 0, end_column = m;
+  if (job.shard.count > 0) {
+    const int blocks = (m + block_columns - 1) / block_columns;
+    if (job.shard.count > blocks)
+      throw InputError(fmt::format("shard {}/{}: G has {} columns, {} blocks of {}: at most {} "
+                                   "shards; use fewer shards or a smaller --block-columns",
+                                   job.shard.index, job.shard.count, m, blocks, block_columns, blocks));
+    // As even as whole blocks go: shard k gets blocks [k·B/N, (k+1)·B/N).
+    first_column = static_cast<int>(static_cast<long>(job.shard.index) * blocks / job.shard.count) * block_columns;
+    end_column = std::min(m, static_cast<int>(static_cast<long>(job.shard.index + 1) * blocks / job.shard.count) * block_columns);
+  } else if (job.shard.begin >= 0) {
+    first_column = job.shard.begin;
+    end_column = job.shard.end;
+    if (end_column > m || first_column % block_columns != 0 ||
+        (end_column % block_columns != 0 && end_column != m))
+      throw InputError(fmt::format(
+          "columns {}:{}: G has {} columns (0:{}) solved in blocks of {}: a shard starts at a "
+          "multiple of {} and ends at one or at {}, so that every column is solved as in a "
+          "single run",
+          first_column, end_column, m, m, block_columns, block_columns, m));
+  }
+
   // Memory: refuse before the long work, with the numbers.
+  const int elt = job.precision == Precision::kFloat32 ? 4 : 8;
   const double g_bytes = 8.0 * m * static_cast<double>(m);
   const double limit = job.memory_limit_bytes > 0 ? job.memory_limit_bytes : available_memory_bytes();
+  const std::string limit_name =
+      job.memory_limit_bytes > 0 ? "is the memory limit set" : "is available on this machine";
   auto refuse_if_too_big = [&](double need, const std::string& detail) {
     if (need > limit)
       throw ResourceError(fmt::format(
           "the job needs about {} ({}) but {} {}: use a coarser mesh (fewer surface vertices), "
           "or a machine with more memory",
-          format_bytes(need), detail, format_bytes(limit),
-          job.memory_limit_bytes > 0 ? "is the memory limit set" : "is available on this machine"));
+          format_bytes(need), detail, format_bytes(limit), limit_name));
   };
-  refuse_if_too_big(g_bytes, fmt::format("G alone is {} × {} doubles", m, m));
+  if (!streaming)
+    refuse_if_too_big(g_bytes, fmt::format("G alone is {} × {} doubles; --method solves computes it "
+                                           "out of core, within the limit",
+                                           m, m));
 
   phase("assemble K");
   phases.begin("assemble K");
   const SparseMatrixd K = assemble_stiffness(mesh.vertices, mesh.tetrahedra, tet_material, lame, dofs);
   phases.end()["nnz_upper"] = K.nonZeros();
 
-  const bool do_solves = job.method != Method::kCondensation;
-  const bool do_condensation = job.method != Method::kSolves;
-  {
-    // G, plus each method's factor and work arrays (they run one at a time).
-    const double k_bytes = 12.0 * static_cast<double>(K.nonZeros());
-    double need = 0;
-    if (do_solves)
-      need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K) +
-                                2.0 * 8.0 * n * std::min(job.block_columns, m) * solve_threads());
-    if (do_condensation)
-      need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K, condensation_ordering(K, m)));
-    need += k_bytes;
-    report["memory"] = {{"G_bytes", g_bytes}, {"estimate_bytes", need}, {"limit_bytes", limit}};
-    refuse_if_too_big(need, fmt::format("G is {}; the rest is the sparse factor", format_bytes(g_bytes)));
-  }
-
-  ComplianceOptions options;
-  options.block_columns = job.block_columns;
   // Runs a method, turning a failed Cholesky into a message about the mesh.
   auto with_vertex_context = [&](auto method) {
     try {
@@ -445,7 +764,164 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
           mesh.source, mesh.source_ids[v], "xyz"[e.column() % 3]));
     }
   };
+  const double k_bytes = 12.0 * static_cast<double>(K.nonZeros());
 
+  if (streaming) {
+    const ShardIdentity id{model.input_hash, first_column, end_column, m, block_columns, job.precision};
+    const bool sharded = first_column != 0 || end_column != m || job.shard.any();
+    const auto target = sharded ? shard_output_path(job.output, first_column, end_column) : job.output;
+    const auto checkpoint = checkpoint_path(target);
+    const int width = end_column - first_column;
+
+    // A block per thread and the factor; G never in memory. Writing the
+    // final file needs a band of rows, which fits any limit these do.
+    const int threads = std::min(solve_threads(), id.blocks());
+    const int block = std::min(block_columns, m);
+    const double factor_bytes = SparseCholesky::estimate_factor_bytes(K);
+    const double need = k_bytes + factor_bytes + 16.0 * n * block * threads + 12.0 * m * block +
+                        8.0 * m * 40 + 48.0 * m;
+    const double file_bytes = static_cast<double>(elt) * m * width;
+    report["memory"] = {{"G_bytes", g_bytes},
+                        {"estimate_bytes", need},
+                        {"limit_bytes", limit},
+                        {"streamed", true},
+                        {"G_file_bytes", file_bytes}};
+    if (need > limit)
+      throw ResourceError(fmt::format(
+          "even one block of {} columns per thread ({} threads) and the sparse factor ({}) need "
+          "about {} but {} {}: use a smaller --block-columns, or a machine with more memory",
+          block, threads, format_bytes(factor_bytes), format_bytes(need), format_bytes(limit), limit_name));
+    info(fmt::format("{}: columns {}:{} of {} in {} blocks of {}; G {} on disk ({}), at most about "
+                     "{} in memory (limit {})",
+                     sharded ? "shard" : "solves", first_column, end_column, m, id.blocks(), block_columns,
+                     format_bytes(file_bytes), to_string(job.precision), format_bytes(need),
+                     format_bytes(limit)));
+
+    // Resume the checkpoint of an earlier run of the same columns, if any.
+    std::unique_ptr<PartialFile> partial;
+    std::error_code ec;
+    if (std::filesystem::exists(checkpoint, ec)) {
+      std::string why;
+      partial = PartialFile::open_to_resume(checkpoint, id, &why);
+      if (partial) {
+        info(fmt::format("resuming {}: {} of {} blocks already complete", checkpoint.string(),
+                         id.blocks() - static_cast<int>(partial->pending_blocks().size()), id.blocks()));
+      } else {
+        warn(fmt::format("discarded {}, left by an earlier run: {}; starting from the first block",
+                         checkpoint.string(), why));
+        std::filesystem::remove(checkpoint, ec);
+      }
+    }
+    const auto checks_wanted = [&] {
+      // The checks a single run makes that fall here, plus this range's ends.
+      std::set<int> c{first_column, end_column - 1};
+      for (const int j : sample_columns(m, ComplianceOptions{}.check_columns))
+        if (j >= first_column && j < end_column) c.insert(j);
+      return std::vector<int>(c.begin(), c.end());
+    }();
+    if (!partial) partial = PartialFile::create(checkpoint, model, id, checks_wanted, report["blas"]);
+    const std::vector<int> pending = partial->pending_blocks();
+    report["columns"] = {{"begin", first_column}, {"end", end_column}, {"total", m},
+                         {"block_columns", block_columns}, {"blocks", id.blocks()},
+                         {"resumed_blocks", id.blocks() - static_cast<int>(pending.size())}};
+
+    phase("solves");
+    phases.begin("solves");
+    ComplianceStats stats;
+    if (!pending.empty()) {
+      long done = 0;
+      for (int b = id.first_block(); b < id.first_block() + id.blocks(); ++b)
+        if (!std::binary_search(pending.begin(), pending.end(), b))
+          done += std::min(block_columns, m - b * block_columns);
+      SolveProgress lines(hooks.info, done, width, std::min<int>(threads, static_cast<int>(pending.size())));
+      auto bar = progress(fmt::format("{} solves", width));
+      long left = static_cast<long>(pending.size());
+      with_vertex_context([&] {
+        solve_compliance_blocks(
+            K, m, block_columns, pending, checks_wanted,
+            [&](const SolvedBlock& b) {
+              partial->write_block(b);
+              done += b.columns.cols();
+              lines.add(b.columns.cols(), block_columns, --left);
+              if (bar) bar(done, width);
+            },
+            &stats,
+            [&](const FactorInfo& f) {
+              info(fmt::format("factor: {} ordering, nnz(L) = {:.3g}, {:.2f} s; {} columns left to "
+                               "solve, {:.3g} GFLOP",
+                               f.ordering, f.nnz_L, f.factor_seconds, width - done,
+                               4.0 * f.nnz_L * static_cast<double>(width - done) / 1e9));
+            });
+      });
+      report["columns"]["columns_per_second"] = lines.rate();
+    }
+    auto& p = phases.end();
+    p["gflop_per_s"] = stats.dense_seconds > 0 ? stats.dense_flops / stats.dense_seconds / 1e9 : 0.0;
+    // The checks of every block, this run's and the resumed ones.
+    double residual = 0, mismatch = 0;
+    std::vector<int> checked;
+    for (const auto& c : partial->checks()) {
+      residual = std::max(residual, c.residual);
+      mismatch = std::max(mismatch, c.mismatch);
+      checked.push_back(c.column);
+    }
+    stats.max_residual = residual;
+    stats.max_column_mismatch = mismatch;
+    stats.checked_columns = checked;
+    report["methods"] = {{"solves", factor_json(stats)}};
+    report["checks"] = {{"max_residual", residual}, {"max_column_mismatch", mismatch}};
+    try {
+      refuse_bad_residual(residual, mismatch);
+    } catch (const NumericalError&) {
+      partial.reset();
+      std::filesystem::remove(checkpoint, ec);  // the same inputs would give the same
+      throw;
+    }
+
+    if (sharded) {
+      report["output"] = {{"file", target.string()}, {"precision", to_string(job.precision)}, {"xdmf", nullptr}};
+      partial->finish(report.dump());
+      partial->close();
+      durable_rename(checkpoint, target);
+      report["output"]["bytes"] = std::filesystem::file_size(target);
+      report["peak_rss_bytes"] = phases.peak();
+      return report;
+    }
+    partial->finish(report.dump());
+    partial->close();
+    partial.reset();
+    std::vector<std::unique_ptr<PartialFile>> whole;
+    whole.push_back(PartialFile::open_complete(checkpoint));
+    write_from_shards(whole, job.output, job.write_xdmf, limit - k_bytes, hooks, report, phases);
+    whole.clear();
+    std::filesystem::remove(checkpoint, ec);
+    if (!job.write_xdmf && std::filesystem::exists(xdmf_sidecar_path(job.output), ec))
+      warn(fmt::format("{} is left from an earlier run and may not match the new {}: delete it, "
+                       "or run without --no-xdmf to rewrite it",
+                       xdmf_sidecar_path(job.output).string(), job.output.string()));
+    report["peak_rss_bytes"] = phases.peak();
+    return report;
+  }
+
+  const bool do_solves = job.method != Method::kCondensation;
+  const bool do_condensation = job.method != Method::kSolves;
+  {
+    // G, plus each method's factor and work arrays (they run one at a time).
+    double need = 0;
+    if (do_solves)
+      need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K) +
+                                2.0 * 8.0 * n * std::min(job.block_columns, m) * solve_threads());
+    if (do_condensation)
+      need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K, condensation_ordering(K, m)));
+    need += k_bytes;
+    report["memory"] = {{"G_bytes", g_bytes}, {"estimate_bytes", need}, {"limit_bytes", limit}};
+    refuse_if_too_big(need, fmt::format("G is {}; the rest is the sparse factor; --method solves "
+                                        "computes G out of core, within the limit",
+                                        format_bytes(g_bytes)));
+  }
+
+  ComplianceOptions options;
+  options.block_columns = job.block_columns;
   Eigen::MatrixXd G;
   json methods;
   if (do_condensation) {
@@ -510,45 +986,15 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
         "the two methods disagree: largest relative difference {:.3g} > tolerance {:.3g}; "
         "no file written (the stiffness may be too ill-conditioned: check ν < 0.5 and the mesh quality)",
         max_difference, job.tolerance));
-  // A residual this large means K is singular to working precision (a part
-  // held too loosely, a degenerate region): G would be meaningless.
-  constexpr double kMaxResidual = 1e-6;
-  if (!(residual <= kMaxResidual) || !(mismatch <= kMaxResidual))
-    throw NumericalError(fmt::format(
-        "the solution does not satisfy K u = e: residual {:.3g}, column mismatch {:.3g} (accepted: "
-        "≤ {:.0e}); K is numerically singular: check that the attachment holds every part of the "
-        "organ and that no region is degenerate; no file written",
-        residual, mismatch, kMaxResidual));
+  refuse_bad_residual(residual, mismatch);
   if (!(min_eig > 0))
     throw NumericalError(fmt::format("G has a diagonal block that is not positive definite (vertex {}, "
                                      "eigenvalue {:.3g} m/N); no file written",
                                      mesh.source_ids[dofs.compliance_vertices[weakest]], min_eig));
 
-  ComplianceModel model;
-  model.vertices_m = mesh.vertices;
-  model.tetrahedra = mesh.tetrahedra;
-  model.tet_material = tet_material;
-  model.materials = materials;
-  model.surface_triangles = boundary.triangles;
-  model.fixed_vertices = Eigen::Map<const Eigen::VectorXi>(fixed.data(), static_cast<Eigen::Index>(fixed.size()));
-  model.source_vertex_ids = mesh.source_ids;
-  model.compliance_vertices = Eigen::Map<const Eigen::VectorXi>(
-      dofs.compliance_vertices.data(), static_cast<Eigen::Index>(dofs.compliance_vertices.size()));
   model.softness_m_per_n = Eigen::VectorXd::Zero(mesh.vertices.rows());
   for (Eigen::Index a = 0; a < model.compliance_vertices.size(); ++a)
     model.softness_m_per_n[model.compliance_vertices[a]] = block_softness[a];
-  model.precision = job.precision;
-  model.method = to_string(job.method);
-  model.producer = report["producer"];
-  model.created_utc = report["created_utc"];
-  model.input_hash = input_hash(mesh, materials, tet_material, fixed);
-  report["input_hash"] = model.input_hash;
-  std::string summary;
-  for (const auto& mat : materials)
-    summary += fmt::format("{}{}: E = {:.6g} Pa, nu = {:.6g}", summary.empty() ? "" : "; ", mat.name,
-                           mat.young_modulus_pa, mat.poisson_ratio);
-  model.material_summary = summary;
-  model.job_toml = to_toml(job);
   const auto sidecar = xdmf_sidecar_path(job.output);
   report["output"] = {{"file", job.output.string()},
                       {"precision", to_string(job.precision)},
@@ -571,10 +1017,66 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
   return report;
 }
 
+
+json merge_shards(const MergeJob& job, const PrecomputeHooks& hooks) {
+  auto warn = [&](const std::string& s) { if (hooks.warn) hooks.warn(s); };
+  auto phase = [&](const std::string& s) { if (hooks.phase) hooks.phase(s); };
+  if (job.output.empty()) throw InputError("merge: no output file given: use -o FILE.h5");
+  if (job.shards.empty())
+    throw InputError("merge: no shard given: list the shard files (e.g. liver.part-*.h5)");
+  require_output_directory(job.output);
+  if (job.write_xdmf) check_xdmf_sidecar_name(job.output);
+  if (!(job.memory_limit_bytes >= 0)) throw InputError("memory limit must be ≥ 0 (0: available memory)");
+
+  json phase_list = json::array();
+  Phases phases(&phase_list);
+  phase("check shards");
+  phases.begin("check shards");
+  std::vector<std::unique_ptr<PartialFile>> shards;
+  for (const auto& path : job.shards) shards.push_back(PartialFile::open_complete(path));
+  check_shards_tile(shards, warn);
+  phases.end();
+
+  // The first shard's report describes the problem (mesh, materials, factor).
+  json report;
+  try {
+    report = json::parse(shards.front()->report_json());
+  } catch (const json::exception&) {
+    report = json::object();
+  }
+  report["producer"] = "palpate-precompute " PALPATE_VERSION;
+  report["created_utc"] = utc_timestamp();
+  report.erase("columns");
+  report.erase("peak_rss_bytes");
+  json list = json::array();
+  for (const auto& s : shards) {
+    const ShardIdentity& i = s->identity();
+    json entry = {{"file", s->path().string()}, {"columns", {i.columns_begin, i.columns_end}}, {"blas", s->blas()}};
+    try {
+      const json r = json::parse(s->report_json());
+      if (r.contains("columns") && r["columns"].contains("columns_per_second"))
+        entry["columns_per_second"] = r["columns"]["columns_per_second"];
+      if (r.contains("peak_rss_bytes")) entry["peak_rss_bytes"] = r["peak_rss_bytes"];
+    } catch (const json::exception&) {
+    }
+    list.push_back(entry);
+  }
+  report["shards"] = list;
+  report["phases"] = phase_list;
+  Phases more(&report["phases"]);
+  const double limit = job.memory_limit_bytes > 0 ? job.memory_limit_bytes : available_memory_bytes();
+  if (!report.contains("memory") || !report["memory"].is_object()) report["memory"] = json::object();
+  report["memory"]["limit_bytes"] = limit;
+  write_from_shards(shards, job.output, job.write_xdmf, limit, hooks, report, more);
+  report["peak_rss_bytes"] = std::max(phases.peak(), more.peak());
+  return report;
+}
+
 std::string format_report(const json& r) {
   std::string s;
   const auto& mesh = r["mesh"];
   s += fmt::format("palpate-precompute report ({})\n", r["producer"].get<std::string>());
+  if (!r.contains("mesh")) return s;
   s += fmt::format("  mesh       {}: {} vertices, {} tetrahedra, {} surface triangles\n",
                    mesh["file"].get<std::string>(), mesh["vertices"].get<long>(),
                    mesh["tetrahedra"].get<long>(), mesh["surface_triangles"].get<long>());
@@ -600,8 +1102,27 @@ std::string format_report(const json& r) {
   const auto& c = r["checks"];
   s += fmt::format("  checks     residual ‖Ku−e‖/‖e‖ ≤ {:.2e} on sampled columns; column mismatch ≤ {:.2e}\n",
                    c["max_residual"].get<double>(), c["max_column_mismatch"].get<double>());
-  s += fmt::format("             symmetry error {:.2e}; smallest eigenvalue of a diagonal block {:.4g} m/N\n",
-                   c["symmetry_error"].get<double>(), c["min_diagonal_block_eigenvalue_m_per_n"].get<double>());
+  // A shard has no whole diagonal block, nor G to compare with its transpose.
+  if (c.contains("symmetry_error"))
+    s += fmt::format("             symmetry error {:.2e}{}; smallest eigenvalue of a diagonal block {:.4g} m/N\n",
+                     c["symmetry_error"].get<double>(),
+                     c.contains("symmetry_error_sampled_columns")
+                         ? fmt::format(" ({} sampled columns)", c["symmetry_error_sampled_columns"].get<int>())
+                         : std::string(),
+                     c["min_diagonal_block_eigenvalue_m_per_n"].get<double>());
+  if (r.contains("columns")) {
+    const auto& k = r["columns"];
+    s += fmt::format("  columns    {}:{} of {}, {} blocks of {} ({} resumed from the checkpoint){}\n",
+                     k["begin"].get<int>(), k["end"].get<int>(), k["total"].get<int>(),
+                     k["blocks"].get<int>(), k["block_columns"].get<int>(), k["resumed_blocks"].get<int>(),
+                     k.contains("columns_per_second")
+                         ? fmt::format(", {:.0f} columns/s", k["columns_per_second"].get<double>())
+                         : std::string());
+  }
+  if (r.contains("shards"))
+    for (const auto& sh : r["shards"])
+      s += fmt::format("  shard      {}: columns {}:{}\n", sh["file"].get<std::string>(),
+                       sh["columns"][0].get<int>(), sh["columns"][1].get<int>());
   if (c.contains("max_relative_difference"))
     s += fmt::format("             solves vs condensation: largest relative difference {:.2e} (tolerance {:.0e})\n",
                      c["max_relative_difference"].get<double>(), c["tolerance"].get<double>());

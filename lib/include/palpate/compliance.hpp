@@ -20,7 +20,8 @@ namespace palpate {
 /// Progress of a long phase: done out of total units.
 using ProgressFn = std::function<void(long done, long total)>;
 
-/// Threads the `solves` method runs its column blocks on (one per core).
+/// Threads the `solves` method runs its column blocks on: one per core this
+/// process may run on (its CPU affinity, e.g. a Slurm task's cores).
 int solve_threads();
 
 struct ComplianceOptions {
@@ -62,6 +63,41 @@ void compliance_by_solves(const SparseMatrixd& K_upper, int surface_dofs,
 /// Same, into a new matrix.
 Eigen::MatrixXd compliance_by_solves(const SparseMatrixd& K_upper, int surface_dofs,
                                      const ComplianceOptions& options, ComplianceStats* stats);
+
+/// One sampled column re-solved alone: ‖K u − e_j‖ and ‖u_S − G(:, j)‖ / ‖G(:, j)‖.
+struct ColumnCheck {
+  int column = 0;
+  double residual = 0;
+  double mismatch = 0;
+};
+
+/// A block of solved columns of G: G(:, first + i) = columns.col(i).
+struct SolvedBlock {
+  int index = 0;  ///< block number: columns [index · block_columns, ...)
+  int first = 0;  ///< first column of G
+  CRef<Eigen::MatrixXd> columns;    ///< m × width, m/N
+  std::vector<ColumnCheck> checks;  ///< the sampled columns that fall in this block
+};
+
+/// The columns of G in blocks aligned to absolute column indices: block b is
+/// columns [b·B, min((b+1)·B, m)), B = @p block_columns, solved as one
+/// blocked supernodal solve on single-threaded BLAS. So column j of G is
+/// the same bits whichever blocks a run solves (a shard, a resumed run, the
+/// whole matrix): it depends only on K and B.
+/// @param blocks the block numbers to solve (any subset, any order)
+/// @param check_columns columns to re-solve alone and check when their block is solved
+/// @param sink receives each solved block, one call at a time (serialized), from
+///   the solving threads; it may throw (the solve stops and rethrows)
+/// @param on_factored optional: called once the factor is ready, with its facts
+/// @throws NotPositiveDefinite (column in K's numbering)
+void solve_compliance_blocks(const SparseMatrixd& K_upper, int surface_dofs, int block_columns,
+                             const std::vector<int>& blocks, const std::vector<int>& check_columns,
+                             const std::function<void(const SolvedBlock&)>& sink,
+                             ComplianceStats* stats,
+                             const std::function<void(const FactorInfo&)>& on_factored = {});
+
+/// Columns to check, spread evenly over [0, m), always including both ends.
+std::vector<int> sample_columns(int m, int count);
 
 /// G_SS by condensation: G_SS = (K_SS − K_SI K_II⁻¹ K_IS)⁻¹. K is factored
 /// with the interior eliminated first (CHOLMOD's ordering of K_II) and the

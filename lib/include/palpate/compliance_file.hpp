@@ -16,6 +16,9 @@ namespace palpate {
 inline constexpr const char* kComplianceFormatName = "palpate-compliance";
 inline constexpr int kComplianceFormatMajor = 1;
 inline constexpr int kComplianceFormatMinor = 2;
+/// The `format` of a shard (partial file): some columns of G and the
+/// checkpoint of the run computing them (partial_file.hpp).
+inline constexpr const char* kPartialFormatName = "palpate-compliance-partial";
 
 /// One material region (a Gmsh physical volume, or the default).
 struct MaterialRecord {
@@ -65,6 +68,16 @@ void write_compliance_file(const std::filesystem::path& path, const ComplianceMo
                            CRef<Eigen::MatrixXd> G,
                            const std::function<void(long done, long total)>& progress = {});
 
+/// Rows [first, first + count) of G into @p rows: count × 3n values, row-major, m/N.
+using GRowSource = std::function<void(long first, long count, double* rows)>;
+
+/// The same, with G given in row bands of @p band_rows rows by @p G_rows (in
+/// order, once each): G need not be in memory (docs/precompute.md, "Batch
+/// precomputation"). Memory: a band in double and, for float32, in float.
+void write_compliance_file(const std::filesystem::path& path, const ComplianceModel& model,
+                           const GRowSource& G_rows, long band_rows,
+                           const std::function<void(long done, long total)>& progress = {});
+
 /// Reads and checks a compliance file: format name and major version, shapes,
 /// index ranges, finite values. Any minor version of major 1 is read; the
 /// 1.1 /visualization/softness is read and checked when present; from 1.2
@@ -76,5 +89,11 @@ void write_compliance_file(const std::filesystem::path& path, const ComplianceMo
 /// @throws InputError naming the file and the dataset at fault, or saying
 ///   that the file kept changing.
 ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::MatrixXd* G);
+
+/// The same, G kept as stored: a float32 file fills @p G32 (half the
+/// memory) and leaves @p G empty; a float64 file fills @p G and leaves @p G32
+/// empty. Both must be given.
+ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::MatrixXd* G,
+                                     Eigen::MatrixXf* G32);
 
 }  // namespace palpate
