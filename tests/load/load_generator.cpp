@@ -991,12 +991,15 @@ void print_table(const json& s) {
               d["log_errors"].get<unsigned long long>(), d["exit_status"].get<int>());
   if (s["load"]["timeline"].size() > 1) {
     std::printf(
-        "\nPer minute (all tools): minute, answered, p50, p99, p99.9, max (us), VmRSS (MB)\n");
+        "\nPer minute (all tools): minute, answered, p50, p99, p99.9, max (us), VmRSS (MB), "
+        "palpated's CPU (%% of a core), machine busy (%% of all CPUs)\n");
     for (const auto& t : s["load"]["timeline"])
-      std::printf("  %3d %8.2f%% %6.0f %6.0f %7.0f %7.0f %8.1f\n", t["minute"].get<int>(),
-                  100 * t["answered_share"].get<double>(), t["round_trip"]["p50_us"].get<double>(),
-                  t["round_trip"]["p99_us"].get<double>(), t["round_trip"]["p999_us"].get<double>(),
-                  t["round_trip"]["max_us"].get<double>(), t["rss_mb"].get<double>());
+      std::printf("  %3d %8.2f%% %6.0f %6.0f %7.0f %7.0f %8.1f %5.0f %%  %5.0f %%\n",
+                  t["minute"].get<int>(), 100 * t["answered_share"].get<double>(),
+                  t["round_trip"]["p50_us"].get<double>(), t["round_trip"]["p99_us"].get<double>(),
+                  t["round_trip"]["p999_us"].get<double>(), t["round_trip"]["max_us"].get<double>(),
+                  t["rss_mb"].get<double>(), t["palpated_cpu_percent"].get<double>(),
+                  t["machine_busy_percent"].get<double>());
   }
   std::printf("\nChecks:\n");
   for (const auto& c : s["checks"])
@@ -1336,20 +1339,33 @@ int run(int argc, char** argv) {
           fmt_rss(first, last, s.rss_tolerance_mb));
     for (std::size_t m = 0; m < minutes; ++m) {
       const Distribution d = distribution(std::move(rtt_by_minute[m]), budget_us);
-      const auto at = std::find_if(samples.begin(), samples.end(), [&](const ProcSample& p) {
-        return p.t_s >= std::min(60.0 * static_cast<double>(m + 1), s.seconds) - 0.5;
-      });
-      const ProcSample& rss = at == samples.end() ? samples.back() : *at;
-      timeline.push_back({{"minute", m + 1},
-                          {"answered_share", share(d.n, ticks_by_minute[m])},
-                          {"round_trip", to_json(d)},
-                          {"rss_mb", rss.rss_mb}});
+      auto sample_at = [&](double t_s) -> const ProcSample& {
+        const auto at = std::find_if(samples.begin(), samples.end(),
+                                     [&](const ProcSample& p) { return p.t_s >= t_s - 0.5; });
+        return at == samples.end() ? samples.back() : *at;
+      };
+      const ProcSample& from = sample_at(60.0 * static_cast<double>(m));
+      const ProcSample& to = sample_at(std::min(60.0 * static_cast<double>(m + 1), s.seconds));
+      const double machine = to.machine_total_s - from.machine_total_s;
+      const double elapsed = to.t_s - from.t_s;
+      timeline.push_back(
+          {{"minute", m + 1},
+           {"answered_share", share(d.n, ticks_by_minute[m])},
+           {"round_trip", to_json(d)},
+           {"rss_mb", to.rss_mb},
+           {"palpated_cpu_percent", elapsed > 0 ? 100 * (to.cpu_s - from.cpu_s) / elapsed : 0},
+           {"machine_busy_percent",
+            machine > 0 ? 100 * (to.machine_busy_s - from.machine_busy_s) / machine : 0}});
     }
   } else {
     check("palpated's RSS flat after the warm-up", false, "no sample of /proc");
   }
   daemon_json["samples"] = json::array();
-  for (const ProcSample& p : samples) daemon_json["samples"].push_back({p.t_s, p.rss_mb, p.cpu_s});
+  // Per second: time (s), VmRSS (MB), palpated's CPU time (s), the
+  // machine's busy and total CPU time (s, all CPUs).
+  for (const ProcSample& p : samples)
+    daemon_json["samples"].push_back(
+        {p.t_s, p.rss_mb, p.cpu_s, p.machine_busy_s, p.machine_total_s});
 
   summary["daemon"] = daemon_json;
   summary["baseline"] = {{"tools", baseline_tools}};
