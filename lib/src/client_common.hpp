@@ -159,6 +159,7 @@ class DaemonWatch {
               std::chrono::milliseconds timeout)
       : state_(std::make_unique<State>()) {
     state_->timeout_s = std::chrono::duration<double>(timeout).count();
+    state_->listening.store(true, std::memory_order_release);
     dds_listener_t* listener = dds_create_listener(state_.get());
     dds_lset_data_available(listener, &DaemonWatch::on_heartbeat);
     const dds_entity_t reader =
@@ -198,6 +199,11 @@ class DaemonWatch {
   struct State {
     double timeout_s = 0;                           // 0: automatic
     std::atomic<ClientClock::rep> last_arrival{0};  // steady clock, by the listener
+    // State is complete before the listener's first call (released before
+    // the reader is made, acquired by the listener), in C++'s memory model
+    // and not only through Cyclone's internal ordering, which
+    // ThreadSanitizer cannot see in the uninstrumented libddsc.
+    std::atomic<bool> listening{false};
     bool heard_any = false;
     char daemon_id[64] = {};
     std::uint64_t last_uptime_ns = 0, period_ns = 0;
@@ -205,7 +211,9 @@ class DaemonWatch {
   };
 
   static void on_heartbeat(dds_entity_t, void* arg) {
-    static_cast<State*>(arg)->last_arrival.store(ClientClock::now().time_since_epoch().count());
+    State& s = *static_cast<State*>(arg);
+    (void)s.listening.load(std::memory_order_acquire);
+    s.last_arrival.store(ClientClock::now().time_since_epoch().count());
   }
 
   void heard(const palpate_DaemonStatus& status) {

@@ -199,6 +199,11 @@ struct Service::Impl {
   LatencyLog latencies;
   std::atomic<std::uint64_t> requests_served{0}, errors{0}, surface_samples{0};
   std::atomic<bool> stopping{false};
+  // Released before each listener is attached, acquired by the listeners:
+  // what the constructor set up happens before their first call in C++'s
+  // memory model, not only through Cyclone's internal ordering (which
+  // ThreadSanitizer cannot see in the uninstrumented libddsc).
+  std::atomic<bool> listening{false};
   std::string stream_failure;  // set by the stream thread before it stops the service
   std::mutex stream_mutex;
   std::condition_variable stream_wake;
@@ -207,14 +212,14 @@ struct Service::Impl {
   explicit Impl(const DaemonConfig& c);
   ~Impl();
   void publish_descriptions();
-  void serve_requests();
+  void serve_requests(dds_entity_t reader);
   static void on_requests(dds_entity_t reader, void* arg);
   void handle(const palpate_ConstraintRequest& request, const dds_sample_info_t& info);
   RequestStatus solve(const palpate_ConstraintRequest& request, ServedModel*& served);
   void discover_clients();
   ClientWriter* client_writer(const char* client_id);
   static void on_poses(dds_entity_t reader, void* arg);
-  void serve_poses();
+  void serve_poses(dds_entity_t reader);
   void take_pose(const palpate_ToolPose& pose);
   void publish_tool(ServedModel& served, int tool, std::uint64_t compute_ns, bool record);
   void run_watchdogs();
@@ -327,6 +332,7 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   // data-available listener: no wake-up of another thread between the
   // request's arrival and its reply. Cyclone calls one reader's listener
   // from one thread at a time. Made last: it may fire at once.
+  listening.store(true, std::memory_order_release);
   dds_listener_t* listener = dds_create_listener(this);
   dds_lset_data_available(listener, &Impl::on_requests);
   const dds_entity_t reader =
@@ -336,6 +342,7 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
 
   // Poses too are served in their reader's listener.
   for (int i = 0; i < 8; ++i) pose_pointers[i] = &pose_samples[i];
+  listening.store(true, std::memory_order_release);
   dds_listener_t* pose_listener = dds_create_listener(this);
   dds_lset_data_available(pose_listener, &Impl::on_poses);
   const dds_entity_t poses = dds_create_reader(participant.get(), pose_topic,
@@ -344,9 +351,15 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   pose_reader = dds::Entity(dds::check(poses, "creating the tool pose reader"));
 }
 
-void Service::Impl::on_requests(dds_entity_t, void* arg) {
+// The listeners take from the reader Cyclone names: they may fire before
+// dds_create_reader has returned, so before request_reader and pose_reader
+// hold the handle (a data race ThreadSanitizer found; the first request or
+// pose then failed with a bad handle).
+void Service::Impl::on_requests(dds_entity_t reader, void* arg) {
   try {
-    static_cast<Impl*>(arg)->serve_requests();
+    Impl& impl = *static_cast<Impl*>(arg);
+    (void)impl.listening.load(std::memory_order_acquire);
+    impl.serve_requests(reader);
   } catch (const std::exception& e) {
     spdlog::error("event=requests_failed error=\"{}\"", e.what());
   }
@@ -583,9 +596,9 @@ void Service::Impl::handle(const palpate_ConstraintRequest& request,
   latencies.record(solve_us, request_to_reply_us);
 }
 
-void Service::Impl::serve_requests() {
+void Service::Impl::serve_requests(dds_entity_t reader) {
   for (;;) {
-    const dds_return_t n = dds_take(request_reader.get(), request_pointers.data(),
+    const dds_return_t n = dds_take(reader, request_pointers.data(),
                                     request_infos.data(), kBatch, kBatch);
     if (n < 0) throw SystemError(std::string("taking requests: ") + dds_strretcode(n));
     for (dds_return_t i = 0; i < n; ++i)
@@ -594,17 +607,19 @@ void Service::Impl::serve_requests() {
   }
 }
 
-void Service::Impl::on_poses(dds_entity_t, void* arg) {
+void Service::Impl::on_poses(dds_entity_t reader, void* arg) {
   try {
-    static_cast<Impl*>(arg)->serve_poses();
+    Impl& impl = *static_cast<Impl*>(arg);
+    (void)impl.listening.load(std::memory_order_acquire);
+    impl.serve_poses(reader);
   } catch (const std::exception& e) {
     spdlog::error("event=poses_failed error=\"{}\"", e.what());
   }
 }
 
-void Service::Impl::serve_poses() {
+void Service::Impl::serve_poses(dds_entity_t reader) {
   for (;;) {
-    const dds_return_t n = dds_take(pose_reader.get(), pose_pointers, pose_infos, 8, 8);
+    const dds_return_t n = dds_take(reader, pose_pointers, pose_infos, 8, 8);
     if (n < 0) throw SystemError(std::string("taking tool poses: ") + dds_strretcode(n));
     for (dds_return_t i = 0; i < n; ++i)
       if (pose_infos[i].valid_data) take_pose(pose_samples[i]);
