@@ -10,6 +10,9 @@ set -euo pipefail
 packages=(
   # toolchain
   build-essential cmake ninja-build pkg-config git
+  # clang 14 and its run-time libraries: the sanitizer builds and libFuzzer
+  # (scripts/sanitize.sh, docs/sanitizers.md, docs/fuzzing.md)
+  clang libclang-rt-14-dev
   # numerics: Eigen, CHOLMOD (SuiteSparse) on the optimized OpenBLAS
   libeigen3-dev libsuitesparse-dev libopenblas-dev libopenblas0-pthread
   # files and meshes

@@ -32,10 +32,13 @@ mkdir -p "$out"
 # ASan's quarantine of freed memory (256 MB) and its shadow grow palpated's
 # RSS by design: the tolerance widens to 512 MB there, and LeakSanitizer
 # checks for leaks instead.
+# A reply's wait (2 s) stretches by the same factor: every client is
+# instrumented too, and 8 tools at 1 kHz under ASan fill both cores.
 rss_tolerance_mb=8
 case "${PALPATE_TEST_TIME_SCALE:-1}" in 1 | 1.0) ;; *) rss_tolerance_mb=512 ;; esac
+request_timeout_s=$(awk -v scale="${PALPATE_TEST_TIME_SCALE:-1}" 'BEGIN { print 2 * scale }')
 
 exec "$generator" --palpated "$palpated" --config "$source_dir/config/load-test.toml" \
   --model-file "$out/organ.h5" --gesture "$source_dir/config/gestures/demo.toml" \
   --stations 4 --viewers 4 --request-hz 100 --seconds 20 --baseline 3 --warmup 5 \
-  --rss-tolerance-mb "$rss_tolerance_mb" --work "$out/work" --json "$out/summary.json"
+  --rss-tolerance-mb "$rss_tolerance_mb" --request-timeout "$request_timeout_s" --work "$out/work" --json "$out/summary.json"
