@@ -445,6 +445,7 @@ ComplianceModel read_once(const std::filesystem::path& path, GTarget target,
   const std::string stored_digest =
       m.format_version_minor >= 2 && !partial ? r.string_attribute("content_sha256") : std::string();
   r.hashing = !stored_digest.empty() && G != nullptr;
+  m.content_sha256 = stored_digest;
 
   // The datasets in file order: the order of the content digest.
   m.vertices_m = r.matrix<double, 3>("/mesh/vertices", H5T_NATIVE_DOUBLE);

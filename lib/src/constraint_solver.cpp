@@ -235,7 +235,7 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
   Eigen::Map<Eigen::MatrixXd> G_CC(slot.G_CC.data(), n3, n3);
   for (int b = 0; b < k; ++b)
     for (int a = 0; a < k; ++a)
-      G_CC.block<3, 3>(3 * a, 3 * b) = model_.G.block<3, 3>(3 * index_[a], 3 * index_[b]);
+      G_CC.block<3, 3>(3 * a, 3 * b) = model_.G_block(index_[a], index_[b]);
 
   // B: one unit column per unknown force component.
   int m = 0;
@@ -354,16 +354,25 @@ Eigen::Vector3d ConstraintSolver::total_force() const {
 
 void ConstraintSolver::surface_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const {
   PALPATE_DEMAND(solved_);
-  if (split_)
+  if (split_ && model_.float32())
+    (*split_)(model_.G32, indices(), force_.data(), u_m);
+  else if (split_)
     (*split_)(model_.G, indices(), force_.data(), u_m);
   else
-    palpate::surface_displacement(model_.G, indices(), force_.data(), u_m);
+    palpate::surface_displacement(model_, indices(), force_.data(), u_m);
 }
 
 void surface_displacement(const Eigen::MatrixXd& G, std::span<const int> indices,
                           const double* forces_n, Eigen::Ref<Eigen::VectorXd> u_m) {
   PALPATE_DEMAND(u_m.size() == G.rows() && u_m.innerStride() == 1);
   surface_displacement_rows(G, indices, forces_n, 0, G.rows(), u_m.data());
+}
+
+void surface_displacement(const SurfaceModel& model, std::span<const int> indices,
+                          const double* forces_n, Eigen::Ref<Eigen::VectorXd> u_m) {
+  if (!model.float32()) return surface_displacement(model.G, indices, forces_n, u_m);
+  PALPATE_DEMAND(u_m.size() == model.G32.rows() && u_m.innerStride() == 1);
+  surface_displacement_rows(model.G32, indices, forces_n, 0, model.G32.rows(), u_m.data());
 }
 
 }  // namespace palpate

@@ -209,6 +209,7 @@ std::unique_ptr<PartialFile> PartialFile::create(const std::filesystem::path& pa
   PALPATE_DEMAND(id.block_columns > 0 && id.columns_begin % id.block_columns == 0 &&
                  id.columns_begin < id.columns_end && id.columns_end <= id.columns_total);
   PALPATE_DEMAND(id.columns_total == 3 * model.compliance_vertices.size());
+  PALPATE_DEMAND(id.input_hash == model.input_hash);
   hdf5::silence_hdf5();
   auto impl = std::make_unique<Impl>();
   impl->path = path;

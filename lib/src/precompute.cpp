@@ -409,6 +409,14 @@ class SolveProgress {
   long last_tenth_ = 0;
 };
 
+// The OpenBLAS kernels in a blas_description() ("… core SkylakeX]"): what,
+// besides the inputs, decides G's last bits (the thread count does not: the
+// solves method runs on single-threaded BLAS).
+std::string blas_core(const std::string& description) {
+  const auto at = description.rfind("core ");
+  return at == std::string::npos ? description : description.substr(at);
+}
+
 // Shards sorted by their first column; refused unless they come from one
 // problem, with one storage and block size, and cover [0, m) once.
 void check_shards_tile(std::vector<std::unique_ptr<PartialFile>>& shards,
@@ -436,9 +444,10 @@ void check_shards_tile(std::vector<std::unique_ptr<PartialFile>>& shards,
                                    "every shard with the same --block-columns (the merged file "
                                    "must equal one run)",
                                    names, r.block_columns, i.block_columns));
-    if (s->blas() != ref.blas())
-      warn(fmt::format("merge: {} were computed with different BLAS ({} and {}): G agrees to "
-                       "round-off but may differ in the last bits from a single run",
+    if (blas_core(s->blas()) != blas_core(ref.blas()))
+      warn(fmt::format("merge: {} were computed with different BLAS kernels ({} and {}): G agrees "
+                       "to round-off but its last bits may differ from a single run's (set "
+                       "OPENBLAS_CORETYPE alike on every node)",
                        names, ref.blas(), s->blas()));
   }
   int expected = 0;

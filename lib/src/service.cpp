@@ -240,7 +240,9 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   for (const auto& entry : config.models) {
     auto served = std::make_unique<ServedModel>();
     const auto start = Clock::now();
-    served->model = load_surface_model(entry.id, entry.file);
+    // A float32 file stays float32 in memory: half the bytes (docs/precompute.md,
+    // "Batch precomputation"); the algebra still runs in double.
+    served->model = load_surface_model(entry.id, entry.file, /*keep_float32=*/true);
     const auto& m = served->model;
     served->solver = std::make_unique<ConstraintSolver>(m, config.limits);
     const auto k = static_cast<std::size_t>(config.limits.max_constraints);
@@ -249,18 +251,18 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
     served->stream_indices.resize(k);
     served->stream_forces.resize(3 * k);
     served->stream_vertex_ids.resize(k);
-    served->displacement = Eigen::VectorXd::Zero(m.G.rows());
+    served->displacement = Eigen::VectorXd::Zero(m.compliance_rows());
     served->tools =
         std::make_unique<ToolContactEngine>(m, config.tools, config.contact, config.limits);
     served->record_vertices.resize(k);
     served->record_forces.resize(3 * k);
     served->version = 1;  // the rest state: a late viewer gets a surface before any request
-    max_surface = std::max(max_surface, static_cast<std::size_t>(m.G.rows()));
+    max_surface = std::max(max_surface, static_cast<std::size_t>(m.compliance_rows()));
     spdlog::info(
         "event=model_loaded model={} file={} compliance_vertices={} mesh_vertices={} triangles={} "
-        "G_MB={:.1f} seconds={:.2f}",
+        "G_MB={:.1f} G_precision={} seconds={:.2f}",
         m.id, m.path.string(), m.compliance_vertex_count(), m.mesh_vertex_count(),
-        m.drawn_triangles.size() / 3, static_cast<double>(m.G.size()) * 8 / 1e6,
+        m.drawn_triangles.size() / 3, m.G_bytes() / 1e6, m.float32() ? "float32" : "float64",
         std::chrono::duration<double>(Clock::now() - start).count());
     served_ids += (served_ids.empty() ? "" : ", ") + m.id;
     models.push_back(std::move(served));
@@ -517,7 +519,7 @@ RequestStatus Service::Impl::solve(const palpate_ConstraintRequest& request, Ser
   const Eigen::Vector3d total = solver.total_force();
   for (int d = 0; d < 3; ++d) reply.total_force[d] = total[d];
   if (request.want_surface) {
-    const auto n = static_cast<Eigen::Index>(served->model.G.rows());
+    const auto n = static_cast<Eigen::Index>(served->model.compliance_rows());
     solver.surface_displacement(Eigen::Map<Eigen::VectorXd>(reply_surface.data(), n));
     reply.surface_displacement._length = static_cast<std::uint32_t>(n);
   }
@@ -855,7 +857,7 @@ void Service::Impl::publish_surfaces() {
       std::copy_n(served->shown_total_force, 3, sample.total_force);
     }
     // u_S = G_SC f_C, off the request path.
-    surface_displacement(served->model.G,
+    surface_displacement(served->model,
                          {served->stream_indices.data(), static_cast<std::size_t>(count)},
                          served->stream_forces.data(), served->displacement);
     copy_bounded(sample.model_id, served->model.id);

@@ -5,11 +5,13 @@
 
 namespace palpate {
 
-SurfaceModel load_surface_model(std::string id, const std::filesystem::path& path) {
+SurfaceModel load_surface_model(std::string id, const std::filesystem::path& path,
+                                bool keep_float32) {
   SurfaceModel model;
   model.id = std::move(id);
   model.path = path;
-  const ComplianceModel file = read_compliance_file(path, &model.G);
+  const ComplianceModel file = keep_float32 ? read_compliance_file(path, &model.G, &model.G32)
+                                            : read_compliance_file(path, &model.G);
   model.material_summary = file.material_summary;
   model.input_hash = file.input_hash;
 

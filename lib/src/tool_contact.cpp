@@ -194,7 +194,7 @@ struct ToolContactEngine::Impl {
   Vector3d deformed(int j) const {
     Vector3d u = Vector3d::Zero();
     for (int c = 0; c < count; ++c)
-      u.noalias() += model.G.block<3, 3>(3 * j, 3 * indices[static_cast<std::size_t>(c)]) *
+      u.noalias() += model.G_block(j, indices[static_cast<std::size_t>(c)]) *
                      Eigen::Map<const Vector3d>(&forces[3 * static_cast<std::size_t>(c)]);
     return rest[static_cast<std::size_t>(j)] + u;
   }

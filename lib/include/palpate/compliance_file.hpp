@@ -54,6 +54,7 @@ struct ComplianceModel {
   std::string material_summary;  ///< human-readable
   std::string job_toml;          ///< the effective job, enough to reproduce the file
   std::string report_json;       ///< the precompute report
+  std::string content_sha256;    ///< read from the file (1.2); written as computed
 };
 
 /// Writes the file atomically (AtomicOutput): nothing appears at @p path

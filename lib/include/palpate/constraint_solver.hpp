@@ -139,5 +139,8 @@ class ConstraintSolver {
 /// @param u_m receives 3N_S displacements, m
 void surface_displacement(const Eigen::MatrixXd& G, std::span<const int> indices,
                           const double* forces_n, Eigen::Ref<Eigen::VectorXd> u_m);
+/// The same from the model's G, float64 or float32.
+void surface_displacement(const SurfaceModel& model, std::span<const int> indices,
+                          const double* forces_n, Eigen::Ref<Eigen::VectorXd> u_m);
 
 }  // namespace palpate

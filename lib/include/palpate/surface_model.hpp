@@ -24,6 +24,10 @@ struct SurfaceModel {
   std::string id;                ///< model id clients name in requests
   std::filesystem::path path;    ///< the compliance file it came from
   Eigen::MatrixXd G;             ///< 3N_S × 3N_S surface compliance, m/N, compliance order
+  /// The same, as stored, when a float32 file is loaded with keep_float32
+  /// (half the memory; G is then empty). Use G_block() and
+  /// surface_displacement(const SurfaceModel&, …) to read either.
+  Eigen::MatrixXf G32;
   std::string material_summary;  ///< from the file
   std::string input_hash;        ///< "sha256:<hex>", from the file
 
@@ -37,8 +41,21 @@ struct SurfaceModel {
   /// For each mesh vertex id: its compliance index (≥ 0), or a VertexRole.
   std::vector<std::int32_t> compliance_index_of_vertex;
 
+  /// 3N_S, the rows of G whichever precision holds it.
+  Eigen::Index compliance_rows() const { return G32.size() > 0 ? G32.rows() : G.rows(); }
   /// N_S, the number of compliance vertices.
-  int compliance_vertex_count() const { return static_cast<int>(G.rows() / 3); }
+  int compliance_vertex_count() const { return static_cast<int>(compliance_rows() / 3); }
+  /// True when G is held in float32 (G32).
+  bool float32() const { return G32.size() > 0; }
+  /// Bytes of G in memory.
+  double G_bytes() const {
+    return float32() ? 4.0 * static_cast<double>(G32.size()) : 8.0 * static_cast<double>(G.size());
+  }
+  /// The 3 × 3 block G^ab (m/N) of compliance vertices a and b, in double.
+  Eigen::Matrix3d G_block(Eigen::Index a, Eigen::Index b) const {
+    if (float32()) return G32.block<3, 3>(3 * a, 3 * b).cast<double>();
+    return G.block<3, 3>(3 * a, 3 * b);
+  }
   /// Number of vertices of the volume mesh (valid ids are below it).
   std::uint32_t mesh_vertex_count() const {
     return static_cast<std::uint32_t>(compliance_index_of_vertex.size());
@@ -47,7 +64,10 @@ struct SurfaceModel {
 
 /// Loads and checks a compliance file (read_compliance_file) and derives the
 /// drawing and addressing tables.
+/// @param keep_float32 a float32 file's G stays float32 in memory (G32, half
+///   the bytes; the algebra still runs in double); otherwise G is double.
 /// @throws InputError naming the file when it is missing or malformed.
-SurfaceModel load_surface_model(std::string id, const std::filesystem::path& path);
+SurfaceModel load_surface_model(std::string id, const std::filesystem::path& path,
+                                bool keep_float32 = false);
 
 }  // namespace palpate

@@ -22,6 +22,10 @@ namespace palpate {
 void surface_displacement_rows(const Eigen::MatrixXd& G, std::span<const int> indices,
                                const double* forces_n, Eigen::Index row_begin, Eigen::Index row_end,
                                double* u_m);
+/// The same from a float32 G (each entry widened to double, sums in double).
+void surface_displacement_rows(const Eigen::MatrixXf& G, std::span<const int> indices,
+                               const double* forces_n, Eigen::Index row_begin, Eigen::Index row_end,
+                               double* u_m);
 
 /// u_S = G_SC f_C by the calling thread and one worker, half of the rows
 /// each. The worker spins for @p spin after each product (so that a stream of
@@ -37,13 +41,19 @@ class SplitSurfaceProduct {
   /// @param forces_n 3 per index, N; @p u_m receives 3N_S displacements, m
   void operator()(const Eigen::MatrixXd& G, std::span<const int> indices, const double* forces_n,
                   Eigen::Ref<Eigen::VectorXd> u_m);
+  void operator()(const Eigen::MatrixXf& G, std::span<const int> indices, const double* forces_n,
+                  Eigen::Ref<Eigen::VectorXd> u_m);
 
  private:
   void work();
 
   std::chrono::microseconds spin_;
   // The worker's half, published by the release store of go_.
+  template <typename Matrix>
+  void run(const Matrix& G, std::span<const int> indices, const double* forces_n,
+           Eigen::Ref<Eigen::VectorXd> u_m);
   const Eigen::MatrixXd* G_ = nullptr;
+  const Eigen::MatrixXf* G32_ = nullptr;  // instead of G_, for a float32 model
   std::span<const int> indices_;
   const double* forces_ = nullptr;
   Eigen::Index row_begin_ = 0, row_end_ = 0;
