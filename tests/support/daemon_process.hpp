@@ -3,6 +3,7 @@
 // file. The caller runs inside a private network namespace (CTest does).
 
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -22,6 +23,9 @@ class Daemon {
   Daemon(const std::vector<std::string>& args, const std::filesystem::path& log) : log_(log) {
     pid_ = fork();
     if (pid_ == 0) {
+      // Dies with the test: a test killed by CTest's timeout leaves no
+      // process behind (one palpated lived on for 47 minutes that way).
+      prctl(PR_SET_PDEATHSIG, SIGKILL);
       std::FILE* err = std::freopen(log.c_str(), "w", stderr);
       (void)err;
       std::vector<char*> argv{const_cast<char*>(PALPATED_PATH)};
