@@ -78,8 +78,8 @@ printf '%-24s %6s %12s %9s %7s %7s %7s %9s\n' target exit executions exec/s cov 
 for t in "${targets[@]}"; do
   dir=$work/$t
   log=$dir/log.txt
-  execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -1 | awk '{print $2}')
-  rate=$(grep -o 'stat::average_exec_per_sec: [0-9]*' "$log" | tail -1 | awk '{print $2}')
+  execs=$(grep -oE 'stat::number_of_executed_units: +[0-9]+' "$log" | tail -1 | awk '{print $2}')
+  rate=$(grep -oE 'stat::average_exec_per_sec: +[0-9]+' "$log" | tail -1 | awk '{print $2}')
   last=$(grep -E '^#[0-9]+.*cov: ' "$log" | tail -1)
   # In fork mode the executions are the last status line's count.
   [[ -z $execs ]] && execs=$(sed -E 's/^#([0-9]+).*/\1/' <<< "$last")
