@@ -62,7 +62,10 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   configure "$dir" address,undefined -DPALPATE_FUZZ=ON
   cmake --build "$dir" -j2
   echo "sanitize: the whole suite under ASan+UBSan"
-  PALPATE_TEST_TIME_SCALE=3 run_ctest "$dir" -j2 "$@" || status=1
+  # load_short is left out: 8 instrumented tools at 1 kHz, 4 viewers and
+  # 100 requests/s saturate two cores, and what it then reports is the
+  # machine's throughput, not a memory error (docs/sanitizers.md).
+  PALPATE_TEST_TIME_SCALE=3 run_ctest "$dir" -j2 -E '^load_short$' "$@" || status=1
 fi
 if [ "$which" = tsan ] || [ "$which" = all ]; then
   dir=${PALPATE_TSAN_BUILD_DIR:-build-tsan}

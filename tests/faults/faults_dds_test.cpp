@@ -26,6 +26,7 @@
 #include "support/box_job.hpp"
 #include "support/daemon_process.hpp"
 #include "support/test_meshes.hpp"
+#include "support/time_scale.hpp"
 
 namespace palpate {
 namespace {
@@ -333,7 +334,11 @@ TEST(Faults, AClientKilledMidSessionLetsGoOfItsToolAfterTheWatchdogAndTheOtherTo
   }
   const double window_s = seconds(released + 400ms - (killed - 200ms));
   EXPECT_LT(largest_gap_s, 0.5) << "the right tool's feedback never stopped";
-  EXPECT_GT(in_window, 0.5 * window_s * 1000) << "most of its poses were answered (1 kHz)";
+  // At 1 kHz; under the sanitizers every process is slower, so fewer poses
+  // are sent and answered in the window (the gap check above is what says
+  // it was served all along).
+  EXPECT_GT(in_window, 0.5 * window_s * 1000 / testing::time_scale())
+      << "most of its poses were answered (1 kHz)";
   // Alone again, it is pushed back as hard as when it was alone (the normal
   // force; the tangential one depends on the sticking contacts' history:
   // friction).
