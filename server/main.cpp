@@ -2,16 +2,24 @@
 // Flags override config/palpated.toml; docs/configuration.md lists both,
 // docs/dds.md the topics, docs/errors.md the exit codes.
 
+#include <fcntl.h>
 #include <semaphore.h>
 #include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <spdlog/sinks/stdout_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <atomic>
+#include <chrono>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <thread>
+#include <vector>
 
 #include "palpate/daemon_config.hpp"
 #include "palpate/dds.hpp"
@@ -28,6 +36,52 @@ std::atomic<int> received_signal{0};
 extern "C" void on_stop_signal(int signal) {
   received_signal.store(signal);
   sem_post(&stop_semaphore);
+}
+
+// Debian's libhdf5 (1.10.8) can crash or hang on a damaged file before
+// palpate's own checks see it (docs/fuzzing.md: a 2 KB file makes H5Aread
+// segfault). So each compliance file is first read whole by a child palpated
+// (`--probe-model FILE`, stderr discarded): if the child dies by a signal or
+// hangs, the file is refused with one message; otherwise the daemon reads it
+// itself, and a damaged file gets palpate's own message from that read.
+// Costs one more read of each file at start-up.
+void probe_compliance_file(const palpate::ModelEntry& entry) {
+  const std::string file = entry.file.string();
+  std::string self = "/proc/self/exe", flag = "--probe-model";
+  std::vector<char*> argv{self.data(), flag.data(), const_cast<char*>(file.c_str()), nullptr};
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
+  pid_t child = 0;
+  const int rc = posix_spawn(&child, self.c_str(), &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0)
+    throw palpate::SystemError("model " + entry.id + ": cannot start the reader process: " +
+                               std::strerror(rc));
+  // Generous: the child hashes every byte (docs/compliance-file.md); a slow
+  // disk reads 20 MB/s.
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(entry.file, ec);
+  const auto limit = std::chrono::seconds(60 + (ec ? 0 : bytes / 20'000'000));
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  int status = 0;
+  while (waitpid(child, &status, WNOHANG) == 0) {
+    if (std::chrono::steady_clock::now() > deadline) {
+      kill(child, SIGKILL);
+      waitpid(child, &status, 0);
+      throw palpate::InputError(
+          "model " + entry.id + ": " + file + ": reading it did not end within " +
+          std::to_string(limit.count()) +
+          " s; the HDF5 library loops on some damaged files: check it with h5dump, or "
+          "precompute it again");
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  if (WIFSIGNALED(status))
+    throw palpate::InputError("model " + entry.id + ": " + file +
+                              ": the HDF5 library crashed reading it (signal " +
+                              std::to_string(WTERMSIG(status)) +
+                              "): the file is damaged; precompute it again or restore a copy");
 }
 
 int run(int argc, char** argv) {
@@ -60,12 +114,19 @@ int run(int argc, char** argv) {
                  "record tool sessions (poses, forces, contacts) to HDF5 files in this directory");
   app.add_flag("--check-config", check_only,
                "check the configuration and the compliance files, then exit");
+  std::string probe_file;
+  app.add_option("--probe-model", probe_file)->group("");  // internal: see probe_compliance_file
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);
     std::fprintf(stderr, "palpated: error: %s (see --help)\n", e.what());
     return static_cast<int>(palpate::ExitCode::kUsage);
+  }
+
+  if (!probe_file.empty()) {
+    palpate::load_surface_model("probe", probe_file, /*keep_float32=*/true);
+    return 0;
   }
 
   palpate::DaemonConfig config;
@@ -90,6 +151,7 @@ int run(int argc, char** argv) {
   log->flush_on(spdlog::level::info);
   spdlog::set_default_logger(log);
 
+  for (const auto& entry : config.models) probe_compliance_file(entry);
   if (check_only) {
     for (const auto& entry : config.models) {
       const auto model = palpate::load_surface_model(entry.id, entry.file);
