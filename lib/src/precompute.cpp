@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <fmt/format.h>
+#include <malloc.h>
 #include <map>
 #include <set>
 #include <charconv>
@@ -289,12 +290,17 @@ class Phases {
   explicit Phases(json* out) : out_(out) {}
   void begin(const std::string& name) {
     name_ = name;
+    // glibc keeps freed heap pages (Gmsh's model, assembly triplets) resident;
+    // handing them back makes the process's memory what the phase holds, which
+    // is what a batch scheduler's memory limit counts.
+    malloc_trim(0);
     reset_peak_rss();
+    start_rss_ = current_rss_bytes();
     t0_ = std::chrono::steady_clock::now();
   }
   json& end() {
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
-    out_->push_back({{"name", name_}, {"seconds", s}, {"peak_rss_bytes", peak_rss_bytes()}});
+    out_->push_back({{"name", name_}, {"seconds", s}, {"start_rss_bytes", start_rss_}, {"peak_rss_bytes", peak_rss_bytes()}});
     peak_ = std::max(peak_, peak_rss_bytes());
     return out_->back();
   }
@@ -303,6 +309,7 @@ class Phases {
  private:
   json* out_;
   std::string name_;
+  double start_rss_ = 0;
   std::chrono::steady_clock::time_point t0_;
   double peak_ = 0;
 };
@@ -375,6 +382,9 @@ class SolveProgress {
   SolveProgress(std::function<void(const std::string&)> info, long done, long total, int threads)
       : info_(std::move(info)), resumed_(done), done_(done), total_(total), threads_(threads),
         t0_(std::chrono::steady_clock::now()) {}
+  /// The clock starts when the factor is ready: the first block's time (and
+  /// so the estimate, and the rate) is then the solves' alone.
+  void start() { t0_ = std::chrono::steady_clock::now(); }
   void add(long columns, int block_columns, long pending_blocks) {
     done_ += columns;
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
@@ -782,13 +792,20 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
     const auto checkpoint = checkpoint_path(target);
     const int width = end_column - first_column;
 
-    // A block per thread and the factor; G never in memory. Writing the
-    // final file needs a band of rows, which fits any limit these do.
+    // G is never in memory. What is: K; the factor, and CHOLMOD's permuted
+    // copies of K while it factors (freed, but glibc keeps them in the heap);
+    // per solve thread four n × B arrays (unit columns, solution, CHOLMOD's X
+    // and Y) and its m × B block on the way to the file; one more block being
+    // converted; the checks. Against the solves phase's peak resident memory
+    // less its start (docs/precompute.md): 280 MB for 310 estimated on one
+    // thread, 374 for 407 on two (110k-tet liver, B = 64); 2.90 GB for 3.06 on
+    // two (505k tets). Writing the final file needs a band of rows, which fits
+    // any limit these do.
     const int threads = std::min(solve_threads(), id.blocks());
     const int block = std::min(block_columns, m);
     const double factor_bytes = SparseCholesky::estimate_factor_bytes(K);
-    const double need = k_bytes + factor_bytes + 16.0 * n * block * threads + 12.0 * m * block +
-                        8.0 * m * 40 + 48.0 * m;
+    const double need = 3 * k_bytes + factor_bytes + threads * (32.0 * n * block + 16.0 * m * block) +
+                        16.0 * m * block + 8.0 * m * 40 + 48.0 * m;
     const double file_bytes = static_cast<double>(elt) * m * width;
     report["memory"] = {{"G_bytes", g_bytes},
                         {"estimate_bytes", need},
@@ -856,6 +873,7 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
             },
             &stats,
             [&](const FactorInfo& f) {
+              lines.start();
               info(fmt::format("factor: {} ordering, nnz(L) = {:.3g}, {:.2f} s; {} columns left to "
                                "solve, {:.3g} GFLOP",
                                f.ordering, f.nnz_L, f.factor_seconds, width - done,
