@@ -2,8 +2,10 @@
 # Batch precomputation benchmark (docs/precompute.md, "Batch precomputation"):
 # wall time of 1, 2 and 4 local shards (+ merge) against the single streaming
 # run of the same job, measured in the same invocation; peak RSS of every
-# process (/usr/bin/time -v); columns per second; and a check that every
-# merged file equals the single run's (content_sha256).
+# process; columns per second; and a check that every merged file equals the
+# single run's (content_sha256). For N > 1 it also runs the N shards one after
+# another, each alone: the slowest plus the merge is what N machines like this
+# one would take (a cluster), measured rather than extrapolated.
 #
 #   bench/batch_precompute.sh BUILD_DIR OUT_DIR [SHARD_COUNTS] [palpate-precompute job options…]
 #
@@ -35,13 +37,18 @@ fi
 mkdir -p "$out"
 job=("$@" --no-xdmf --json -q)
 
-# Runs CMD under /usr/bin/time -v; prints "wall_s peak_rss_MB".
+# Runs CMD under /usr/bin/time -v; prints "wall_s peak_rss_MB". The peak is
+# the report's peak_rss_bytes (the largest VmHWM of its phases): /usr/bin/time's
+# maximum RSS only covers the last phase, because palpate-precompute resets
+# the high-water mark at each phase to measure it.
 timed() {
   local log=$1
   shift
   /usr/bin/time -v -o "$log.time" "$@" > "$log.json"
-  awk -F': ' '/Elapsed \(wall clock\)/ {n = split($2, t, ":"); s = 0; for (i = 1; i <= n; i++) s = s * 60 + t[i]; w = s}
-              /Maximum resident set size/ {r = $2 / 1024} END {printf "%.2f %.0f\n", w, r}' "$log.time"
+  local rss
+  rss=$(/usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["peak_rss_bytes"] / 2**20)' "$log.json")
+  awk -F': ' -v r="$rss" '/Elapsed \(wall clock\)/ {n = split($2, t, ":"); s = 0; for (i = 1; i <= n; i++) s = s * 60 + t[i]; w = s}
+              END {printf "%.2f %.0f\n", w, r}' "$log.time"
 }
 json_value() {  # json_value FILE KEY: the first number after "KEY":
   grep -o "\"$2\": *[0-9.e+-]*" "$1" | head -1 | sed 's/.*: *//'
@@ -59,7 +66,7 @@ single_digest=$(digest "$out/single.h5")
 m=$(json_value "$out/single.json" surface)
 rate=$(json_value "$out/single.json" columns_per_second)
 echo
-echo "| run | processes | wall s | vs single | merge s | peak RSS per process (MB) | columns/s per process | file = single |"
+echo "| run | processes | wall s | vs single | merge s | peak RSS per process (MiB) | columns/s per process | file = single |"
 echo "|---|---|---|---|---|---|---|---|"
 printf "| single (solves, streamed) | 1 | %s | 1.00 | – | %s | %.0f | – |\n" "$single_wall" "$single_rss" "$rate"
 for n in $counts; do
@@ -80,6 +87,26 @@ for n in $counts; do
   same=$([ "$(digest "$out/sharded.h5")" = "$single_digest" ] && echo yes || echo NO)
   printf "| %d local shard%s + merge | %d | %.2f | %.2f | %s | %s (merge %s) | %s | %s |\n" \
     "$n" "$([ "$n" -gt 1 ] && echo s)" "$n" "$wall" "$(awk -v a="$wall" -v b="$single_wall" 'BEGIN {print a / b}')" "$merge_wall" \
+    "$rss" "$merge_rss" "$rates" "$same"
+  rm -f "$out"/sharded.h5 "$out"/sharded.part-*
+
+  # The same shards one after another, each alone on the machine: what N
+  # machines like this one would take (the slowest shard, then the merge).
+  [ "$n" -gt 1 ] || continue
+  slowest=0
+  for ((k = 0; k < n; k++)); do
+    read -r w r < <(timed "$out/alone-$n-$k" "$precompute" "${job[@]}" --shard "$k/$n" -o "$out/sharded.h5")
+    echo "$w $r" > "$out/alone-$n-$k.measure"
+    slowest=$(awk -v a="$slowest" -v b="$w" 'BEGIN {print (b > a ? b : a)}')
+  done
+  read -r merge_wall merge_rss < <(timed "$out/merge-alone-$n" "$precompute" merge -o "$out/sharded.h5" --no-xdmf --json -q "$out"/sharded.part-*)
+  wall=$(awk -v a="$slowest" -v b="$merge_wall" 'BEGIN {print a + b}')
+  rss=$(cat "$out"/alone-$n-*.measure | awk '{printf "%s%s", sep, $2; sep = " / "}')
+  rates=$(for ((k = 0; k < n; k++)); do json_value "$out/alone-$n-$k.json" columns_per_second; done |
+          awk '{printf "%s%.0f", sep, $1; sep = " / "}')
+  same=$([ "$(digest "$out/sharded.h5")" = "$single_digest" ] && echo yes || echo NO)
+  printf "| %d shards, one machine each (run alone one after another; slowest + merge) | %d | %.2f | %.2f | %s | %s (merge %s) | %s | %s |\n" \
+    "$n" "$n" "$wall" "$(awk -v a="$wall" -v b="$single_wall" 'BEGIN {print a / b}')" "$merge_wall" \
     "$rss" "$merge_rss" "$rates" "$same"
   rm -f "$out"/sharded.h5 "$out"/sharded.part-*
 done
