@@ -1,6 +1,7 @@
 # PALPATE_SANITIZE (e.g. address,undefined or thread): compile and link every
-# target with those sanitizers. PALPATE_FUZZ: instrument every target for
-# libFuzzer's coverage (clang only); the fuzz targets themselves link
+# target with those sanitizers. PALPATE_FUZZ: instrument for libFuzzer's
+# coverage what the fuzz targets exercise (the libraries and fuzz/, through
+# palpate_fuzz_coverage(); clang only); the fuzz targets themselves link
 # -fsanitize=fuzzer (fuzz/CMakeLists.txt). scripts/sanitize.sh configures both.
 if(PALPATE_SANITIZE)
   add_compile_options(-fsanitize=${PALPATE_SANITIZE} -fno-omit-frame-pointer
@@ -13,5 +14,24 @@ if(PALPATE_FUZZ)
       "PALPATE_FUZZ needs clang's libFuzzer: configure with CC=clang CXX=clang++ "
       "(Debian packages clang and libclang-rt-14-dev)")
   endif()
-  add_compile_options(-fsanitize=fuzzer-no-link)
 endif()
+# Coverage instrumentation for libFuzzer on TARGET, when PALPATE_FUZZ is on.
+# Only code a fuzz target runs needs it; instrumenting the tests, the clients
+# and the viewer as well made the sanitizer build slower for nothing.
+function(palpate_fuzz_coverage target)
+  if(PALPATE_FUZZ)
+    target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link)
+  endif()
+endfunction()
+
+# Front-ends whose code is argument parsing, printing and (the viewer)
+# Boost.Beast templates are compiled at -O0 in sanitizer builds: their
+# compile time was a quarter of the ASan build (palpate_viewer.cpp alone
+# 6 CPU-minutes at -O1) and their run time in the tests is negligible.
+# The sanitizers check them just the same.
+function(palpate_sanitizer_front_end)
+  if(PALPATE_SANITIZE)
+    set_source_files_properties(${ARGN} DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}
+                                PROPERTIES COMPILE_OPTIONS -O0)
+  endif()
+endfunction()
