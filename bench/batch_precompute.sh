@@ -69,6 +69,23 @@ echo
 echo "| run | processes | wall s | vs single | merge s | peak RSS per process (MiB) | columns/s per process | file = single |"
 echo "|---|---|---|---|---|---|---|---|"
 printf "| single (solves, streamed) | 1 | %s | 1.00 | – | %s | %.0f | – |\n" "$single_wall" "$single_rss" "$rate"
+# row LABEL TAG N WALL MERGE_WALL MERGE_RSS: the table row of the N shard runs
+# whose reports are $out/TAG-N-k.json, merged into $out/sharded.h5.
+row() {
+  local label=$1 tag=$2 n=$3 wall=$4 merge_wall=$5 merge_rss=$6 rss rates same
+  rss=$(cat "$out"/"$tag"-"$n"-*.measure | awk '{printf "%s%s", sep, $2; sep = " / "}')
+  rates=$(for ((k = 0; k < n; k++)); do json_value "$out/$tag-$n-$k.json" columns_per_second; done |
+          awk '{printf "%s%.0f", sep, $1; sep = " / "}')
+  same=$([ "$(digest "$out/sharded.h5")" = "$single_digest" ] && echo yes || echo NO)
+  printf "| %s | %d | %.2f | %.2f | %s | %s (merge %s) | %s | %s |\n" \
+    "$label" "$n" "$wall" "$(awk -v a="$wall" -v b="$single_wall" 'BEGIN {print a / b}')" "$merge_wall" \
+    "$rss" "$merge_rss" "$rates" "$same"
+  rm -f "$out"/sharded.h5 "$out"/sharded.part-*
+}
+merge() { # TAG: merges $out/sharded.part-* into $out/sharded.h5; prints "wall_s peak_rss"
+  timed "$out/$1" "$precompute" merge -o "$out/sharded.h5" --no-xdmf --json -q "$out"/sharded.part-*
+}
+
 for n in $counts; do
   rm -f "$out"/sharded.h5 "$out"/sharded.part-* "$out"/.sharded.part-*
   start=$(date +%s.%N)
@@ -78,37 +95,22 @@ for n in $counts; do
     pids+=($!)
   done
   for pid in "${pids[@]}"; do wait "$pid"; done
-  read -r merge_wall merge_rss < <(timed "$out/merge-$n" "$precompute" merge -o "$out/sharded.h5" --no-xdmf --json -q "$out"/sharded.part-*)
+  read -r merge_wall merge_rss < <(merge "merge-$n")
   end=$(date +%s.%N)
-  wall=$(awk -v a="$start" -v b="$end" 'BEGIN {print b - a}')
-  rss=$(cat "$out"/shard-$n-*.measure | awk '{printf "%s%s", sep, $2; sep = " / "}')
-  rates=$(for ((k = 0; k < n; k++)); do json_value "$out/shard-$n-$k.json" columns_per_second; done |
-          awk '{printf "%s%.0f", sep, $1; sep = " / "}')
-  same=$([ "$(digest "$out/sharded.h5")" = "$single_digest" ] && echo yes || echo NO)
-  printf "| %d local shard%s + merge | %d | %.2f | %.2f | %s | %s (merge %s) | %s | %s |\n" \
-    "$n" "$([ "$n" -gt 1 ] && echo s)" "$n" "$wall" "$(awk -v a="$wall" -v b="$single_wall" 'BEGIN {print a / b}')" "$merge_wall" \
-    "$rss" "$merge_rss" "$rates" "$same"
-  rm -f "$out"/sharded.h5 "$out"/sharded.part-*
+  row "$n local shard$([ "$n" -gt 1 ] && echo s) + merge" shard "$n" \
+    "$(awk -v a="$start" -v b="$end" 'BEGIN {print b - a}')" "$merge_wall" "$merge_rss"
 
   # The same shards one after another, each alone on the machine: what N
   # machines like this one would take (the slowest shard, then the merge).
   [ "$n" -gt 1 ] || continue
   slowest=0
   for ((k = 0; k < n; k++)); do
-    read -r w r < <(timed "$out/alone-$n-$k" "$precompute" "${job[@]}" --shard "$k/$n" -o "$out/sharded.h5")
-    echo "$w $r" > "$out/alone-$n-$k.measure"
-    slowest=$(awk -v a="$slowest" -v b="$w" 'BEGIN {print (b > a ? b : a)}')
+    timed "$out/alone-$n-$k" "$precompute" "${job[@]}" --shard "$k/$n" -o "$out/sharded.h5" > "$out/alone-$n-$k.measure"
+    slowest=$(awk -v a="$slowest" -v b="$(cut -d' ' -f1 "$out/alone-$n-$k.measure")" 'BEGIN {print (b > a ? b : a)}')
   done
-  read -r merge_wall merge_rss < <(timed "$out/merge-alone-$n" "$precompute" merge -o "$out/sharded.h5" --no-xdmf --json -q "$out"/sharded.part-*)
-  wall=$(awk -v a="$slowest" -v b="$merge_wall" 'BEGIN {print a + b}')
-  rss=$(cat "$out"/alone-$n-*.measure | awk '{printf "%s%s", sep, $2; sep = " / "}')
-  rates=$(for ((k = 0; k < n; k++)); do json_value "$out/alone-$n-$k.json" columns_per_second; done |
-          awk '{printf "%s%.0f", sep, $1; sep = " / "}')
-  same=$([ "$(digest "$out/sharded.h5")" = "$single_digest" ] && echo yes || echo NO)
-  printf "| %d shards, one machine each (run alone one after another; slowest + merge) | %d | %.2f | %.2f | %s | %s (merge %s) | %s | %s |\n" \
-    "$n" "$n" "$wall" "$(awk -v a="$wall" -v b="$single_wall" 'BEGIN {print a / b}')" "$merge_wall" \
-    "$rss" "$merge_rss" "$rates" "$same"
-  rm -f "$out"/sharded.h5 "$out"/sharded.part-*
+  read -r merge_wall merge_rss < <(merge "merge-alone-$n")
+  row "$n shards, one machine each (run alone one after another; slowest + merge)" alone "$n" \
+    "$(awk -v a="$slowest" -v b="$merge_wall" 'BEGIN {print a + b}')" "$merge_wall" "$merge_rss"
 done
 echo
 echo "G: $m columns; single run's report: $out/single.json"
