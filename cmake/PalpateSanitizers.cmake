@@ -27,7 +27,7 @@ endfunction()
 # Front-ends whose code is argument parsing, printing and (the viewer)
 # Boost.Beast templates are compiled at -O0 in sanitizer builds: their
 # compile time was a quarter of the ASan build (palpate_viewer.cpp alone
-# 6 CPU-minutes at -O1) and their run time in the tests is negligible.
+# 100 s at -O1, 25 s at -O0) and their run time in the tests is negligible.
 # The sanitizers check them just the same.
 function(palpate_sanitizer_front_end)
   if(PALPATE_SANITIZE)

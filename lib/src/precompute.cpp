@@ -933,11 +933,12 @@ json run_precompute(const PrecomputeJob& job, const PrecomputeHooks& hooks) {
   const bool do_solves = job.method != Method::kCondensation;
   const bool do_condensation = job.method != Method::kSolves;
   {
-    // G, plus each method's factor and work arrays (they run one at a time).
+    // G, plus each method's factor and work arrays (they run one at a time):
+    // per solve thread four n × B arrays and its m × B block, as streamed.
     double need = 0;
     if (do_solves)
       need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K) +
-                                2.0 * 8.0 * n * std::min(job.block_columns, m) * solve_threads());
+                                (32.0 * n + 8.0 * m) * std::min(job.block_columns, m) * solve_threads());
     if (do_condensation)
       need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K, condensation_ordering(K, m)));
     need += k_bytes;
