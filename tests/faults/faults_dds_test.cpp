@@ -19,11 +19,11 @@
 #include <sstream>
 #include <thread>
 
-#include "child_process.hpp"
 #include "palpate/client.hpp"
 #include "palpate/compliance_file.hpp"
 #include "palpate/tool_client.hpp"
 #include "support/box_job.hpp"
+#include "support/child_process.hpp"
 #include "support/daemon_process.hpp"
 #include "support/test_meshes.hpp"
 

@@ -1,7 +1,7 @@
 #pragma once
-// A client program (palpate-pliers, palpate-client) as a child process of a
-// fault test, its stdout and stderr in one file that the test reads while it
-// runs. The caller runs inside a private network namespace (CTest does).
+// A program (palpated, palpate-pliers, palpate-client) as a child process of
+// a test, its output in a file that the test reads while it runs. The caller
+// runs inside a private network namespace (CTest does).
 
 #include <signal.h>
 #include <sys/prctl.h>
@@ -20,16 +20,23 @@ namespace palpate::testing {
 
 class ChildProcess {
  public:
+  /// What goes to the output file; the rest stays the test's.
+  enum class Capture { kStdoutAndStderr, kStderr };
+
   ChildProcess(const std::string& program, const std::vector<std::string>& args,
-               const std::filesystem::path& output)
+               const std::filesystem::path& output, Capture capture = Capture::kStdoutAndStderr)
       : output_(output) {
     pid_ = fork();
     if (pid_ == 0) {
       // Dies with the test: a test killed by CTest's timeout leaves no
       // process behind (one palpated lived on for 47 minutes that way).
       prctl(PR_SET_PDEATHSIG, SIGKILL);
-      if (std::freopen(output.c_str(), "w", stdout) == nullptr) _exit(126);
-      dup2(fileno(stdout), fileno(stderr));
+      if (capture == Capture::kStderr) {
+        if (std::freopen(output.c_str(), "w", stderr) == nullptr) _exit(126);
+      } else {
+        if (std::freopen(output.c_str(), "w", stdout) == nullptr) _exit(126);
+        dup2(fileno(stdout), fileno(stderr));
+      }
       std::vector<char*> argv{const_cast<char*>(program.c_str())};
       for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
       argv.push_back(nullptr);
