@@ -8,7 +8,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "palpate/dense.hpp"
+#include "palpate/offline/dense.hpp"
 
 namespace palpate::bench {
 

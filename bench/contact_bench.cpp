@@ -27,9 +27,9 @@
 #include <vector>
 
 #include "common.hpp"
-#include "palpate/surface_model.hpp"
-#include "palpate/system_info.hpp"
-#include "palpate/tool_contact.hpp"
+#include "palpate/runtime/surface_model.hpp"
+#include "palpate/core/system_info.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 #include "patch.hpp"
 
 namespace {

@@ -6,9 +6,9 @@
 
 #include <Eigen/Dense>
 
-#include "palpate/dense.hpp"
+#include "palpate/offline/dense.hpp"
 #include "common.hpp"
-#include "palpate/system_info.hpp"
+#include "palpate/core/system_info.hpp"
 
 namespace {
 

@@ -29,9 +29,9 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include "palpate/client.hpp"
-#include "palpate/error.hpp"
-#include "palpate/system_info.hpp"
+#include "palpate/transport/client.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/core/system_info.hpp"
 #include "patch.hpp"
 
 namespace {

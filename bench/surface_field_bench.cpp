@@ -51,9 +51,9 @@
 
 #include <Eigen/Dense>
 
-#include "palpate/constraint_solver.hpp"
-#include "palpate/surface_model.hpp"
-#include "palpate/system_info.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/surface_model.hpp"
+#include "palpate/core/system_info.hpp"
 #include "common.hpp"
 #include "patch.hpp"
 

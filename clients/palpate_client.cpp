@@ -18,9 +18,9 @@
 #include <thread>
 #include <vector>
 
-#include "palpate/client.hpp"
-#include "palpate/error.hpp"
-#include "palpate/statistics.hpp"
+#include "palpate/transport/client.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/core/statistics.hpp"
 
 namespace {
 

@@ -28,10 +28,10 @@
 #include <thread>
 #include <vector>
 
-#include "palpate/error.hpp"
-#include "palpate/gesture.hpp"
-#include "palpate/statistics.hpp"
-#include "palpate/tool_client.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/runtime/gesture.hpp"
+#include "palpate/core/statistics.hpp"
+#include "palpate/transport/tool_client.hpp"
 
 namespace {
 

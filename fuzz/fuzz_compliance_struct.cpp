@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "fuzz_support.hpp"
-#include "palpate/surface_model.hpp"
+#include "palpate/runtime/surface_model.hpp"
 
 namespace {
 

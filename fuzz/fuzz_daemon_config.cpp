@@ -8,8 +8,8 @@
 #include <span>
 
 #include "fuzz_support.hpp"
-#include "palpate/daemon_config.hpp"
-#include "palpate/tool_contact.hpp"
+#include "palpate/daemon/daemon_config.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const palpate::SurfaceModel& model = palpate::fuzz::box_model();

@@ -7,7 +7,7 @@
 #include <string_view>
 
 #include "fuzz_support.hpp"
-#include "palpate/gesture.hpp"
+#include "palpate/runtime/gesture.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const palpate::SurfaceModel& model = palpate::fuzz::box_model();

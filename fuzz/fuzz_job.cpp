@@ -7,7 +7,7 @@
 #include <string>
 
 #include "fuzz_support.hpp"
-#include "palpate/precompute.hpp"
+#include "palpate/offline/precompute.hpp"
 
 namespace {
 

@@ -8,8 +8,8 @@
 #include <span>
 
 #include "fuzz_support.hpp"
-#include "palpate/mesh.hpp"
-#include "palpate/mesh_io.hpp"
+#include "palpate/offline/mesh.hpp"
+#include "palpate/offline/mesh_io.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size == 0) return 0;

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "fuzz_support.hpp"
-#include "palpate/tool_contact.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 
 namespace {
 

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "fuzz_support.hpp"
-#include "palpate/constraint_solver.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
 
 namespace {
 

@@ -16,9 +16,9 @@
 #include <string>
 
 #include "fuzz_support.hpp"
-#include "palpate/attachment.hpp"
-#include "palpate/fem.hpp"
-#include "palpate/mesh.hpp"
+#include "palpate/offline/attachment.hpp"
+#include "palpate/offline/fem.hpp"
+#include "palpate/offline/mesh.hpp"
 
 namespace {
 

@@ -14,12 +14,13 @@
 #include <iostream>
 #include <memory>
 
-#include "palpate/atomic_file.hpp"
-#include "palpate/error.hpp"
-#include "palpate/mesh_io.hpp"
-#include "palpate/precompute.hpp"
-#include "palpate/system_info.hpp"
-#include "palpate/xdmf.hpp"
+#include "palpate/core/version.hpp"
+#include "palpate/file/atomic_file.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/offline/mesh_io.hpp"
+#include "palpate/offline/precompute.hpp"
+#include "palpate/core/system_info.hpp"
+#include "palpate/file/xdmf.hpp"
 #include "progress_bar.hpp"
 
 namespace {

@@ -21,12 +21,13 @@
 #include <thread>
 #include <vector>
 
-#include "palpate/daemon_config.hpp"
-#include "palpate/dds.hpp"
-#include "palpate/error.hpp"
-#include "palpate/service.hpp"
-#include "palpate/surface_model.hpp"
-#include "palpate/system_info.hpp"
+#include "palpate/core/version.hpp"
+#include "palpate/daemon/daemon_config.hpp"
+#include "palpate/transport/dds.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/daemon/service.hpp"
+#include "palpate/runtime/surface_model.hpp"
+#include "palpate/core/system_info.hpp"
 
 namespace {
 

@@ -9,12 +9,12 @@
 #include <string>
 #include <vector>
 
-#include "palpate/compliance_file.hpp"
-#include "palpate/constraint_solver.hpp"
-#include "palpate/error.hpp"
-#include "palpate/partial_file.hpp"
-#include "palpate/precompute.hpp"
-#include "palpate/surface_model.hpp"
+#include "palpate/file/compliance_file.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/offline/partial_file.hpp"
+#include "palpate/offline/precompute.hpp"
+#include "palpate/runtime/surface_model.hpp"
 #include "support/box_job.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"

@@ -5,9 +5,9 @@
 
 #include <Eigen/Dense>
 
-#include "palpate/compliance.hpp"
-#include "palpate/fem.hpp"
-#include "palpate/mesh_io.hpp"
+#include "palpate/offline/compliance.hpp"
+#include "palpate/offline/fem.hpp"
+#include "palpate/offline/mesh_io.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {

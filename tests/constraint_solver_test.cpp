@@ -2,7 +2,7 @@
 // the full G of a real compliance file, every request error, and the reuse
 // of factorizations.
 
-#include "palpate/constraint_solver.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 #include <limits>
 #include <random>
 
-#include "palpate/surface_model.hpp"
+#include "palpate/runtime/surface_model.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/box_job.hpp"
 #include "support/test_meshes.hpp"

@@ -1,13 +1,13 @@
 // palpated's configuration file: defaults, every key, and errors that name
 // the file, the line and the key.
 
-#include "palpate/daemon_config.hpp"
+#include "palpate/daemon/daemon_config.hpp"
 
 #include <gtest/gtest.h>
 
 #include <fstream>
 
-#include "palpate/error.hpp"
+#include "palpate/core/error.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
 

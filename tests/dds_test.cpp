@@ -18,8 +18,8 @@
 #include <sstream>
 #include <thread>
 
-#include "palpate/client.hpp"
-#include "palpate/compliance_file.hpp"
+#include "palpate/transport/client.hpp"
+#include "palpate/file/compliance_file.hpp"
 #include "support/box_job.hpp"
 #include "support/daemon_process.hpp"
 #include "support/test_meshes.hpp"

@@ -7,9 +7,9 @@
 #include <Eigen/Dense>
 #include <random>
 
-#include "palpate/error.hpp"
-#include "palpate/fem.hpp"
-#include "palpate/sparse_cholesky.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/offline/fem.hpp"
+#include "palpate/offline/sparse_cholesky.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {

@@ -2,7 +2,7 @@
 // small synthetic model, interpolation values against hand-computed ones,
 // and the gesture files shipped in config/gestures.
 
-#include "palpate/gesture.hpp"
+#include "palpate/runtime/gesture.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,8 +10,8 @@
 #include <fstream>
 #include <numbers>
 
-#include "palpate/client.hpp"
-#include "palpate/error.hpp"
+#include "palpate/transport/client.hpp"
+#include "palpate/core/error.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
 

@@ -9,10 +9,10 @@
 #include <fstream>
 #include <functional>
 
-#include "palpate/error.hpp"
-#include "palpate/fem.hpp"
-#include "palpate/mesh.hpp"
-#include "palpate/mesh_io.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/offline/fem.hpp"
+#include "palpate/offline/mesh.hpp"
+#include "palpate/offline/mesh_io.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
 

@@ -8,10 +8,10 @@
 #include <csignal>
 #include <fstream>
 
-#include "palpate/atomic_file.hpp"
-#include "palpate/compliance_file.hpp"
-#include "palpate/error.hpp"
-#include "palpate/precompute.hpp"
+#include "palpate/file/atomic_file.hpp"
+#include "palpate/file/compliance_file.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/offline/precompute.hpp"
 #include "support/box_job.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"

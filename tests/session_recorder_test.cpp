@@ -21,8 +21,8 @@
 
 #include <hdf5.h>
 
-#include "palpate/error.hpp"
-#include "palpate/session_recorder.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/runtime/session_recorder.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"

@@ -26,7 +26,7 @@
 #include <thread>
 #include <vector>
 
-#include "palpate/session_recorder.hpp"
+#include "palpate/runtime/session_recorder.hpp"
 
 namespace {
 

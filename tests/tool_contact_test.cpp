@@ -2,7 +2,7 @@
 // the G of a real compliance file: probing, gliding, grasping, two tools,
 // the force limits, the watchdog and refused poses.
 
-#include "palpate/tool_contact.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 
 #include <gtest/gtest.h>
 

@@ -11,9 +11,9 @@
 #include <thread>
 
 #include "palpate.h"
-#include "palpate/compliance_file.hpp"
-#include "palpate/dds.hpp"
-#include "palpate/tool_client.hpp"
+#include "palpate/file/compliance_file.hpp"
+#include "palpate/transport/dds.hpp"
+#include "palpate/transport/tool_client.hpp"
 #include "support/box_job.hpp"
 #include "support/daemon_process.hpp"
 #include "support/test_meshes.hpp"

@@ -4,7 +4,7 @@
 // tests/xdmf_test.py checks the same files with independent readers (numpy,
 // meshio).
 
-#include "palpate/xdmf.hpp"
+#include "palpate/file/xdmf.hpp"
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
@@ -15,11 +15,11 @@
 #include <random>
 #include <sstream>
 
-#include "palpate/compliance.hpp"
-#include "palpate/compliance_file.hpp"
-#include "palpate/error.hpp"
-#include "palpate/precompute.hpp"
-#include "palpate/surface_model.hpp"
+#include "palpate/offline/compliance.hpp"
+#include "palpate/file/compliance_file.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/offline/precompute.hpp"
+#include "palpate/runtime/surface_model.hpp"
 #include "support/box_job.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"

@@ -17,8 +17,8 @@
 #include <unordered_map>
 
 #include "palpate.h"
-#include "palpate/dds.hpp"
-#include "palpate/error.hpp"
+#include "palpate/transport/dds.hpp"
+#include "palpate/core/error.hpp"
 
 namespace palpate::viewer {
 namespace {

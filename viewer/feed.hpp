@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "palpate/tool_contact.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 
 namespace palpate::viewer {
 

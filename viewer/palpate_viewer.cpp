@@ -26,8 +26,9 @@
 #include <string>
 
 #include "feed.hpp"
-#include "palpate/daemon_config.hpp"
-#include "palpate/error.hpp"
+#include "palpate/core/version.hpp"
+#include "palpate/daemon/daemon_config.hpp"
+#include "palpate/core/error.hpp"
 
 namespace beast = boost::beast;
 namespace http = beast::http;

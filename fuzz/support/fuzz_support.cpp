@@ -9,9 +9,9 @@
 #include <memory>
 
 #include "box_job.hpp"
-#include "palpate/constraint_solver.hpp"
-#include "palpate/precompute.hpp"
-#include "palpate/tool_contact.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/offline/precompute.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 
 namespace palpate::fuzz {
 

@@ -11,8 +11,8 @@
 #include <string>
 #include <string_view>
 
-#include "palpate/error.hpp"
-#include "palpate/surface_model.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/runtime/surface_model.hpp"
 
 namespace palpate::fuzz {
 

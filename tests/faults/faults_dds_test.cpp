@@ -19,9 +19,9 @@
 #include <sstream>
 #include <thread>
 
-#include "palpate/client.hpp"
-#include "palpate/compliance_file.hpp"
-#include "palpate/tool_client.hpp"
+#include "palpate/transport/client.hpp"
+#include "palpate/file/compliance_file.hpp"
+#include "palpate/transport/tool_client.hpp"
 #include "support/box_job.hpp"
 #include "support/child_process.hpp"
 #include "support/daemon_process.hpp"

@@ -79,12 +79,12 @@
 #include <vector>
 
 #include "palpate.h"
-#include "palpate/client.hpp"
-#include "palpate/dds.hpp"
-#include "palpate/error.hpp"
-#include "palpate/gesture.hpp"
-#include "palpate/statistics.hpp"
-#include "palpate/tool_client.hpp"
+#include "palpate/transport/client.hpp"
+#include "palpate/transport/dds.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/runtime/gesture.hpp"
+#include "palpate/core/statistics.hpp"
+#include "palpate/transport/tool_client.hpp"
 
 namespace {
 

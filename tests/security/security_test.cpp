@@ -25,10 +25,10 @@
 #include <thread>
 
 #include "palpate.h"
-#include "palpate/client.hpp"
-#include "palpate/dds.hpp"
-#include "palpate/error.hpp"
-#include "palpate/tool_client.hpp"
+#include "palpate/transport/client.hpp"
+#include "palpate/transport/dds.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/transport/tool_client.hpp"
 #include "support/box_job.hpp"
 #include "support/daemon_process.hpp"
 #include "support/test_meshes.hpp"

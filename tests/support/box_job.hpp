@@ -6,7 +6,7 @@
 #include <span>
 #include <string>
 
-#include "palpate/precompute.hpp"
+#include "palpate/offline/precompute.hpp"
 
 namespace palpate::testing {
 

@@ -1,7 +1,7 @@
 // Test main: the same BLAS set-up as palpate's programs, then GoogleTest.
 #include <gtest/gtest.h>
 
-#include "palpate/system_info.hpp"
+#include "palpate/core/system_info.hpp"
 
 int main(int argc, char** argv) {
   palpate::ensure_optimized_blas(argv);

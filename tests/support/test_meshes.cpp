@@ -8,7 +8,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "palpate/fem.hpp"
+#include "palpate/offline/fem.hpp"
 
 namespace palpate::testing {
 

@@ -4,7 +4,7 @@
 #include <filesystem>
 #include <string>
 
-#include "palpate/mesh.hpp"
+#include "palpate/offline/mesh.hpp"
 
 namespace palpate::testing {
 

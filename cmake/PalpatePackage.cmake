@@ -1,0 +1,21 @@
+# The installed CMake package and pkg-config file (docs/architecture.md,
+# "Using palpate from another build"):
+#
+#   find_package(palpate CONFIG REQUIRED)
+#   target_link_libraries(app PRIVATE palpate::palpate)   # or palpate::transport, ...
+#
+#   pkg-config --cflags --libs palpate
+include(CMakePackageConfigHelpers)
+set(palpate_cmake_dir ${CMAKE_INSTALL_LIBDIR}/cmake/palpate)
+install(EXPORT palpateTargets NAMESPACE palpate:: DESTINATION ${palpate_cmake_dir})
+configure_package_config_file(${CMAKE_CURRENT_LIST_DIR}/palpateConfig.cmake.in
+  ${CMAKE_CURRENT_BINARY_DIR}/palpateConfig.cmake INSTALL_DESTINATION ${palpate_cmake_dir})
+write_basic_package_version_file(${CMAKE_CURRENT_BINARY_DIR}/palpateConfigVersion.cmake
+  COMPATIBILITY SameMinorVersion)
+install(FILES ${CMAKE_CURRENT_BINARY_DIR}/palpateConfig.cmake
+              ${CMAKE_CURRENT_BINARY_DIR}/palpateConfigVersion.cmake
+        DESTINATION ${palpate_cmake_dir})
+
+# pkg-config: every layer, for builds without CMake.
+configure_file(${CMAKE_CURRENT_LIST_DIR}/palpate.pc.in ${CMAKE_CURRENT_BINARY_DIR}/palpate.pc @ONLY)
+install(FILES ${CMAKE_CURRENT_BINARY_DIR}/palpate.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)

@@ -1,0 +1,56 @@
+#pragma once
+/// @file
+/// palpated's configuration: config/palpated.toml, then command-line
+/// overrides (docs/configuration.md, "palpated").
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <thread>
+#include <vector>
+
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/tool_contact.hpp"
+
+namespace palpate {
+
+/// One compliance file to serve.
+struct ModelEntry {
+  std::string id;              ///< what requests name; 1..63 characters [A-Za-z0-9_.-]
+  std::filesystem::path file;  ///< compliance file (HDF5)
+};
+
+struct DaemonConfig {
+  std::string daemon_id = "palpated";  ///< key of the status topic
+  std::string log_level = "info";      ///< trace, debug, info, warn, error
+  std::uint32_t domain_id = 0;         ///< DDS domain
+  std::string dds_config;       ///< Cyclone XML file, file:// URI or fragment; empty: loopback
+  double surface_rate_hz = 60;  ///< surface stream, at most this many samples per model per second
+  double status_rate_hz = 1;    ///< status heartbeat
+  /// Constraints per request, cache, condition; the surface field of replies
+  /// on two threads when the machine has two cores or more.
+  SolverLimits limits{.surface_threads = std::thread::hardware_concurrency() >= 2 ? 2 : 1};
+  int max_clients = 64;  ///< reply writers kept at once
+  std::vector<ModelEntry> models;
+  /// Haptic tools ([[tools]]); "left" and "right" with the default geometry
+  /// when the configuration names none.
+  std::vector<ToolGeometry> tools = default_tools();
+  ContactSettings contact;                  ///< [contact]
+  std::filesystem::path record_directory;  ///< [recording] directory; empty: no recording
+
+  static std::vector<ToolGeometry> default_tools();
+};
+
+/// Reads @p file (TOML). Relative model paths are taken from its directory.
+/// @throws InputError naming the file, line and key.
+DaemonConfig read_daemon_config(const std::filesystem::path& file);
+
+/// Parses "ID=PATH" (the --model flag). @throws InputError.
+ModelEntry parse_model_flag(const std::string& text);
+
+/// Checks ranges and model ids, and that every model file exists.
+/// @throws InputError saying what is wrong and what is accepted.
+void validate(const DaemonConfig& config);
+
+}  // namespace palpate

@@ -1,0 +1,182 @@
+#pragma once
+/// @file
+/// Haptic tools on one organ: poses in, contacts on the deformed surface,
+/// one solve for every tool together, force feedback out (docs/tools.md).
+///
+/// The tool frame: origin at the jaws' hinge, +z along the shaft towards the
+/// tip, the jaws open in the x-z plane symmetrically about z.
+///
+/// Per pose of tool t (update):
+///  1. Where the organ is: every compliance vertex near a tool gets its
+///     displacement under the forces of the previous solve, u_j = G_jC f_C.
+///  2. Grasp: when the jaw angle falls below grasp_angle, the vertices
+///     between the jaws (and those the tip touches) are held; each keeps its
+///     position in the tool frame, squeezed onto the jaws' mid-plane x = 0,
+///     and follows the tool rigidly. Released when the jaws open past
+///     release_angle (hysteresis).
+///  3. Tip contacts: vertices inside the tip (a sphere or a capsule of radius
+///     r around the segment hinge → hinge + tip_length·z) are put back on its
+///     surface along the contact normal: fully while friction holds it
+///     ("stick"), along the normal only once it slides (tangential motion
+///     free: the tool glides).
+///  4. One ConstraintSolver solve for all tools. A tip contact whose solved
+///     force pulls the tissue towards the tool (adhesion) is released; one
+///     whose tangential force exceeds friction × normal force slides; the
+///     set is solved again (at most max_iterations solves).
+///  5. Feedback: the force on the tool is minus the sum of its contact
+///     forces, clamped to the device's force limit and moved towards that
+///     value at most max_force_rate·Δt per tick; torque about the hinge;
+///     grip force from the held vertices.
+/// A tool whose poses stop (watchdog_timeout) has its imposed displacements
+/// scaled from 1 to 0 over watchdog_ramp, then is dropped.
+///
+/// Not thread-safe: the caller serializes update() and watchdog(). Allocates
+/// nothing after construction.
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/core/eigen.hpp"
+#include "palpate/core/units.hpp"
+#include "palpate/runtime/surface_model.hpp"
+
+namespace palpate {
+
+enum class TipShape : std::int8_t { kSphere, kCapsule };
+
+/// One tool, from the configuration's [[tools]] tables (SI).
+struct ToolGeometry {
+  std::string id;                   ///< the key of its ToolPose samples
+  TipShape tip = TipShape::kCapsule;
+  double tip_radius_m = 0.004;      ///< sphere or capsule radius
+  double tip_length_m = 0.015;      ///< capsule: segment hinge → hinge + length·z; sphere: 0
+  /// Coulomb friction between tip and tissue: a tip contact sticks (its
+  /// vertex fully put back on the tip's surface) while its tangential force
+  /// stays within friction × its normal force, and slides (normal-only
+  /// constraint) beyond. 0: frictionless gliding; infinity: always sticks.
+  double friction = 0.3;
+  double jaw_length_m = 0.015;      ///< 0: a probe that cannot grasp
+  double jaw_width_m = 0.005;
+  double grasp_angle_rad = degrees(15);    ///< jaws closing below this grasp
+  double release_angle_rad = degrees(25);  ///< jaws opening above this release
+  double max_jaw_angle_rad = degrees(75);  ///< poses beyond are refused
+  double force_limit_n = 8;                ///< the device's maximum force
+  double max_force_rate_n_per_s = 500;     ///< slew limit of the fed-back force
+};
+
+/// Engine-wide contact settings (configuration's [contact] table, SI).
+struct ContactSettings {
+  double watchdog_timeout_s = 0.05;  ///< no pose for this long: ramp the tool out
+  double watchdog_ramp_s = 0.25;     ///< from full to no contact
+  double search_margin_m = 0.01;     ///< vertices this far beyond the tip are examined
+  int max_contacts_per_tool = 24;    ///< deepest tip contacts kept
+  int max_iterations = 4;            ///< solves per tick (adhesion release, sliding)
+  double workspace_margin_m = 0.5;   ///< poses farther from the organ's bounding box are refused
+};
+
+enum class ToolState : std::int32_t { kFree = 0, kTouching = 1, kGrasping = 2 };
+enum class ToolEventKind : std::int32_t {
+  kTouch = 0,
+  kLeave,
+  kGrasp,
+  kRelease,
+  kWatchdog,
+  kResumed,
+};
+const char* tool_state_name(ToolState state);
+const char* tool_event_name(ToolEventKind kind);
+
+/// A pose as the device sends it.
+struct ToolPoseInput {
+  std::uint64_t sequence = 0;
+  std::int64_t send_time_ns = 0;
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();  ///< hinge, model frame
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< tool → model
+  double jaw_angle_rad = 0;
+};
+
+/// Why a pose was refused.
+enum class PoseProblem : std::int8_t {
+  kNone,
+  kNonFinite,       ///< NaN or infinity
+  kBadQuaternion,   ///< norm not within 1 ± 0.1
+  kBadJawAngle,     ///< outside [0, max_jaw_angle]
+  kOutOfWorkspace,  ///< farther than workspace_margin from the organ
+  kStale,           ///< sequence not above the last one taken
+};
+const char* pose_problem_name(PoseProblem problem);
+
+/// What a tool feels after a tick.
+struct ToolOutput {
+  Eigen::Vector3d force_n = Eigen::Vector3d::Zero();    ///< on the tool, limited
+  Eigen::Vector3d torque_nm = Eigen::Vector3d::Zero();  ///< about the hinge
+  double grip_n = 0;                                    ///< per jaw
+  int contacts = 0;                                     ///< vertices this tool constrains
+  int held = 0;                                         ///< of which held by the jaws
+  ToolState state = ToolState::kFree;
+  bool force_limited = false;  ///< clamped or rate limited this tick
+  bool watchdog = false;       ///< ramping out
+  std::uint64_t sequence = 0;  ///< of the pose it answers
+  std::int64_t send_time_ns = 0;
+  std::array<ToolEventKind, 4> events{};  ///< state changes of this tick, in order
+  int event_count = 0;
+};
+
+class ToolContactEngine {
+ public:
+  /// @p model must outlive the engine. Sizes every buffer for the tools.
+  ToolContactEngine(const SurfaceModel& model, std::vector<ToolGeometry> tools,
+                    const ContactSettings& settings, const SolverLimits& limits);
+  ~ToolContactEngine();
+  ToolContactEngine(const ToolContactEngine&) = delete;
+  ToolContactEngine& operator=(const ToolContactEngine&) = delete;
+
+  int tool_count() const;
+  /// Index of the tool named @p id, or -1.
+  int tool_index(std::string_view id) const;
+  const ToolGeometry& tool(int index) const;
+
+  /// Checks a pose of tool @p tool before update(); normalizes its quaternion.
+  PoseProblem check(int tool, ToolPoseInput& pose) const;
+  /// Takes a checked pose of @p tool received at @p now_s (seconds, any
+  /// monotonic origin), solves every tool's contacts together and returns
+  /// what tool @p tool feels. The RequestStatus is kOk unless the solve
+  /// failed; then the previous contacts are kept and the output repeats the
+  /// last one (solver_message() says why).
+  RequestStatus update(int tool, const ToolPoseInput& pose, double now_s);
+  /// Ramps out tools whose poses stopped. @returns the tools whose output
+  /// changed (their feedback should be sent), as a bit mask.
+  std::uint64_t watchdog(double now_s);
+
+  const ToolOutput& output(int tool) const;
+  /// The last pose taken of @p tool.
+  const ToolPoseInput& pose(int tool) const;
+  const char* solver_message() const;
+
+  /// The contacts of the last solve, all tools: compliance indices, the
+  /// force on the organ at each (3 per contact, N), the tool of each.
+  std::span<const int> contact_indices() const;
+  std::span<const double> contact_forces() const;
+  std::span<const int> contact_tools() const;
+  /// Per contact: the unit normal of a sliding tip contact (its force is
+  /// along it), zero for a held vertex or a sticking tip; 3 per contact.
+  std::span<const double> contact_normals() const;
+  /// Deformed position of each contact, 3 per contact, m.
+  std::span<const double> contact_positions() const;
+  /// Solves since construction, and those that reused a cached factorization.
+  std::uint64_t solves() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace palpate

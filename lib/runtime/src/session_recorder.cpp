@@ -1,0 +1,733 @@
+#include "palpate/core/version.hpp"
+#include "palpate/runtime/session_recorder.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cassert>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <ctime>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include <hdf5.h>
+
+#include <fmt/format.h>
+
+#include "palpate/file/detail/hdf5_support.hpp"
+#include "palpate/file/atomic_file.hpp"
+#include "palpate/core/ids.hpp"
+#include "palpate/core/error.hpp"
+
+namespace palpate {
+
+namespace {
+
+using hdf5::check;
+using hdf5::Handle;
+using hdf5::write_double_attribute;
+using hdf5::write_int64_attribute;
+using hdf5::write_int_attribute;
+using hdf5::write_string_attribute;
+using hdf5::write_strings_attribute;
+using hdf5::write_uint64_attribute;
+
+constexpr const char* kFormatName = "palpate-session";
+constexpr int kFormatVersion = 1;
+// Rows per chunk: about a second of one tool at 1 kHz; contacts are denser.
+constexpr hsize_t kTickChunk = 1024;
+constexpr hsize_t kContactChunk = 4096;
+constexpr hsize_t kEventChunk = 256;
+
+// "2026-11-21T18:00:00.123Z" from nanoseconds since 1970 (UTC).
+std::string iso_utc(std::int64_t unix_ns) {
+  std::int64_t s = unix_ns / 1'000'000'000;
+  std::int64_t ns = unix_ns % 1'000'000'000;
+  if (ns < 0) {
+    --s;
+    ns += 1'000'000'000;
+  }
+  const std::time_t t = static_cast<std::time_t>(s);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
+  return fmt::format("{}.{:03d}Z", buf, ns / 1'000'000);
+}
+
+std::int64_t unix_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// The HDF5 types (memory, file: little-endian) of the C++ types recorded.
+template <typename T>
+struct H5Type;
+template <>
+struct H5Type<double> {
+  static hid_t mem() { return H5T_NATIVE_DOUBLE; }
+  static hid_t file() { return H5T_IEEE_F64LE; }
+};
+template <>
+struct H5Type<std::uint64_t> {
+  static hid_t mem() { return H5T_NATIVE_UINT64; }
+  static hid_t file() { return H5T_STD_U64LE; }
+};
+template <>
+struct H5Type<std::int64_t> {
+  static hid_t mem() { return H5T_NATIVE_INT64; }
+  static hid_t file() { return H5T_STD_I64LE; }
+};
+template <>
+struct H5Type<std::uint32_t> {
+  static hid_t mem() { return H5T_NATIVE_UINT32; }
+  static hid_t file() { return H5T_STD_U32LE; }
+};
+template <>
+struct H5Type<std::int32_t> {
+  static hid_t mem() { return H5T_NATIVE_INT32; }
+  static hid_t file() { return H5T_STD_I32LE; }
+};
+template <>
+struct H5Type<std::int8_t> {
+  static hid_t mem() { return H5T_NATIVE_INT8; }
+  static hid_t file() { return H5T_STD_I8LE; }
+};
+template <>
+struct H5Type<std::uint8_t> {
+  static hid_t mem() { return H5T_NATIVE_UINT8; }
+  static hid_t file() { return H5T_STD_U8LE; }
+};
+
+// An extendable, chunked dataset of n × width values of T (1-D when width
+// is 1), with the rows staged since its last write() held in memory.
+template <typename T>
+class Column {
+ public:
+  Column(hid_t parent, const char* name, hsize_t width, hsize_t chunk_rows,
+         const char* units = nullptr)
+      : width_(width), set_(create(parent, name, width, chunk_rows)), name_(name) {
+    if (units) write_string_attribute(set_, "units", units);
+  }
+
+  void stage(T value) { staged_.push_back(value); }
+  void stage(const T* row) { staged_.insert(staged_.end(), row, row + width_); }
+
+  // Appends the staged rows to the dataset.
+  void write() {
+    const hsize_t rows = staged_.size() / width_;
+    if (rows == 0) return;
+    const hsize_t dims[2] = {rows_ + rows, width_};
+    check(H5Dset_extent(set_, dims), fmt::format("extend dataset {}", name_));
+    Handle file_space(H5Dget_space(set_), H5Sclose, "get a dataspace");
+    const hsize_t start[2] = {rows_, 0}, count[2] = {rows, width_};
+    check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr),
+          fmt::format("select rows of {}", name_));
+    Handle mem_space(H5Screate_simple(rank(width_), count, nullptr), H5Sclose,
+                     "create a dataspace");
+    check(H5Dwrite(set_, H5Type<T>::mem(), mem_space, file_space, H5P_DEFAULT, staged_.data()),
+          fmt::format("write dataset {}", name_));
+    rows_ += rows;
+    staged_.clear();
+  }
+
+  hid_t id() const { return set_; }
+
+ private:
+  static int rank(hsize_t width) { return width == 1 ? 1 : 2; }
+
+  static Handle create(hid_t parent, const char* name, hsize_t width, hsize_t chunk_rows) {
+    const hsize_t dims[2] = {0, width}, max_dims[2] = {H5S_UNLIMITED, width};
+    const hsize_t chunk[2] = {chunk_rows, width};
+    Handle space(H5Screate_simple(rank(width), dims, max_dims), H5Sclose, "create a dataspace");
+    Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "create dataset properties");
+    check(H5Pset_chunk(properties, rank(width), chunk), fmt::format("chunk dataset {}", name));
+    return Handle(
+        H5Dcreate2(parent, name, H5Type<T>::file(), space, H5P_DEFAULT, properties, H5P_DEFAULT),
+        H5Dclose, fmt::format("create dataset {}", name));
+  }
+
+  hsize_t width_;
+  Handle set_;
+  const char* name_;
+  hsize_t rows_ = 0;
+  std::vector<T> staged_;
+};
+
+// The assessment of one tool's gesture, accumulated tick by tick. The
+// definitions are those of docs/session-recording.md (scripts/session_report.py
+// computes the same from the datasets): a tick's state and force hold until
+// the tool's next tick, so the interval t_k − t_{k−1} counts as "in contact"
+// when tick k−1 was not free (a non-increasing time adds nothing).
+struct ToolSummary {
+  std::uint64_t ticks = 0;
+  std::uint64_t grasps = 0;  // ticks grasping whose previous tick was not
+  std::uint64_t truncated_contact_ticks = 0;
+  double first_time_s = 0, last_time_s = 0;
+  double time_in_contact_s = 0, time_grasping_s = 0;
+  double force_time_in_contact_ns = 0;  // ∫ |f| dt over contact, N·s
+  double max_force_n = 0, max_grip_n = 0, path_length_m = 0;
+  ToolState last_state = ToolState::kFree;
+  double last_force_n = 0;
+  double last_position_m[3]{};
+
+  void add(const ToolTickRecord& t) {
+    const double force = std::hypot(t.force_n[0], t.force_n[1], t.force_n[2]);
+    if (ticks == 0) {
+      first_time_s = t.time_s;
+    } else {
+      const double dt = std::max(0.0, t.time_s - last_time_s);
+      if (last_state != ToolState::kFree) {
+        time_in_contact_s += dt;
+        force_time_in_contact_ns += last_force_n * dt;
+      }
+      if (last_state == ToolState::kGrasping) time_grasping_s += dt;
+      path_length_m +=
+          std::hypot(t.position_m[0] - last_position_m[0], t.position_m[1] - last_position_m[1],
+                     t.position_m[2] - last_position_m[2]);
+    }
+    if (t.state == ToolState::kGrasping && (ticks == 0 || last_state != ToolState::kGrasping))
+      ++grasps;
+    max_force_n = std::max(max_force_n, force);
+    max_grip_n = std::max(max_grip_n, t.grip_n);
+    last_state = t.state;
+    last_force_n = force;
+    std::copy_n(t.position_m, 3, last_position_m);
+    last_time_s = t.time_s;
+    ++ticks;
+  }
+
+  void write(hid_t group, std::uint64_t dropped_ticks) const {
+    write_uint64_attribute(group, "ticks", ticks);
+    write_double_attribute(group, "duration_s", ticks > 0 ? last_time_s - first_time_s : 0.0);
+    write_double_attribute(group, "time_in_contact_s", time_in_contact_s);
+    write_double_attribute(group, "time_grasping_s", time_grasping_s);
+    write_double_attribute(group, "max_force_n", max_force_n);
+    write_double_attribute(
+        group, "mean_force_in_contact_n",
+        time_in_contact_s > 0 ? force_time_in_contact_ns / time_in_contact_s : 0.0);
+    write_double_attribute(group, "max_grip_n", max_grip_n);
+    write_double_attribute(group, "path_length_m", path_length_m);
+    write_uint64_attribute(group, "grasps", grasps);
+    write_uint64_attribute(group, "dropped_ticks", dropped_ticks);
+    write_uint64_attribute(group, "truncated_contact_ticks", truncated_contact_ticks);
+  }
+};
+
+const char* tip_name(TipShape tip) { return tip == TipShape::kSphere ? "sphere" : "capsule"; }
+
+// /tools/<id>: one tool's geometry, samples, contacts and summary.
+struct ToolStream {
+  ToolStream(hid_t tools, const ToolGeometry& g, int index)
+      : group(hdf5::group(tools, g.id)),
+        time_s(group, "time_s", 1, kTickChunk, "s"),
+        sequence(group, "sequence", 1, kTickChunk),
+        send_time_ns(group, "send_time_ns", 1, kTickChunk, "ns"),
+        position(group, "position", 3, kTickChunk, "m"),
+        orientation(group, "orientation", 4, kTickChunk),
+        jaw_angle(group, "jaw_angle", 1, kTickChunk, "rad"),
+        force(group, "force", 3, kTickChunk, "N"),
+        torque(group, "torque", 3, kTickChunk, "N·m"),
+        grip(group, "grip", 1, kTickChunk, "N"),
+        state(group, "state", 1, kTickChunk),
+        watchdog(group, "watchdog", 1, kTickChunk),
+        force_limited(group, "force_limited", 1, kTickChunk),
+        held(group, "held", 1, kTickChunk),
+        compute_ns(group, "compute_ns", 1, kTickChunk, "ns"),
+        contact_start(group, "contact_start", 1, kTickChunk),
+        contact_count(group, "contact_count", 1, kTickChunk),
+        contacts(hdf5::group(group, "contacts")),
+        contact_vertex(contacts, "vertex", 1, kContactChunk),
+        contact_force(contacts, "force", 3, kContactChunk, "N") {
+    write_int_attribute(group, "index", index);
+    write_string_attribute(group, "tip", tip_name(g.tip));
+    write_double_attribute(group, "tip_radius_m", g.tip_radius_m);
+    write_double_attribute(group, "tip_length_m", g.tip_length_m);
+    write_double_attribute(group, "friction", g.friction);
+    write_double_attribute(group, "jaw_length_m", g.jaw_length_m);
+    write_double_attribute(group, "jaw_width_m", g.jaw_width_m);
+    write_double_attribute(group, "grasp_angle_rad", g.grasp_angle_rad);
+    write_double_attribute(group, "release_angle_rad", g.release_angle_rad);
+    write_double_attribute(group, "max_jaw_angle_rad", g.max_jaw_angle_rad);
+    write_double_attribute(group, "force_limit_n", g.force_limit_n);
+    write_double_attribute(group, "max_force_rate_n_per_s", g.max_force_rate_n_per_s);
+    write_string_attribute(orientation.id(), "order", "w x y z");
+    std::vector<std::string> names;
+    for (auto s : {ToolState::kFree, ToolState::kTouching, ToolState::kGrasping})
+      names.emplace_back(tool_state_name(s));
+    write_strings_attribute(state.id(), "names", names);
+  }
+
+  // Stages tick @p t, whose contacts are read by @p contact(i) → (vertex id, force[3]).
+  template <typename Contact>
+  void stage(const ToolTickRecord& t, std::uint32_t count, bool truncated, Contact&& contact) {
+    time_s.stage(t.time_s);
+    sequence.stage(t.sequence);
+    send_time_ns.stage(t.send_time_ns);
+    position.stage(t.position_m);
+    orientation.stage(t.orientation_wxyz);
+    jaw_angle.stage(t.jaw_angle_rad);
+    force.stage(t.force_n);
+    torque.stage(t.torque_nm);
+    grip.stage(t.grip_n);
+    state.stage(static_cast<std::int8_t>(t.state));
+    watchdog.stage(static_cast<std::uint8_t>(t.watchdog));
+    force_limited.stage(static_cast<std::uint8_t>(t.force_limited));
+    held.stage(t.held);
+    compute_ns.stage(t.compute_ns);
+    contact_start.stage(contacts_total);
+    contact_count.stage(count);
+    for (std::uint32_t i = 0; i < count; ++i) {
+      const auto [vertex, f] = contact(i);
+      contact_vertex.stage(vertex);
+      contact_force.stage(f);
+    }
+    contacts_total += count;
+    summary.add(t);
+    if (truncated) ++summary.truncated_contact_ticks;
+  }
+
+  void write() {
+    time_s.write();
+    sequence.write();
+    send_time_ns.write();
+    position.write();
+    orientation.write();
+    jaw_angle.write();
+    force.write();
+    torque.write();
+    grip.write();
+    state.write();
+    watchdog.write();
+    force_limited.write();
+    held.write();
+    compute_ns.write();
+    contact_start.write();
+    contact_count.write();
+    contact_vertex.write();
+    contact_force.write();
+  }
+
+  Handle group;
+  Column<double> time_s;
+  Column<std::uint64_t> sequence;
+  Column<std::int64_t> send_time_ns;
+  Column<double> position, orientation, jaw_angle, force, torque, grip;
+  Column<std::int8_t> state;
+  Column<std::uint8_t> watchdog, force_limited;
+  Column<std::uint32_t> held;
+  Column<std::uint64_t> compute_ns, contact_start;
+  Column<std::uint32_t> contact_count;
+  Handle contacts;
+  Column<std::uint32_t> contact_vertex;
+  Column<double> contact_force;
+  std::uint64_t contacts_total = 0;
+  ToolSummary summary;
+};
+
+// /events: the tools' state changes, one row each.
+struct EventStream {
+  explicit EventStream(hid_t file)
+      : group(hdf5::group(file, "events")),
+        time_s(group, "time_s", 1, kEventChunk, "s"),
+        tool(group, "tool", 1, kEventChunk),
+        kind(group, "kind", 1, kEventChunk),
+        pose_sequence(group, "pose_sequence", 1, kEventChunk) {
+    std::vector<std::string> names;
+    for (int k = 0; k <= static_cast<int>(ToolEventKind::kResumed); ++k)
+      names.emplace_back(tool_event_name(static_cast<ToolEventKind>(k)));
+    write_strings_attribute(kind.id(), "names", names);
+  }
+
+  void write() {
+    time_s.write();
+    tool.write();
+    kind.write();
+    pose_sequence.write();
+  }
+
+  Handle group;
+  Column<double> time_s;
+  Column<std::int32_t> tool, kind;
+  Column<std::uint64_t> pose_sequence;
+  std::uint64_t count = 0;
+};
+
+// The open file; members close in reverse order, the file last.
+struct SessionFile {
+  Handle file;
+  std::vector<std::unique_ptr<ToolStream>> tools;
+  std::unique_ptr<EventStream> events;
+  std::uint64_t ticks = 0;  // staged so far
+};
+
+void validate(const std::filesystem::path& file, const std::filesystem::path& partial,
+              const SessionInfo& info, const RecorderLimits& limits) {
+  const std::string where = fmt::format("session recording '{}'", file.string());
+  if (file.filename().empty())
+    throw InputError(fmt::format("{}: names no file; give a file name such as session.h5", where));
+  const auto dir = file.has_parent_path() ? file.parent_path() : std::filesystem::path(".");
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec))
+    throw InputError(fmt::format("{}: directory '{}' does not exist; create it or record elsewhere",
+                                 where, dir.string()));
+  if (::access(dir.c_str(), W_OK) != 0)
+    throw InputError(
+        fmt::format("{}: directory '{}' is not writable by this process; fix its permissions or "
+                    "record elsewhere",
+                    where, dir.string()));
+  if (std::filesystem::exists(file, ec))
+    throw InputError(fmt::format(
+        "{}: the file already exists; a recording is never overwritten: choose another name",
+        where));
+  if (std::filesystem::exists(partial, ec))
+    throw InputError(fmt::format(
+        "{}: '{}' exists (a recording in progress, or left by a crash and readable up to its last "
+        "flush); move it away or choose another name",
+        where, partial.string()));
+  if (info.tools.empty()) throw InputError(fmt::format("{}: the session has no tools", where));
+  std::set<std::string> ids;
+  for (const auto& tool : info.tools) {
+    if (!is_valid_id(tool.id) || tool.id == ".")
+      throw InputError(fmt::format(
+          "{}: tool id '{}' is not 1 to 63 characters among A-Z a-z 0-9 _ - .", where, tool.id));
+    if (!ids.insert(tool.id).second)
+      throw InputError(fmt::format("{}: tool id '{}' appears twice", where, tool.id));
+  }
+  if (limits.ring_ticks < 1 || limits.ring_events < 1 ||
+      limits.ring_contacts < limits.max_contacts_per_tick || !(limits.flush_interval_s > 0) ||
+      !(limits.write_interval_s > 0))
+    throw InputError(
+        fmt::format("{}: recorder limits need ring_ticks ≥ 1, ring_events ≥ 1, ring_contacts ≥ "
+                    "max_contacts_per_tick, flush_interval_s > 0 and write_interval_s > 0",
+                    where));
+}
+
+}  // namespace
+
+struct SessionRecorder::Impl {
+  struct TickSlot {
+    ToolTickRecord tick;
+    std::uint64_t contact_begin;  // position in the contact ring
+    std::uint32_t contact_count;
+    bool truncated;
+  };
+  struct EventSlot {
+    double time_s;
+    std::int32_t tool;
+    std::int32_t kind;
+    std::uint64_t pose_sequence;
+  };
+
+  Impl(std::filesystem::path final_path, const RecorderLimits& l, std::size_t tools)
+      : path(std::move(final_path)),
+        partial(path.string() + ".partial"),
+        limits(l),
+        tool_count(tools),
+        // Value-initialized: the pages are touched now, not by the real-time side.
+        ticks(std::make_unique<TickSlot[]>(l.ring_ticks)),
+        contact_vertices(std::make_unique<std::uint32_t[]>(l.ring_contacts)),
+        contact_forces(std::make_unique<double[]>(3 * l.ring_contacts)),
+        events(std::make_unique<EventSlot[]>(l.ring_events)),
+        dropped_per_tool(std::make_unique<std::atomic<std::uint64_t>[]>(tools)) {}
+
+  void create(const SessionInfo& info);
+  void run_writer() noexcept;
+  void drain();
+  void finish();
+
+  std::filesystem::path path, partial;
+  RecorderLimits limits;
+  std::size_t tool_count;
+  // The file: the constructor's thread, then the writer thread, then close()'s
+  // thread after joining it.
+  std::unique_ptr<SessionFile> file;
+
+  // Rings with one producer and one consumer. Positions grow without bound;
+  // a slot is position mod capacity. The producer publishes a slot with a
+  // release store of its head, the consumer frees it with one of its tail.
+  std::unique_ptr<TickSlot[]> ticks;
+  std::unique_ptr<std::uint32_t[]> contact_vertices;
+  std::unique_ptr<double[]> contact_forces;  // 3 per contact
+  std::unique_ptr<EventSlot[]> events;
+  std::unique_ptr<std::atomic<std::uint64_t>[]> dropped_per_tool;
+  alignas(64) std::atomic<std::uint64_t> tick_head{0};
+  std::uint64_t contact_head = 0;  // the producer's alone
+  std::atomic<std::uint64_t> event_head{0};
+  std::atomic<std::uint64_t> recorded{0}, dropped{0}, dropped_events{0};
+  std::atomic<bool> accepting{true};
+  alignas(64) std::atomic<std::uint64_t> tick_tail{0};
+  std::atomic<std::uint64_t> contact_tail{0};
+  std::atomic<std::uint64_t> event_tail{0};
+  std::atomic<std::uint64_t> flushed{0};
+  std::atomic<bool> failed{false};
+
+  std::mutex mutex;  // guards stop and error; wakes the writer
+  std::condition_variable wake;
+  bool stop = false;
+  std::string error;
+  bool closed = false;
+  std::thread writer;
+};
+
+void SessionRecorder::Impl::create(const SessionInfo& info) {
+  hdf5::silence_hdf5();
+  auto f = std::make_unique<SessionFile>(
+      SessionFile{Handle(H5Fcreate(partial.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, H5P_DEFAULT),
+                         H5Fclose, fmt::format("create {}", partial.string())),
+                  {},
+                  {},
+                  0});
+  const hid_t root = f->file;
+  write_string_attribute(root, "format", kFormatName);
+  write_int_attribute(root, "format_version", kFormatVersion);
+  write_string_attribute(root, "producer", "palpate " PALPATE_VERSION);
+  write_string_attribute(root, "model_id", info.model_id);
+  write_string_attribute(root, "model_file", info.model_file);
+  write_string_attribute(root, "input_hash", info.input_hash);
+  write_string_attribute(root, "daemon_id", info.daemon_id);
+  write_int64_attribute(root, "start_unix_ns", info.start_unix_ns);
+  write_string_attribute(root, "started_utc", iso_utc(info.start_unix_ns));
+  write_string_attribute(root, "units", "m, N, s, rad");
+  write_uint64_attribute(root, "max_contacts_per_tick", limits.max_contacts_per_tick);
+  write_double_attribute(root, "flush_interval_s", limits.flush_interval_s);
+
+  Handle tools = hdf5::group(root, "tools");
+  std::vector<std::string> ids;
+  for (const auto& t : info.tools) ids.push_back(t.id);
+  write_strings_attribute(tools, "ids", ids);
+  const ContactSettings& c = info.contact;
+  write_double_attribute(tools, "watchdog_timeout_s", c.watchdog_timeout_s);
+  write_double_attribute(tools, "watchdog_ramp_s", c.watchdog_ramp_s);
+  write_double_attribute(tools, "search_margin_m", c.search_margin_m);
+  write_int_attribute(tools, "max_contacts_per_tool", c.max_contacts_per_tool);
+  write_int_attribute(tools, "max_iterations", c.max_iterations);
+  write_double_attribute(tools, "workspace_margin_m", c.workspace_margin_m);
+  for (std::size_t i = 0; i < info.tools.size(); ++i)
+    f->tools.push_back(std::make_unique<ToolStream>(tools, info.tools[i], static_cast<int>(i)));
+  f->events = std::make_unique<EventStream>(root);
+  // From now on the partial file is readable, if empty.
+  check(H5Fflush(root, H5F_SCOPE_LOCAL), fmt::format("flush {}", partial.string()));
+  file = std::move(f);
+}
+
+void SessionRecorder::Impl::drain() {
+  SessionFile& f = *file;
+  const std::uint64_t tick_end = tick_head.load(std::memory_order_acquire);
+  std::uint64_t tick = tick_tail.load(std::memory_order_relaxed);
+  const std::uint64_t staged_ticks = tick_end - tick;
+  std::uint64_t contact_end = contact_tail.load(std::memory_order_relaxed);
+  for (; tick != tick_end; ++tick) {
+    const TickSlot& slot = ticks[tick % limits.ring_ticks];
+    f.tools[static_cast<std::size_t>(slot.tick.tool)]->stage(
+        slot.tick, slot.contact_count, slot.truncated, [&](std::uint32_t i) {
+          const std::size_t c = (slot.contact_begin + i) % limits.ring_contacts;
+          return std::pair<std::uint32_t, const double*>(contact_vertices[c],
+                                                         &contact_forces[3 * c]);
+        });
+    contact_end = slot.contact_begin + slot.contact_count;
+  }
+  contact_tail.store(contact_end, std::memory_order_release);
+  tick_tail.store(tick_end, std::memory_order_release);
+
+  const std::uint64_t event_end = event_head.load(std::memory_order_acquire);
+  for (std::uint64_t e = event_tail.load(std::memory_order_relaxed); e != event_end; ++e) {
+    const EventSlot& slot = events[e % limits.ring_events];
+    f.events->time_s.stage(slot.time_s);
+    f.events->tool.stage(slot.tool);
+    f.events->kind.stage(slot.kind);
+    f.events->pose_sequence.stage(slot.pose_sequence);
+    ++f.events->count;
+  }
+  event_tail.store(event_end, std::memory_order_release);
+
+  // The rings are free again before the (slow) writes.
+  for (auto& t : f.tools) t->write();
+  f.events->write();
+  f.ticks += staged_ticks;
+}
+
+void SessionRecorder::Impl::run_writer() noexcept {
+  hdf5::silence_hdf5();
+  using Clock = std::chrono::steady_clock;
+  // Capped so that a huge interval (tests: "never") does not overflow the clock.
+  const auto interval = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(std::min(limits.write_interval_s, 1e6)));
+  const auto flush_interval = std::chrono::duration<double>(limits.flush_interval_s);
+  auto last_flush = Clock::now();
+  std::unique_lock lock(mutex);
+  for (;;) {
+    wake.wait_for(lock, interval, [&] { return stop; });
+    const bool stopping = stop;
+    lock.unlock();
+    try {
+      drain();
+      if (!stopping && Clock::now() - last_flush >= flush_interval) {
+        check(H5Fflush(file->file, H5F_SCOPE_LOCAL), fmt::format("flush {}", partial.string()));
+        flushed.store(file->ticks, std::memory_order_relaxed);
+        last_flush = Clock::now();
+      }
+    } catch (const std::exception& e) {
+      accepting.store(false, std::memory_order_relaxed);
+      failed.store(true, std::memory_order_relaxed);
+      lock.lock();
+      error = e.what();
+      return;
+    }
+    if (stopping) return;
+    lock.lock();
+  }
+}
+
+void SessionRecorder::Impl::finish() {
+  SessionFile& f = *file;
+  double duration_s = 0;
+  for (std::size_t i = 0; i < f.tools.size(); ++i) {
+    const ToolStream& t = *f.tools[i];
+    t.summary.write(t.group, dropped_per_tool[i].load(std::memory_order_relaxed));
+    if (t.summary.ticks > 0) duration_s = std::max(duration_s, t.summary.last_time_s);
+  }
+  const hid_t root = f.file;
+  write_string_attribute(root, "closed_utc", iso_utc(unix_now_ns()));
+  write_double_attribute(root, "duration_s", duration_s);
+  write_uint64_attribute(root, "ticks", f.ticks);
+  write_uint64_attribute(root, "events", f.events->count);
+  write_uint64_attribute(root, "dropped_ticks", dropped.load(std::memory_order_relaxed));
+  write_uint64_attribute(root, "dropped_events", dropped_events.load(std::memory_order_relaxed));
+  check(H5Fflush(root, H5F_SCOPE_LOCAL), fmt::format("flush {}", partial.string()));
+  f.tools.clear();
+  f.events.reset();
+  if (!f.file.reset()) throw SystemError(fmt::format("HDF5: cannot close {}", partial.string()));
+  file.reset();
+  durable_rename(partial, path);
+}
+
+SessionRecorder::SessionRecorder(std::filesystem::path file, SessionInfo info,
+                                 RecorderLimits limits) {
+  const std::filesystem::path partial = file.string() + ".partial";
+  validate(file, partial, info, limits);
+  impl_ = std::make_unique<Impl>(std::move(file), limits, info.tools.size());
+  try {
+    impl_->create(info);
+  } catch (const SystemError& e) {
+    impl_->file.reset();
+    std::error_code ec;
+    std::filesystem::remove(partial, ec);
+    throw InputError(
+        fmt::format("session recording '{}': cannot create '{}' ({}); check the disk "
+                    "and the directory's permissions",
+                    impl_->path.string(), partial.string(), e.what()));
+  }
+  impl_->writer = std::thread([r = impl_.get()] { r->run_writer(); });
+}
+
+SessionRecorder::~SessionRecorder() {
+  try {
+    close();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "palpate: %s\n", e.what());
+  }
+}
+
+bool SessionRecorder::record(const ToolTickRecord& tick,
+                             std::span<const std::uint32_t> contact_vertex_ids,
+                             std::span<const double> contact_forces_n) {
+  Impl& r = *impl_;
+  if (!r.accepting.load(std::memory_order_relaxed) || tick.tool < 0 ||
+      static_cast<std::size_t>(tick.tool) >= r.tool_count) {
+    r.dropped.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  assert(contact_forces_n.size() == 3 * contact_vertex_ids.size());
+  const std::size_t given = std::min(contact_vertex_ids.size(), contact_forces_n.size() / 3);
+  const std::size_t n = std::min(given, r.limits.max_contacts_per_tick);
+  const std::uint64_t head = r.tick_head.load(std::memory_order_relaxed);
+  if (head - r.tick_tail.load(std::memory_order_acquire) >= r.limits.ring_ticks ||
+      r.contact_head + n - r.contact_tail.load(std::memory_order_acquire) >
+          r.limits.ring_contacts) {
+    r.dropped.fetch_add(1, std::memory_order_relaxed);
+    r.dropped_per_tool[static_cast<std::size_t>(tick.tool)].fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  Impl::TickSlot& slot = r.ticks[head % r.limits.ring_ticks];
+  slot.tick = tick;
+  slot.contact_begin = r.contact_head;
+  slot.contact_count = static_cast<std::uint32_t>(n);
+  slot.truncated = n < contact_vertex_ids.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t c = (r.contact_head + i) % r.limits.ring_contacts;
+    r.contact_vertices[c] = contact_vertex_ids[i];
+    std::copy_n(&contact_forces_n[3 * i], 3, &r.contact_forces[3 * c]);
+  }
+  r.contact_head += n;
+  r.tick_head.store(head + 1, std::memory_order_release);
+  r.recorded.fetch_add(1, std::memory_order_relaxed);
+  return true;
+}
+
+bool SessionRecorder::record_event(double time_s, std::int32_t tool, ToolEventKind kind,
+                                   std::uint64_t pose_sequence) {
+  Impl& r = *impl_;
+  const std::uint64_t head = r.event_head.load(std::memory_order_relaxed);
+  if (!r.accepting.load(std::memory_order_relaxed) || tool < 0 ||
+      static_cast<std::size_t>(tool) >= r.tool_count ||
+      head - r.event_tail.load(std::memory_order_acquire) >= r.limits.ring_events) {
+    r.dropped_events.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  r.events[head % r.limits.ring_events] = {time_s, tool, static_cast<std::int32_t>(kind),
+                                           pose_sequence};
+  r.event_head.store(head + 1, std::memory_order_release);
+  return true;
+}
+
+void SessionRecorder::close() {
+  Impl& r = *impl_;
+  if (r.closed) return;
+  r.closed = true;
+  r.accepting.store(false, std::memory_order_relaxed);
+  {
+    std::lock_guard lock(r.mutex);
+    r.stop = true;
+  }
+  r.wake.notify_one();
+  r.writer.join();
+  hdf5::silence_hdf5();
+  const std::string kept =
+      fmt::format("what was written up to then is in '{}'", r.partial.string());
+  if (r.failed.load(std::memory_order_relaxed)) {
+    r.file.reset();
+    throw SystemError(
+        fmt::format("session recording '{}': {}; {}", r.path.string(), r.error, kept));
+  }
+  try {
+    r.finish();
+  } catch (const std::exception& e) {
+    r.file.reset();
+    throw SystemError(
+        fmt::format("session recording '{}': {}; {}", r.path.string(), e.what(), kept));
+  }
+}
+
+std::uint64_t SessionRecorder::recorded() const {
+  return impl_->recorded.load(std::memory_order_relaxed);
+}
+std::uint64_t SessionRecorder::dropped() const {
+  return impl_->dropped.load(std::memory_order_relaxed);
+}
+std::uint64_t SessionRecorder::dropped_events() const {
+  return impl_->dropped_events.load(std::memory_order_relaxed);
+}
+std::uint64_t SessionRecorder::flushed() const {
+  return impl_->flushed.load(std::memory_order_relaxed);
+}
+bool SessionRecorder::failed() const { return impl_->failed.load(std::memory_order_relaxed); }
+const std::filesystem::path& SessionRecorder::path() const { return impl_->path; }
+
+}  // namespace palpate

@@ -1,0 +1,181 @@
+#pragma once
+/// @file
+/// A C++ client of palpated (docs/dds.md): model descriptions, constraint
+/// requests and their replies, the surface stream and the status heartbeat.
+/// Used by palpate-client, the tests and the benchmarks; an application may
+/// use it or speak the IDL types directly.
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "palpate/runtime/constraint_solver.hpp"
+
+namespace palpate {
+
+struct ClientOptions {
+  std::string client_id;  ///< unique per client; [A-Za-z0-9_.-], 1..63 characters
+  std::uint32_t domain_id = 0;
+  std::string dds_config;  ///< as palpated's dds.config; empty: loopback (or CYCLONEDDS_URI)
+  bool subscribe_surface = false;  ///< also read the surface stream
+  bool subscribe_status = false;   ///< also read the status heartbeat
+  /// Wait for replies by polling (yielding the CPU between polls) instead of
+  /// sleeping on a waitset: saves the wake-up of the waiting thread, costs
+  /// its core while waiting. What a 1 kHz haptic loop does anyway.
+  bool busy_wait = false;
+  /// Silence of palpated's status heartbeat after which daemon_presence()
+  /// says it is lost; 0: 3 heartbeat periods (as measured) + 1 s, i.e.
+  /// 4 s at the default 1 Hz (docs/faults.md).
+  std::chrono::milliseconds daemon_timeout{0};
+};
+
+/// What a client knows of palpated from its status heartbeat (palpate_status,
+/// docs/dds.md): whether it is there, and whether it was restarted.
+enum class DaemonState : std::uint8_t {
+  kUnknown,  ///< no heartbeat yet
+  kPresent,  ///< a heartbeat within the timeout
+  kLost,     ///< silent for longer than the timeout: killed, hung, or unreachable
+};
+
+struct DaemonPresence {
+  DaemonState state = DaemonState::kUnknown;
+  std::uint64_t losses = 0;       ///< times it went from present to lost
+  std::uint64_t restarts = 0;     ///< heartbeats whose uptime went back: a new palpated process
+  double silent_s = 0;            ///< since the last heartbeat (0 before the first)
+  double uptime_s = 0;            ///< palpated's uptime in the last heartbeat
+  double heartbeat_period_s = 0;  ///< measured (0 until two heartbeats came)
+  double timeout_s = 0;           ///< the silence that means lost, now
+};
+
+/// One line saying what changed from @p before to @p now ("palpated lost: no
+/// status heartbeat for 3.6 s", "palpated is back (up 0.4 s; restarted)",
+/// "palpated restarted (up 0.2 s)"), or std::nullopt if nothing did. For
+/// clients to report the daemon going and coming back.
+std::optional<std::string> describe_presence_change(const DaemonPresence& before,
+                                                    const DaemonPresence& now);
+
+/// A model as ModelDescription gives it.
+struct ModelInfo {
+  std::string model_id, units, material_summary, input_hash;
+  int compliance_vertex_count = 0;        ///< N_S: the first N_S drawn vertices
+  std::vector<std::uint32_t> vertex_ids;  ///< mesh vertex id of each drawn vertex
+  std::vector<double> rest_positions_m;   ///< 3 per drawn vertex
+  std::vector<std::uint32_t> triangles;   ///< 3 per triangle, into the drawn vertices
+};
+
+/// One constraint of a request (see ConstraintKind).
+struct ConstraintSpec {
+  std::uint32_t vertex = 0;  ///< mesh vertex id
+  ConstraintKind kind = ConstraintKind::kForce;
+  std::array<double, 3> value{};   ///< N or m
+  std::array<double, 3> normal{};  ///< kNormalDisplacement only
+
+  static ConstraintSpec force(std::uint32_t vertex, std::array<double, 3> force_n) {
+    return {vertex, ConstraintKind::kForce, force_n, {}};
+  }
+  static ConstraintSpec displacement(std::uint32_t vertex, std::array<double, 3> displacement_m) {
+    return {vertex, ConstraintKind::kDisplacement, displacement_m, {}};
+  }
+  static ConstraintSpec normal_displacement(std::uint32_t vertex, std::array<double, 3> normal,
+                                            double depth_m) {
+    return {vertex, ConstraintKind::kNormalDisplacement, {depth_m, 0, 0}, normal};
+  }
+};
+
+struct VertexResult {
+  std::uint32_t vertex = 0;
+  std::array<double, 3> force_n{};
+  std::array<double, 3> displacement_m{};
+};
+
+struct Reply {
+  std::uint64_t request_id = 0;
+  std::string model_id;
+  RequestStatus status = RequestStatus::kInternalError;
+  std::string message;
+  double condition_estimate = 0;
+  std::array<double, 3> total_force_n{};
+  std::uint64_t solve_ns = 0;
+  std::vector<VertexResult> results;
+  std::vector<double> surface_displacement_m;  ///< 3 per compliance vertex when asked
+};
+
+struct SurfaceSample {
+  std::string model_id;
+  std::uint64_t sequence_number = 0;
+  std::string source_client_id;
+  std::uint64_t source_request_id = 0;
+  std::array<double, 3> total_force_n{};
+  std::vector<double> displacement_m;  ///< 3 per compliance vertex
+  std::vector<std::uint32_t> constrained_vertices;  ///< mesh vertex ids; empty at rest
+  std::vector<double> constrained_forces_n;         ///< 3 per constrained vertex
+};
+
+struct LatencySummary {
+  double p50_us = 0, p99_us = 0, p999_us = 0, max_us = 0;
+};
+
+struct StatusSample {
+  std::string daemon_id;
+  std::uint64_t uptime_ns = 0, requests_served = 0, error_replies = 0;
+  double request_rate_hz = 0, surface_rate_hz = 0;
+  LatencySummary solve, request_to_reply;
+  std::uint32_t models = 0, clients = 0;
+};
+
+class Client {
+ public:
+  /// Joins the domain and creates the readers and writers.
+  /// @throws InputError for a bad client id, SystemError if DDS fails.
+  explicit Client(const ClientOptions& options);
+  ~Client();
+  Client(const Client&) = delete;
+  Client& operator=(const Client&) = delete;
+
+  const std::string& id() const;
+
+  /// Waits until a daemon reads this client's requests and writes its replies.
+  /// Requests sent before may be lost. @returns false on timeout.
+  bool wait_for_service(std::chrono::milliseconds timeout);
+  /// The description of @p model_id (late joiners get it too). std::nullopt on timeout.
+  std::optional<ModelInfo> wait_for_model(const std::string& model_id,
+                                          std::chrono::milliseconds timeout);
+
+  /// Sends a request; returns its id.
+  std::uint64_t send(const std::string& model_id, std::span<const ConstraintSpec> constraints,
+                     bool want_surface = false, bool update_state = true);
+  /// The reply to @p request_id; replies to other ids are dropped. std::nullopt on timeout.
+  std::optional<Reply> wait_reply(std::uint64_t request_id, std::chrono::milliseconds timeout);
+  /// Replies received that were addressed to another client (partitions
+  /// should make this 0; the tests check it).
+  std::uint64_t foreign_replies() const;
+  /// send + wait_reply. @throws SystemError on timeout.
+  Reply request(const std::string& model_id, std::span<const ConstraintSpec> constraints,
+                bool want_surface = false, bool update_state = true,
+                std::chrono::milliseconds timeout = std::chrono::seconds(5));
+
+  /// The first surface sample of @p model_id with sequence_number ≥ @p min_sequence
+  /// and (when non-zero) source_request_id == @p request_id. Needs subscribe_surface.
+  std::optional<SurfaceSample> wait_surface(const std::string& model_id, std::uint64_t min_sequence,
+                                            std::uint64_t request_id,
+                                            std::chrono::milliseconds timeout);
+  /// The next status heartbeat. Needs subscribe_status.
+  std::optional<StatusSample> wait_status(std::chrono::milliseconds timeout);
+
+  /// palpated's presence now, from the heartbeats taken so far (takes those
+  /// that came; does not wait). While it is lost, requests get no reply
+  /// (request() times out): send them again once it is back; a restarted
+  /// palpated answers this same client (docs/faults.md).
+  DaemonPresence daemon_presence();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace palpate

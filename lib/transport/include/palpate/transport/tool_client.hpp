@@ -1,0 +1,164 @@
+#pragma once
+/// @file
+/// The haptic side of palpated's tool topics (docs/dds.md, docs/pliers.md):
+/// a device publishes its tool's pose at 1 kHz on palpate_tool_pose and
+/// reads, for each pose, the ToolFeedback palpated answers on
+/// palpate_tool_feedback; state changes (touch, grasp, ...) come reliably on
+/// palpate_tool_event. Used by palpate-pliers; a device may use it or speak
+/// the IDL types directly.
+///
+/// Clock: send_pose() stamps ToolPose.send_time_ns with the steady clock
+/// (std::chrono::steady_clock, CLOCK_MONOTONIC on Linux: nanoseconds since
+/// an unspecified origin, the same for every process of the host, never set
+/// back). palpated echoes it unchanged, so now_ns() − send_time_ns of a
+/// feedback sample is the round trip on this host's clock alone.
+///
+/// The per-tick calls (send_pose, wait_feedback, take_late_feedback) do not
+/// allocate once each tool has sent its first pose; they are not
+/// thread-safe: one thread drives a ToolClient.
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "palpate/transport/client.hpp"
+#include "palpate/runtime/tool_contact.hpp"
+
+namespace palpate {
+
+struct ToolClientOptions {
+  std::uint32_t domain_id = 0;
+  std::string dds_config;  ///< as palpated's dds.config; empty: loopback (or CYCLONEDDS_URI)
+  /// Wait for feedback by polling (yielding the CPU between polls) instead of
+  /// sleeping on a waitset: saves the wake-up of the waiting thread, costs
+  /// its core while waiting (as ClientOptions::busy_wait).
+  bool busy_wait = false;
+  /// As ClientOptions::daemon_timeout: heartbeat silence after which
+  /// daemon_presence() says palpated is lost (0: 3 periods + 1 s).
+  std::chrono::milliseconds daemon_timeout{0};
+  /// force_to_render(): a tool's last feedback is rendered for this long
+  /// after it came, then ramped to zero over feedback_ramp, as palpated's
+  /// watchdog does when poses stop (docs/tools.md; its defaults).
+  std::chrono::milliseconds feedback_timeout{50};
+  std::chrono::milliseconds feedback_ramp{250};
+};
+
+/// One ToolFeedback sample as this client took it.
+struct ToolFeedbackSample {
+  std::uint64_t sequence = 0;         ///< of the pose it answers
+  std::int64_t send_time_ns = 0;      ///< that pose's send_pose() time, steady clock
+  std::int64_t receive_time_ns = 0;   ///< when this client took it from DDS, steady clock
+  std::array<double, 3> force_n{};    ///< the organ on the tool, model frame (render this)
+  std::array<double, 3> torque_nm{};  ///< about the hinge, model frame
+  double grip_n = 0;                  ///< squeeze per jaw (0 unless grasping)
+  std::uint32_t contacts = 0;         ///< vertices the tool constrains
+  ToolState state = ToolState::kFree;
+  bool force_limited = false;    ///< clamped or rate limited this tick
+  bool watchdog = false;         ///< poses stopped: the force ramps to zero
+  std::uint64_t compute_ns = 0;  ///< palpated's time from taking the pose to writing this
+
+  /// Round trip on this client's clock, ns.
+  std::int64_t round_trip_ns() const { return receive_time_ns - send_time_ns; }
+};
+
+/// One ToolEvent sample.
+struct ToolEventSample {
+  std::string tool_id, model_id;
+  ToolEventKind kind = ToolEventKind::kTouch;
+  std::uint64_t pose_sequence = 0;   ///< the pose that caused it (the last one for the watchdog)
+  std::uint32_t held_vertices = 0;   ///< vertices held by the jaws (grasp)
+  std::int64_t daemon_time_ns = 0;   ///< palpated's UTC clock
+  std::int64_t receive_time_ns = 0;  ///< when this client took it, steady clock
+};
+
+class ToolClient {
+ public:
+  /// Tools one client can drive (distinct tool ids it sends poses for).
+  static constexpr int kMaxTools = 8;
+
+  /// Joins the domain (palpate's loopback configuration unless the options
+  /// or CYCLONEDDS_URI give another) and creates the model and event
+  /// readers, the pose writer and the feedback reader with palpated's QoS.
+  /// @throws InputError for an unreadable dds_config, SystemError if DDS fails.
+  explicit ToolClient(const ToolClientOptions& options);
+  ~ToolClient();
+  ToolClient(const ToolClient&) = delete;
+  ToolClient& operator=(const ToolClient&) = delete;
+
+  /// The steady clock in ns: the clock of send_time_ns and receive_time_ns.
+  static std::int64_t now_ns();
+
+  /// The description of @p model_id (as Client::wait_for_model). std::nullopt on timeout.
+  std::optional<ModelInfo> wait_for_model(const std::string& model_id,
+                                          std::chrono::milliseconds timeout);
+  /// Ids of every model whose description came so far (to say which are
+  /// served when the wanted one is not).
+  std::vector<std::string> models_seen() const;
+
+  /// Waits until a daemon reads the pose topic and writes the feedback and
+  /// event topics (all volatile: poses sent, feedback or events written
+  /// before the match are lost). @returns false on timeout.
+  bool wait_for_daemon(std::chrono::milliseconds timeout);
+
+  /// Publishes one pose of tool @p tool_id (1..63 characters) on @p model_id:
+  /// the hinge @p position_m in the model frame (m), @p orientation_wxyz the
+  /// unit quaternion tool → model, @p jaw_angle_rad the total opening.
+  /// @p sequence must increase per tool (palpated drops stale ones).
+  /// @returns send_time_ns, the steady clock written into the pose.
+  /// @throws InputError for a bad id or more than kMaxTools tools, SystemError if the write fails.
+  std::int64_t send_pose(std::string_view tool_id, std::string_view model_id,
+                         std::uint64_t sequence, const std::array<double, 3>& position_m,
+                         const std::array<double, 4>& orientation_wxyz, double jaw_angle_rad);
+
+  /// The feedback of tool @p tool_id for pose @p sequence, or the first one
+  /// for a newer sequence (its `sequence` says so: the answer to @p sequence
+  /// was lost, or another client drives the same tool), waiting until
+  /// @p deadline; std::nullopt if none came. Feedback of older sequences met
+  /// on the way (answers that came after their own wait ended) is kept for
+  /// take_late_feedback(); feedback for the client's other tools is kept for
+  /// their own wait_feedback(). The tool must have sent a pose.
+  std::optional<ToolFeedbackSample> wait_feedback(std::string_view tool_id, std::uint64_t sequence,
+                                                  std::chrono::steady_clock::time_point deadline);
+  /// Moves into @p out (oldest first) the feedback of @p tool_id that arrived
+  /// after its wait: sequences older than the last one waited for. At most
+  /// 64 are kept per tool (the oldest are dropped and counted in
+  /// dropped_late_feedback()). @returns how many were written.
+  std::size_t take_late_feedback(std::string_view tool_id, std::span<ToolFeedbackSample> out);
+  /// Late feedback dropped because take_late_feedback() was not called in time.
+  std::uint64_t dropped_late_feedback() const;
+  /// Feedback samples of tools this client never sent a pose for (other
+  /// clients' tools: the feedback topic is not partitioned), ignored.
+  std::uint64_t foreign_feedback() const;
+
+  /// Every tool event received since the last call (any tool, this client's
+  /// or not), in arrival order. Allocates only when there are events.
+  std::vector<ToolEventSample> take_events();
+
+  /// palpated's presence from its status heartbeat (Client::daemon_presence()).
+  /// While it is lost, poses get no feedback; once it is back (the same
+  /// process after a hang, or a restarted one) the next poses are answered:
+  /// nothing to do but keep sending (docs/faults.md).
+  DaemonPresence daemon_presence();
+
+  /// The force the device should render now for tool @p tool_id (N, model
+  /// frame): the latest feedback's force while it is fresh (at most
+  /// feedback_timeout old); then that force ramped linearly to zero over
+  /// feedback_ramp; zero before any feedback and while palpated is lost
+  /// (daemon_presence()). A device renders this rather than the feedback's
+  /// force, so that a daemon that dies, hangs or becomes unreachable leaves
+  /// the hand with no force within feedback_timeout + feedback_ramp, not with
+  /// the last force held. @p now_ns: now_ns(). Allocates nothing.
+  std::array<double, 3> force_to_render(std::string_view tool_id, std::int64_t now_ns);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace palpate

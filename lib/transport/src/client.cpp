@@ -1,0 +1,239 @@
+#include "palpate/transport/client.hpp"
+
+#include <fmt/format.h>
+
+#include <cstring>
+
+#include "client_common.hpp"
+#include "palpate.h"
+#include "palpate/core/ids.hpp"
+#include "palpate/transport/dds.hpp"
+#include "palpate/core/error.hpp"
+
+namespace palpate {
+
+namespace {
+
+using Clock = detail::ClientClock;
+using detail::bounded;
+using detail::to_array;
+using detail::WaitableReader;
+
+void check_client_id(const std::string& id) {
+  if (!is_valid_id(id))
+    throw InputError("client id '" + id +
+                     "': expected 1 to 63 characters among A-Z a-z 0-9 _ - . (it names the "
+                     "reply partition)");
+}
+
+}  // namespace
+
+struct Client::Impl {
+  ClientOptions options;
+  dds::Participant participant;
+  dds_entity_t request_writer = 0;
+  detail::ModelDescriptions models;
+  WaitableReader replies, surfaces, statuses;
+  detail::DaemonWatch watch;
+  std::uint64_t next_request_id = 1;
+  std::uint64_t foreign_replies = 0;
+  palpate_ConstraintRequest request{};
+  std::vector<palpate_Constraint> constraints;
+};
+
+Client::Client(const ClientOptions& options) : impl_(std::make_unique<Impl>()) {
+  check_client_id(options.client_id);
+  Impl& c = *impl_;
+  c.options = options;
+  c.participant = dds::join_domain(options.domain_id, options.dds_config);
+  const dds_entity_t p = c.participant.get();
+  auto topic = [p](const dds_topic_descriptor_t* type, const char* name) {
+    return dds::topic(p, type, name);
+  };
+  c.models = detail::ModelDescriptions(p);
+  c.request_writer =
+      dds::check(dds_create_writer(p, topic(&palpate_ConstraintRequest_desc, dds::kRequestTopic),
+                                   dds::request_reply_qos().get(), nullptr),
+                 "creating the request writer");
+  // Replies come only in this client's partition.
+  const std::string partition = dds::reply_partition(options.client_id);
+  const char* partitions[] = {partition.c_str()};
+  dds::Qos subscriber_qos(dds_create_qos());
+  dds_qset_partition(subscriber_qos.get(), 1, partitions);
+  const dds_entity_t subscriber = dds::check(
+      dds_create_subscriber(p, subscriber_qos.get(), nullptr), "creating the reply subscriber");
+  c.replies = WaitableReader(p, subscriber, topic(&palpate_ConstraintReply_desc, dds::kReplyTopic),
+                             dds::request_reply_qos().get(), "creating the reply reader");
+  c.replies.busy_wait = options.busy_wait;
+  if (options.subscribe_surface)
+    c.surfaces = WaitableReader(p, p, topic(&palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic),
+                                dds::surface_qos().get(), "creating the surface reader");
+  const dds_entity_t status_topic = topic(&palpate_DaemonStatus_desc, dds::kStatusTopic);
+  if (options.subscribe_status)
+    c.statuses =
+        WaitableReader(p, p, status_topic, dds::status_qos().get(), "creating the status reader");
+  c.watch = detail::DaemonWatch(p, status_topic, options.daemon_timeout);
+  std::strncpy(c.request.client_id, options.client_id.c_str(), sizeof c.request.client_id - 1);
+}
+
+Client::~Client() = default;
+
+const std::string& Client::id() const { return impl_->options.client_id; }
+
+bool Client::wait_for_service(std::chrono::milliseconds timeout) {
+  const auto deadline = Clock::now() + timeout;
+  for (;;) {
+    dds_publication_matched_status_t writer{};
+    dds_subscription_matched_status_t reader{};
+    dds_get_publication_matched_status(impl_->request_writer, &writer);
+    dds_get_subscription_matched_status(impl_->replies.reader.get(), &reader);
+    if (writer.current_count > 0 && reader.current_count > 0) return true;
+    if (Clock::now() >= deadline) return false;
+    dds_sleepfor(DDS_MSECS(5));
+  }
+}
+
+std::optional<ModelInfo> Client::wait_for_model(const std::string& model_id,
+                                                std::chrono::milliseconds timeout) {
+  return impl_->models.wait_for(model_id, Clock::now() + timeout);
+}
+
+std::uint64_t Client::send(const std::string& model_id, std::span<const ConstraintSpec> constraints,
+                           bool want_surface, bool update_state) {
+  Impl& c = *impl_;
+  c.constraints.resize(constraints.size());
+  for (std::size_t j = 0; j < constraints.size(); ++j) {
+    const ConstraintSpec& s = constraints[j];
+    palpate_Constraint& out = c.constraints[j];
+    out.vertex = s.vertex;
+    out.kind = static_cast<palpate_ConstraintKind>(s.kind);
+    std::copy(s.value.begin(), s.value.end(), out.value);
+    std::copy(s.normal.begin(), s.normal.end(), out.normal);
+  }
+  palpate_ConstraintRequest& r = c.request;
+  std::memset(r.model_id, 0, sizeof r.model_id);
+  std::strncpy(r.model_id, model_id.c_str(), sizeof r.model_id - 1);
+  r.request_id = c.next_request_id++;
+  r.want_surface = want_surface;
+  r.update_state = update_state;
+  r.constraints._buffer = c.constraints.data();
+  r.constraints._length = r.constraints._maximum = static_cast<std::uint32_t>(c.constraints.size());
+  r.constraints._release = false;
+  dds::check(dds_write(c.request_writer, &r), "sending a request");
+  return r.request_id;
+}
+
+std::optional<Reply> Client::wait_reply(std::uint64_t request_id,
+                                        std::chrono::milliseconds timeout) {
+  std::optional<Reply> reply;
+  Impl& c = *impl_;
+  c.replies.take_until<palpate_ConstraintReply>(
+      Clock::now() + timeout, [&](const palpate_ConstraintReply& r) {
+        if (std::strncmp(r.client_id, c.options.client_id.c_str(), sizeof r.client_id) != 0) {
+          ++c.foreign_replies;
+          return false;
+        }
+        if (r.request_id != request_id) return false;
+        Reply& out = reply.emplace();
+        out.request_id = r.request_id;
+        out.model_id = bounded(r.model_id, sizeof r.model_id);
+        out.status = static_cast<RequestStatus>(r.status);
+        out.message = bounded(r.message, sizeof r.message);
+        out.condition_estimate = r.condition_estimate;
+        out.total_force_n = to_array(r.total_force);
+        out.solve_ns = r.solve_ns;
+        out.results.resize(r.results._length);
+        for (std::uint32_t j = 0; j < r.results._length; ++j) {
+          const palpate_ConstraintResult& in = r.results._buffer[j];
+          out.results[j] = {in.vertex, to_array(in.force), to_array(in.displacement)};
+        }
+        out.surface_displacement_m.assign(
+            r.surface_displacement._buffer,
+            r.surface_displacement._buffer + r.surface_displacement._length);
+        return true;
+      });
+  return reply;
+}
+
+std::uint64_t Client::foreign_replies() const { return impl_->foreign_replies; }
+
+Reply Client::request(const std::string& model_id, std::span<const ConstraintSpec> constraints,
+                      bool want_surface, bool update_state, std::chrono::milliseconds timeout) {
+  const std::uint64_t id = send(model_id, constraints, want_surface, update_state);
+  auto reply = wait_reply(id, timeout);
+  if (!reply)
+    throw SystemError(fmt::format(
+        "no reply to request {} of client {} within {} ms (is palpated running on domain {}?)", id,
+        impl_->options.client_id, timeout.count(), impl_->options.domain_id));
+  return std::move(*reply);
+}
+
+std::optional<SurfaceSample> Client::wait_surface(const std::string& model_id,
+                                                  std::uint64_t min_sequence,
+                                                  std::uint64_t request_id,
+                                                  std::chrono::milliseconds timeout) {
+  PALPATE_DEMAND(impl_->options.subscribe_surface);
+  std::optional<SurfaceSample> sample;
+  impl_->surfaces.take_until<palpate_SurfaceDisplacement>(
+      Clock::now() + timeout, [&](const palpate_SurfaceDisplacement& s) {
+        if (bounded(s.model_id, sizeof s.model_id) != model_id || s.sequence_number < min_sequence)
+          return false;
+        if (request_id != 0 && s.source_request_id != request_id) return false;
+        SurfaceSample& out = sample.emplace();
+        out.model_id = model_id;
+        out.sequence_number = s.sequence_number;
+        out.source_client_id = bounded(s.source_client_id, sizeof s.source_client_id);
+        out.source_request_id = s.source_request_id;
+        out.total_force_n = to_array(s.total_force);
+        out.displacement_m.assign(s.displacement._buffer,
+                                  s.displacement._buffer + s.displacement._length);
+        out.constrained_vertices.assign(
+            s.constrained_vertices._buffer,
+            s.constrained_vertices._buffer + s.constrained_vertices._length);
+        out.constrained_forces_n.assign(
+            s.constrained_forces._buffer,
+            s.constrained_forces._buffer + s.constrained_forces._length);
+        return true;
+      });
+  return sample;
+}
+
+std::optional<StatusSample> Client::wait_status(std::chrono::milliseconds timeout) {
+  PALPATE_DEMAND(impl_->options.subscribe_status);
+  std::optional<StatusSample> status;
+  impl_->statuses.take_until<palpate_DaemonStatus>(
+      Clock::now() + timeout, [&](const palpate_DaemonStatus& s) {
+        auto latency = [](const palpate_Latency& l) {
+          return LatencySummary{l.p50_us, l.p99_us, l.p999_us, l.max_us};
+        };
+        status = StatusSample{bounded(s.daemon_id, sizeof s.daemon_id),
+                              s.uptime_ns,
+                              s.requests_served,
+                              s.error_replies,
+                              s.request_rate_hz,
+                              s.surface_rate_hz,
+                              latency(s.solve),
+                              latency(s.request_to_reply),
+                              s.models,
+                              s.clients};
+        return true;
+      });
+  return status;
+}
+
+DaemonPresence Client::daemon_presence() { return impl_->watch.poll(Clock::now()); }
+
+std::optional<std::string> describe_presence_change(const DaemonPresence& before,
+                                                    const DaemonPresence& now) {
+  if (now.state == DaemonState::kLost && before.state != DaemonState::kLost)
+    return fmt::format("palpated lost: no status heartbeat for {:.1f} s", now.silent_s);
+  const bool restarted = now.restarts > before.restarts;
+  if (now.state == DaemonState::kPresent && before.state == DaemonState::kLost)
+    return fmt::format("palpated is back (up {:.1f} s{})", now.uptime_s,
+                       restarted ? "; restarted" : "");
+  if (now.state == DaemonState::kPresent && restarted)
+    return fmt::format("palpated restarted (up {:.1f} s)", now.uptime_s);
+  return std::nullopt;
+}
+
+}  // namespace palpate

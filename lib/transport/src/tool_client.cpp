@@ -1,0 +1,302 @@
+#include "palpate/transport/tool_client.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cstring>
+
+#include "client_common.hpp"
+#include "palpate.h"
+#include "palpate/core/ids.hpp"
+#include "palpate/transport/dds.hpp"
+#include "palpate/core/error.hpp"
+
+namespace palpate {
+
+namespace {
+
+using Clock = detail::ClientClock;
+using detail::bounded;
+using detail::to_array;
+using detail::WaitableReader;
+
+/// A fixed-capacity FIFO that drops its oldest element when full.
+template <typename T, std::size_t N>
+class Ring {
+ public:
+  /// @returns false when the oldest element had to be dropped.
+  bool push(const T& value) {
+    const bool room = count_ < N;
+    if (!room) pop();
+    items_[(head_ + count_) % N] = value;
+    ++count_;
+    return room;
+  }
+  bool empty() const { return count_ == 0; }
+  const T& front() const { return items_[head_]; }
+  void pop() {
+    head_ = (head_ + 1) % N;
+    --count_;
+  }
+
+ private:
+  std::array<T, N> items_{};
+  std::size_t head_ = 0, count_ = 0;
+};
+
+/// What the client keeps per tool it drives.
+struct ToolSlot {
+  char id[64] = {};
+  std::size_t id_length = 0;
+  /// Highest sequence whose wait has ended (answered or timed out): feedback
+  /// at or below it is late.
+  std::uint64_t done = 0;
+  Ring<ToolFeedbackSample, 16> pending;  // taken while waiting for another tool
+  Ring<ToolFeedbackSample, 64> late;
+  // The newest feedback taken (highest sequence), for force_to_render().
+  bool has_feedback = false;
+  std::uint64_t newest_sequence = 0;
+  std::int64_t newest_receive_ns = 0;
+  std::array<double, 3> newest_force_n{};
+
+  void saw(const ToolFeedbackSample& s) {
+    if (has_feedback && s.sequence < newest_sequence) return;
+    has_feedback = true;
+    newest_sequence = s.sequence;
+    newest_receive_ns = s.receive_time_ns;
+    newest_force_n = s.force_n;
+  }
+
+  bool is(std::string_view tool_id) const {
+    return id_length == tool_id.size() && std::memcmp(id, tool_id.data(), id_length) == 0;
+  }
+};
+
+ToolFeedbackSample from_idl(const palpate_ToolFeedback& f, std::int64_t receive_time_ns) {
+  ToolFeedbackSample s;
+  s.sequence = f.pose_sequence;
+  s.send_time_ns = f.send_time_ns;
+  s.receive_time_ns = receive_time_ns;
+  s.force_n = to_array(f.force);
+  s.torque_nm = to_array(f.torque);
+  s.grip_n = f.grip_force;
+  s.contacts = f.contacts;
+  s.state = static_cast<ToolState>(f.state);
+  s.force_limited = f.force_limited;
+  s.watchdog = f.watchdog;
+  s.compute_ns = f.compute_ns;
+  return s;
+}
+
+void copy_id(char (&out)[64], std::string_view id) {
+  std::memset(out, 0, sizeof out);
+  std::memcpy(out, id.data(), std::min(id.size(), sizeof out - 1));
+}
+
+}  // namespace
+
+struct ToolClient::Impl {
+  ToolClientOptions options;
+  dds::Participant participant;
+  detail::ModelDescriptions models;
+  dds_entity_t pose_writer = 0;
+  WaitableReader feedback, events;
+  detail::DaemonWatch watch;
+  palpate_ToolPose pose{};
+  std::array<ToolSlot, kMaxTools> tools;
+  int tool_count = 0;
+  std::uint64_t dropped_late = 0, foreign = 0;
+
+  ToolSlot* find(std::string_view tool_id) {
+    for (int i = 0; i < tool_count; ++i)
+      if (tools[static_cast<std::size_t>(i)].is(tool_id))
+        return &tools[static_cast<std::size_t>(i)];
+    return nullptr;
+  }
+
+  void keep_late(ToolSlot& slot, const ToolFeedbackSample& s) {
+    if (!slot.late.push(s)) ++dropped_late;
+  }
+};
+
+ToolClient::ToolClient(const ToolClientOptions& options) : impl_(std::make_unique<Impl>()) {
+  Impl& c = *impl_;
+  c.options = options;
+  c.participant = dds::join_domain(options.domain_id, options.dds_config);
+  const dds_entity_t p = c.participant.get();
+  auto topic = [p](const dds_topic_descriptor_t* type, const char* name) {
+    return dds::topic(p, type, name);
+  };
+  c.models = detail::ModelDescriptions(p);
+  c.pose_writer =
+      dds::check(dds_create_writer(p, topic(&palpate_ToolPose_desc, dds::kToolPoseTopic),
+                                   dds::tool_stream_qos().get(), nullptr),
+                 "creating the tool pose writer");
+  c.feedback = WaitableReader(p, p, topic(&palpate_ToolFeedback_desc, dds::kToolFeedbackTopic),
+                              dds::tool_stream_qos().get(), "creating the tool feedback reader");
+  c.feedback.busy_wait = options.busy_wait;
+  c.events = WaitableReader(p, p, topic(&palpate_ToolEvent_desc, dds::kToolEventTopic),
+                            dds::tool_event_qos().get(), "creating the tool event reader");
+  c.watch = detail::DaemonWatch(p, topic(&palpate_DaemonStatus_desc, dds::kStatusTopic),
+                                options.daemon_timeout);
+}
+
+ToolClient::~ToolClient() = default;
+
+std::int64_t ToolClient::now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
+      .count();
+}
+
+std::optional<ModelInfo> ToolClient::wait_for_model(const std::string& model_id,
+                                                    std::chrono::milliseconds timeout) {
+  return impl_->models.wait_for(model_id, Clock::now() + timeout);
+}
+
+std::vector<std::string> ToolClient::models_seen() const { return impl_->models.known_ids(); }
+
+bool ToolClient::wait_for_daemon(std::chrono::milliseconds timeout) {
+  const auto deadline = Clock::now() + timeout;
+  for (;;) {
+    dds_publication_matched_status_t poses{};
+    dds_subscription_matched_status_t feedback{}, events{};
+    dds::check(dds_get_publication_matched_status(impl_->pose_writer, &poses),
+               "reading the pose writer's matched status");
+    dds::check(dds_get_subscription_matched_status(impl_->feedback.reader.get(), &feedback),
+               "reading the feedback reader's matched status");
+    dds::check(dds_get_subscription_matched_status(impl_->events.reader.get(), &events),
+               "reading the event reader's matched status");
+    if (poses.current_count > 0 && feedback.current_count > 0 && events.current_count > 0)
+      return true;
+    if (Clock::now() >= deadline) return false;
+    dds_sleepfor(DDS_MSECS(5));
+  }
+}
+
+std::int64_t ToolClient::send_pose(std::string_view tool_id, std::string_view model_id,
+                                   std::uint64_t sequence, const std::array<double, 3>& position_m,
+                                   const std::array<double, 4>& orientation_wxyz,
+                                   double jaw_angle_rad) {
+  Impl& c = *impl_;
+  palpate_ToolPose& pose = c.pose;
+  if (!c.find(tool_id)) {
+    // First pose of this tool: the only place that checks ids (and may throw).
+    if (!is_valid_id(tool_id))
+      throw InputError(fmt::format(
+          "tool id '{}': expected 1 to 63 characters among A-Z a-z 0-9 _ - .", tool_id));
+    if (c.tool_count == kMaxTools)
+      throw InputError(fmt::format("tool '{}': one client drives at most {} tools", tool_id,
+                                   static_cast<int>(kMaxTools)));
+    ToolSlot& slot = c.tools[static_cast<std::size_t>(c.tool_count++)];
+    copy_id(slot.id, tool_id);
+    slot.id_length = tool_id.size();
+  }
+  if (!is_valid_id(model_id))
+    throw InputError(fmt::format(
+        "model id '{}': expected 1 to 63 characters among A-Z a-z 0-9 _ - .", model_id));
+  copy_id(pose.tool_id, tool_id);
+  copy_id(pose.model_id, model_id);
+  pose.pose_sequence = sequence;
+  std::copy(position_m.begin(), position_m.end(), pose.position);
+  std::copy(orientation_wxyz.begin(), orientation_wxyz.end(), pose.orientation);
+  pose.jaw_angle = jaw_angle_rad;
+  // Stamped last, as close to the write as possible.
+  pose.send_time_ns = now_ns();
+  dds::check(dds_write(c.pose_writer, &pose), "sending a tool pose");
+  return pose.send_time_ns;
+}
+
+std::optional<ToolFeedbackSample> ToolClient::wait_feedback(
+    std::string_view tool_id, std::uint64_t sequence,
+    std::chrono::steady_clock::time_point deadline) {
+  Impl& c = *impl_;
+  ToolSlot* const slot = c.find(tool_id);
+  PALPATE_DEMAND(slot != nullptr);  // a tool that never sent a pose has no feedback to wait for
+  std::optional<ToolFeedbackSample> answer;
+  auto consider = [&](const ToolFeedbackSample& s) {
+    if (s.sequence < sequence) {
+      c.keep_late(*slot, s);
+      return false;
+    }
+    answer = s;
+    return true;
+  };
+  // What came while this client waited for its other tools first.
+  while (!slot->pending.empty() && !answer) {
+    consider(slot->pending.front());
+    slot->pending.pop();
+  }
+  if (!answer) {
+    c.feedback.take_until<palpate_ToolFeedback>(deadline, [&](const palpate_ToolFeedback& f) {
+      const std::int64_t received = now_ns();
+      ToolSlot* const owner =
+          c.find(std::string_view(f.tool_id, strnlen(f.tool_id, sizeof f.tool_id)));
+      if (owner == nullptr) {
+        ++c.foreign;
+        return false;
+      }
+      const ToolFeedbackSample s = from_idl(f, received);
+      owner->saw(s);
+      if (owner == slot) return consider(s);
+      if (s.sequence <= owner->done)
+        c.keep_late(*owner, s);
+      else if (!owner->pending.push(s))
+        ++c.dropped_late;
+      return false;
+    });
+  }
+  slot->done = std::max(slot->done, answer ? std::max(sequence, answer->sequence) : sequence);
+  return answer;
+}
+
+std::size_t ToolClient::take_late_feedback(std::string_view tool_id,
+                                           std::span<ToolFeedbackSample> out) {
+  ToolSlot* const slot = impl_->find(tool_id);
+  if (slot == nullptr) return 0;
+  std::size_t n = 0;
+  while (n < out.size() && !slot->late.empty()) {
+    out[n++] = slot->late.front();
+    slot->late.pop();
+  }
+  return n;
+}
+
+std::uint64_t ToolClient::dropped_late_feedback() const { return impl_->dropped_late; }
+std::uint64_t ToolClient::foreign_feedback() const { return impl_->foreign; }
+
+std::vector<ToolEventSample> ToolClient::take_events() {
+  std::vector<ToolEventSample> events;
+  // A deadline in the past: take what is there, do not wait.
+  impl_->events.take_until<palpate_ToolEvent>(Clock::time_point{}, [&](const palpate_ToolEvent& e) {
+    ToolEventSample& s = events.emplace_back();
+    s.tool_id = bounded(e.tool_id, sizeof e.tool_id);
+    s.model_id = bounded(e.model_id, sizeof e.model_id);
+    s.kind = static_cast<ToolEventKind>(e.kind);
+    s.pose_sequence = e.pose_sequence;
+    s.held_vertices = e.held_vertices;
+    s.daemon_time_ns = e.daemon_time_ns;
+    s.receive_time_ns = now_ns();
+    return false;
+  });
+  return events;
+}
+
+DaemonPresence ToolClient::daemon_presence() { return impl_->watch.poll(Clock::now()); }
+
+std::array<double, 3> ToolClient::force_to_render(std::string_view tool_id, std::int64_t now_ns) {
+  Impl& c = *impl_;
+  const ToolSlot* const slot = c.find(tool_id);
+  if (slot == nullptr || !slot->has_feedback ||
+      c.watch.poll(Clock::now()).state == DaemonState::kLost)
+    return {0, 0, 0};
+  const double age_s = static_cast<double>(now_ns - slot->newest_receive_ns) * 1e-9;
+  const double hold_s = std::chrono::duration<double>(c.options.feedback_timeout).count();
+  const double ramp_s = std::chrono::duration<double>(c.options.feedback_ramp).count();
+  const double scale =
+      age_s <= hold_s ? 1.0
+                      : (ramp_s > 0 ? std::clamp(1 - (age_s - hold_s) / ramp_s, 0.0, 1.0) : 0.0);
+  return {scale * slot->newest_force_n[0], scale * slot->newest_force_n[1],
+          scale * slot->newest_force_n[2]};
+}
+
+}  // namespace palpate
