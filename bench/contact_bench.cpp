@@ -40,14 +40,9 @@ using palpate::ToolPoseInput;
 
 const palpate::SurfaceModel* g_model = nullptr;
 
-palpate::bench::DrawnSurface drawn(const palpate::SurfaceModel& m) {
-  return {m.compliance_vertex_count(), m.drawn_vertex_ids, m.drawn_rest_positions_m,
-          m.drawn_triangles};
-}
+const palpate::DrawnSurface& drawn(const palpate::SurfaceModel& m) { return m.surface; }
 
-Vector3d rest(const palpate::SurfaceModel& m, int v) {
-  return Eigen::Map<const Vector3d>(&m.drawn_rest_positions_m[3 * static_cast<std::size_t>(v)]);
-}
+Vector3d rest(const palpate::SurfaceModel& m, int v) { return m.surface.rest_position(v); }
 
 /// A tool pose along a straight path: the hinge at @p tip_target − reach·axis,
 /// pointing along @p inward.

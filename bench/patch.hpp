@@ -3,7 +3,7 @@
 /// The contact patches the run-time benchmarks impose displacements on: the k
 /// compliance vertices nearest a seed vertex, like the jaws of a tool tip
 /// pressing into the organ, pushed along the inward normal at the seed.
-/// Works on the drawn-vertex tables that both SurfaceModel (in process) and
+/// Works on the DrawnSurface that both SurfaceModel (in process) and
 /// ModelInfo (over DDS) carry, so every benchmark presses the same patch.
 
 #include <algorithm>
@@ -14,7 +14,11 @@
 #include <span>
 #include <vector>
 
+#include "palpate/runtime/drawn_surface.hpp"
+
 namespace palpate::bench {
+
+using palpate::DrawnSurface;
 
 /// One patch: mesh vertex ids (the seed first, then by distance) and the
 /// direction the tool pushes along.
@@ -23,34 +27,10 @@ struct Patch {
   std::array<double, 3> inward_normal{};  ///< unit, at the seed
 };
 
-/// The drawn-vertex tables of a model (see SurfaceModel / ModelInfo).
-struct DrawnSurface {
-  int compliance_vertex_count = 0;               ///< N_S: the first N_S drawn vertices
-  std::span<const std::uint32_t> vertex_ids;     ///< mesh vertex id per drawn vertex
-  std::span<const double> rest_positions_m;      ///< 3 per drawn vertex
-  std::span<const std::uint32_t> triangles;      ///< 3 per triangle, outward, into drawn vertices
-};
-
-/// Unit inward normal at drawn vertex @p v: minus the area-weighted sum of
-/// the outward normals of the triangles around it.
+/// Unit inward normal at drawn vertex @p v (minus vertex_normals()).
 inline std::array<double, 3> inward_normal(const DrawnSurface& s, int v) {
-  std::array<double, 3> n{};
-  const auto p = [&](std::uint32_t i, int d) { return s.rest_positions_m[3 * i + static_cast<std::size_t>(d)]; };
-  for (std::size_t t = 0; t + 2 < s.triangles.size(); t += 3) {
-    const std::uint32_t a = s.triangles[t], b = s.triangles[t + 1], c = s.triangles[t + 2];
-    if (a != static_cast<std::uint32_t>(v) && b != static_cast<std::uint32_t>(v) && c != static_cast<std::uint32_t>(v))
-      continue;
-    const double e1[3] = {p(b, 0) - p(a, 0), p(b, 1) - p(a, 1), p(b, 2) - p(a, 2)};
-    const double e2[3] = {p(c, 0) - p(a, 0), p(c, 1) - p(a, 1), p(c, 2) - p(a, 2)};
-    // (e1 × e2) is twice the area times the outward unit normal.
-    n[0] -= e1[1] * e2[2] - e1[2] * e2[1];
-    n[1] -= e1[2] * e2[0] - e1[0] * e2[2];
-    n[2] -= e1[0] * e2[1] - e1[1] * e2[0];
-  }
-  const double length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-  if (length > 0)
-    for (double& x : n) x /= length;
-  return n;
+  const Eigen::Vector3d n = -vertex_normals(s).row(v).transpose();
+  return {n[0], n[1], n[2]};
 }
 
 /// The @p k compliance vertices nearest compliance vertex @p seed (itself

@@ -111,9 +111,8 @@ int main(int argc, char** argv) try {
   if (!model) throw palpate::SystemError("no description of model '" + model_id + "' within 20 s: is palpated up?");
   if (!client.wait_for_service(20s)) throw palpate::SystemError("palpated did not match this client within 20 s");
 
-  const palpate::bench::DrawnSurface surface{model->compliance_vertex_count, model->vertex_ids,
-                                             model->rest_positions_m, model->triangles};
-  const auto patch = nearest_patch(surface, main_seed(surface), k);
+  const palpate::DrawnSurface& surface = model->surface;
+  const auto patch = palpate::bench::nearest_patch(surface, palpate::bench::main_seed(surface), k);
   std::vector<palpate::ConstraintSpec> constraints(patch.vertex_ids.size());
 
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate_hz));

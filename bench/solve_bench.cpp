@@ -51,17 +51,15 @@ constexpr int kPatchSizes[] = {1, 3, 10, 20};
 /// The loaded model and the patches every benchmark presses.
 struct Fixture {
   palpate::SurfaceModel model;
-  palpate::bench::DrawnSurface surface;
+  const palpate::DrawnSurface& surface;
 
-  explicit Fixture(const std::filesystem::path& path) : model(palpate::load_surface_model("bench", path)) {
-    surface = {model.compliance_vertex_count(), model.drawn_vertex_ids, model.drawn_rest_positions_m,
-               model.drawn_triangles};
-  }
-  Patch patch(int k) const { return nearest_patch(surface, main_seed(surface), k); }
+  explicit Fixture(const std::filesystem::path& path)
+      : model(palpate::load_surface_model("bench", path)), surface(model.surface) {}
+  Patch patch(int k) const { return palpate::bench::nearest_patch(surface, palpate::bench::main_seed(surface), k); }
   /// More patches than @p cache_slots, so that cycling through them never hits the cache.
   std::vector<Patch> rotating_patches(int k, int cache_slots) const {
     std::vector<Patch> patches;
-    for (int seed : spread_seeds(surface, 2 * cache_slots + 1)) patches.push_back(nearest_patch(surface, seed, k));
+    for (int seed : palpate::bench::spread_seeds(surface, 2 * cache_slots + 1)) patches.push_back(palpate::bench::nearest_patch(surface, seed, k));
     return patches;
   }
 };

@@ -81,9 +81,8 @@ struct Problem {
   double* huge_G = nullptr;             // a copy of G on transparent huge pages (2 MB)
 
   Problem(const std::filesystem::path& path, int k) : model(palpate::load_surface_model("bench", path)) {
-    const palpate::bench::DrawnSurface surface{model.compliance_vertex_count(), model.drawn_vertex_ids,
-                                               model.drawn_rest_positions_m, model.drawn_triangles};
-    const auto patch = nearest_patch(surface, main_seed(surface), k);
+    const palpate::DrawnSurface& surface = model.surface;
+    const auto patch = palpate::bench::nearest_patch(surface, palpate::bench::main_seed(surface), k);
     palpate::ConstraintSolver solver(model, palpate::SolverLimits{});
     solver.begin(patch.vertex_ids.size());
     const double depth = palpate::bench::press_depth_m(0);

@@ -87,29 +87,6 @@ palpate::ModelInfo connect(palpate::Client& client, const std::string& model_id)
   return *model;
 }
 
-/// Outward unit normal of each compliance vertex (area-weighted triangle normals).
-std::vector<std::array<double, 3>> vertex_normals(const palpate::ModelInfo& m) {
-  std::vector<std::array<double, 3>> n(m.vertex_ids.size(), {0, 0, 0});
-  const auto& p = m.rest_positions_m;
-  for (std::size_t t = 0; t + 2 < m.triangles.size(); t += 3) {
-    const std::uint32_t a = m.triangles[t], b = m.triangles[t + 1], c = m.triangles[t + 2];
-    const double u[3] = {p[3 * b] - p[3 * a], p[3 * b + 1] - p[3 * a + 1],
-                         p[3 * b + 2] - p[3 * a + 2]};
-    const double v[3] = {p[3 * c] - p[3 * a], p[3 * c + 1] - p[3 * a + 1],
-                         p[3 * c + 2] - p[3 * a + 2]};
-    const double w[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
-                         u[0] * v[1] - u[1] * v[0]};
-    for (std::uint32_t i : {a, b, c})
-      for (int d = 0; d < 3; ++d) n[i][d] += w[d];
-  }
-  for (auto& v : n) {
-    const double length = std::hypot(v[0], v[1], v[2]);
-    if (length > 0)
-      for (double& x : v) x /= length;
-  }
-  return n;
-}
-
 std::atomic<bool> stop_requested{false};
 extern "C" void on_stop_signal(int) { stop_requested = true; }
 
@@ -144,16 +121,16 @@ double percentile(std::vector<double> values, double q) {
 int demo(palpate::Client& client, const std::string& model_id, double rate_hz, int repeat) {
   const palpate::ModelInfo m = connect(client, model_id);
   std::printf("model %s: %d compliance vertices, %zu triangles; %s\n", m.model_id.c_str(),
-              m.compliance_vertex_count, m.triangles.size() / 3, m.material_summary.c_str());
-  const int n = m.compliance_vertex_count;
-  const auto& p = m.rest_positions_m;
+              m.surface.compliance_vertex_count, m.surface.triangles.size() / 3, m.material_summary.c_str());
+  const int n = m.surface.compliance_vertex_count;
+  const auto& p = m.surface.rest_positions_m;
   int top = 0;
   for (int i = 1; i < n; ++i)
     if (p[3 * i + 2] > p[3 * top + 2]) top = i;
   // Two neighbours of the top vertex that are free: a triangle to pinch.
   std::vector<int> triangle{top};
-  for (std::size_t t = 0; t + 2 < m.triangles.size() && triangle.size() < 3; t += 3) {
-    const std::uint32_t* tri = &m.triangles[t];
+  for (std::size_t t = 0; t + 2 < m.surface.triangles.size() && triangle.size() < 3; t += 3) {
+    const std::uint32_t* tri = &m.surface.triangles[t];
     if (std::find(tri, tri + 3, static_cast<std::uint32_t>(top)) == tri + 3) continue;
     for (int c = 0; c < 3; ++c)
       if (static_cast<int>(tri[c]) < n &&
@@ -161,7 +138,7 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz, i
         triangle.push_back(static_cast<int>(tri[c]));
   }
   triangle.resize(std::min<std::size_t>(triangle.size(), 3));
-  const auto normals = vertex_normals(m);
+  const Eigen::MatrixX3d normals = palpate::vertex_normals(m.surface);
   std::vector<double> round_trip_us;
   const auto period =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate_hz));
@@ -198,27 +175,27 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz, i
 
   for (int pass = 0; pass < repeat && !stop_requested; ++pass) {
     std::printf("\npress: vertex %u at the top, pushed 0 → 5 mm into the organ over 1 s\n",
-                m.vertex_ids[top]);
+                m.surface.vertex_ids[top]);
     for (int s = 1; s <= steps; ++s) {
       const double depth = 0.005 * s / steps;
       const auto reply = step({ConstraintSpec::displacement(
-          m.vertex_ids[top],
-          {-depth * normals[top][0], -depth * normals[top][1], -depth * normals[top][2]})});
+          m.surface.vertex_ids[top],
+          {-depth * normals(top, 0), -depth * normals(top, 1), -depth * normals(top, 2)})});
       if (s % (steps / 5) == 0)
         std::printf("  depth %5.1f mm   reaction on the tool %7.3f N\n", depth * 1e3,
                     norm(reply.total_force_n));
     }
 
-    std::printf("\npinch: vertices %u %u %u pulled out 5 mm together\n", m.vertex_ids[triangle[0]],
-                m.vertex_ids[triangle[std::min<std::size_t>(1, triangle.size() - 1)]],
-                m.vertex_ids[triangle.back()]);
+    std::printf("\npinch: vertices %u %u %u pulled out 5 mm together\n", m.surface.vertex_ids[triangle[0]],
+                m.surface.vertex_ids[triangle[std::min<std::size_t>(1, triangle.size() - 1)]],
+                m.surface.vertex_ids[triangle.back()]);
     for (int s = 1; s <= steps; ++s) {
       const double lift = 0.005 * s / steps;
       std::vector<ConstraintSpec> constraints;
       for (int v : triangle)
         constraints.push_back(ConstraintSpec::displacement(
-            m.vertex_ids[v],
-            {lift * normals[top][0], lift * normals[top][1], lift * normals[top][2]}));
+            m.surface.vertex_ids[v],
+            {lift * normals(top, 0), lift * normals(top, 1), lift * normals(top, 2)}));
       const auto reply = step(constraints);
       if (s % (steps / 5) == 0)
         std::printf("  lift  %5.1f mm   pull on the tool %7.3f N\n", lift * 1e3,
@@ -234,8 +211,8 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz, i
       if (s % (steps / 10) == 0) {
         // Move to the unvisited free neighbour farthest along +x.
         int best = -1;
-        for (std::size_t t = 0; t + 2 < m.triangles.size(); t += 3) {
-          const std::uint32_t* tri = &m.triangles[t];
+        for (std::size_t t = 0; t + 2 < m.surface.triangles.size(); t += 3) {
+          const std::uint32_t* tri = &m.surface.triangles[t];
           if (std::find(tri, tri + 3, static_cast<std::uint32_t>(at)) == tri + 3) continue;
           for (int c = 0; c < 3; ++c) {
             const int v = static_cast<int>(tri[c]);
@@ -249,10 +226,10 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz, i
           visited.push_back(at);
         }
       }
-      const auto& nn = normals[at];
-      const auto reply = step({ConstraintSpec::normal_displacement(m.vertex_ids[at], nn, -0.004)});
+      const std::array<double, 3> nn{normals(at, 0), normals(at, 1), normals(at, 2)};
+      const auto reply = step({ConstraintSpec::normal_displacement(m.surface.vertex_ids[at], nn, -0.004)});
       if (s % (steps / 5) == 0)
-        std::printf("  at vertex %5u   normal force %7.3f N\n", m.vertex_ids[at],
+        std::printf("  at vertex %5u   normal force %7.3f N\n", m.surface.vertex_ids[at],
                     norm(reply.total_force_n));
     }
 
@@ -336,7 +313,7 @@ int run(int argc, char** argv) {
         "model %s\n  units %s\n  material %s\n  input %s\n  %d compliance vertices, %zu drawn, %zu "
         "triangles\n",
         m->model_id.c_str(), m->units.c_str(), m->material_summary.c_str(), m->input_hash.c_str(),
-        m->compliance_vertex_count, m->vertex_ids.size(), m->triangles.size() / 3);
+        m->surface.compliance_vertex_count, m->surface.vertex_ids.size(), m->surface.triangles.size() / 3);
     return 0;
   }
   if (*request) {

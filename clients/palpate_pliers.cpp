@@ -306,8 +306,7 @@ int run(int argc, char** argv) {
     throw palpate::InputError(fmt::format(
         "model '{}' is not served by palpated; served: {} (use --model)", o.model_id, ids));
   }
-  const palpate::SurfaceView surface{model->compliance_vertex_count, model->vertex_ids,
-                                     model->rest_positions_m, model->triangles};
+  const palpate::DrawnSurface& surface = model->surface;
   const palpate::GesturePlayer player(gesture, palpate::place_gesture(gesture, surface));
   if (!client.wait_for_daemon(
           std::max(std::chrono::milliseconds(100),

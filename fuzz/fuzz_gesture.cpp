@@ -22,8 +22,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       PALPATE_FUZZ_CHECK(tool.keyframes[k].time_s > tool.keyframes[k - 1].time_s);
   }
 
-  const palpate::SurfaceView surface{model.compliance_vertex_count(), model.drawn_vertex_ids,
-                                     model.drawn_rest_positions_m, model.drawn_triangles};
+  const palpate::DrawnSurface& surface = model.surface;
   std::vector<palpate::AnchorFrame> anchors;
   if (!palpate::fuzz::accepted([&] { anchors = palpate::place_gesture(gesture, surface); }))
     return 0;

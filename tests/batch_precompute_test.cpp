@@ -289,8 +289,8 @@ TEST(BatchPrecompute, AFloat32FileIsServedFromFloat32MemoryWithinItsTolerance) {
   EXPECT_LE((m32.G32.cast<double>() - m64.G).cwiseAbs().maxCoeff(),
             6.0e-8 * m64.G.cwiseAbs().maxCoeff());
 
-  const int top = testing::box_top_vertex(m64.drawn_rest_positions_m, m64.compliance_vertex_count(), 90, 25);
-  const int side = testing::box_top_vertex(m64.drawn_rest_positions_m, m64.compliance_vertex_count(), 50, 10);
+  const int top = testing::box_top_vertex(m64.surface.rest_positions_m, m64.compliance_vertex_count(), 90, 25);
+  const int side = testing::box_top_vertex(m64.surface.rest_positions_m, m64.compliance_vertex_count(), 50, 10);
   ASSERT_GE(top, 0);
   ASSERT_GE(side, 0);
   for (int threads : {1, 2}) {
@@ -300,8 +300,8 @@ TEST(BatchPrecompute, AFloat32FileIsServedFromFloat32MemoryWithinItsTolerance) {
     for (ConstraintSolver* s : {&s64, &s32}) {
       const double press[3] = {0, 0, -0.004}, push[3] = {0.2, 0, -0.5}, none[3] = {0, 0, 0};
       ASSERT_EQ(s->begin(2), RequestStatus::kOk);
-      ASSERT_EQ(s->add(m64.drawn_vertex_ids[static_cast<size_t>(top)], 1, press, none), RequestStatus::kOk);
-      ASSERT_EQ(s->add(m64.drawn_vertex_ids[static_cast<size_t>(side)], 0, push, none), RequestStatus::kOk);
+      ASSERT_EQ(s->add(m64.surface.vertex_ids[static_cast<size_t>(top)], 1, press, none), RequestStatus::kOk);
+      ASSERT_EQ(s->add(m64.surface.vertex_ids[static_cast<size_t>(side)], 0, push, none), RequestStatus::kOk);
       ASSERT_EQ(s->solve(), RequestStatus::kOk) << s->message();
     }
     // Forces come from a 3 × 3 solve on G_CC (condition ~10 here): within

@@ -46,7 +46,7 @@ class ConstraintSolverTest : public ::testing::Test {
   static const SurfaceModel& model() { return *model_; }
   /// Mesh id of compliance vertex i.
   static std::uint32_t vertex(int i) {
-    return model_->drawn_vertex_ids[static_cast<std::size_t>(i)];
+    return model_->surface.vertex_ids[static_cast<std::size_t>(i)];
   }
 
   static RequestStatus run(ConstraintSolver& solver, const std::vector<Request>& requests) {
@@ -80,20 +80,20 @@ TEST_F(ConstraintSolverTest, DescribesTheSurfaceForDrawing) {
   const int n = m.compliance_vertex_count();
   ASSERT_GT(n, 10);
   EXPECT_EQ(m.G.rows(), 3 * n);
-  EXPECT_GT(m.drawn_vertex_ids.size(), static_cast<std::size_t>(n))
+  EXPECT_GT(m.surface.vertex_ids.size(), static_cast<std::size_t>(n))
       << "fixed surface vertices are drawn after";
-  EXPECT_EQ(m.drawn_rest_positions_m.size(), 3 * m.drawn_vertex_ids.size());
-  for (std::uint32_t corner : m.drawn_triangles) EXPECT_LT(corner, m.drawn_vertex_ids.size());
-  for (std::size_t i = 0; i < m.drawn_vertex_ids.size(); ++i) {
-    const std::int32_t role = m.compliance_index_of_vertex[m.drawn_vertex_ids[i]];
+  EXPECT_EQ(m.surface.rest_positions_m.size(), 3 * m.surface.vertex_ids.size());
+  for (std::uint32_t corner : m.surface.triangles) EXPECT_LT(corner, m.surface.vertex_ids.size());
+  for (std::size_t i = 0; i < m.surface.vertex_ids.size(); ++i) {
+    const std::int32_t role = m.compliance_index_of_vertex[m.surface.vertex_ids[i]];
     if (static_cast<int>(i) < n)
       EXPECT_EQ(role, static_cast<std::int32_t>(i));
     else
       EXPECT_EQ(role, static_cast<std::int32_t>(VertexRole::kFixed));
   }
   // The clamped face x = 0 is fixed: its vertices are drawn but not constrainable.
-  for (std::size_t i = static_cast<std::size_t>(n); i < m.drawn_vertex_ids.size(); ++i)
-    EXPECT_NEAR(m.drawn_rest_positions_m[3 * i], 0.0, 1e-12);
+  for (std::size_t i = static_cast<std::size_t>(n); i < m.surface.vertex_ids.size(); ++i)
+    EXPECT_NEAR(m.surface.rest_positions_m[3 * i], 0.0, 1e-12);
 }
 
 TEST_F(ConstraintSolverTest, ForcesGiveTheColumnsOfG) {

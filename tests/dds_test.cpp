@@ -111,12 +111,12 @@ TEST_F(PalpatedTest, DescribesEachModelToLateJoiners) {
   auto client = connect("describe");
   const ModelInfo m = box_info(*client);
   const Reference& ref = *reference_;
-  EXPECT_EQ(m.compliance_vertex_count * 3, ref.G.rows());
-  EXPECT_EQ(m.rest_positions_m.size(), 3 * m.vertex_ids.size());
-  EXPECT_EQ(m.triangles.size() % 3, 0u);
-  EXPECT_GT(m.triangles.size(), 0u);
-  for (int i = 0; i < m.compliance_vertex_count; ++i)
-    EXPECT_EQ(ref.compliance_index[m.vertex_ids[i]], i);
+  EXPECT_EQ(m.surface.compliance_vertex_count * 3, ref.G.rows());
+  EXPECT_EQ(m.surface.rest_positions_m.size(), 3 * m.surface.vertex_ids.size());
+  EXPECT_EQ(m.surface.triangles.size() % 3, 0u);
+  EXPECT_GT(m.surface.triangles.size(), 0u);
+  for (int i = 0; i < m.surface.compliance_vertex_count; ++i)
+    EXPECT_EQ(ref.compliance_index[m.surface.vertex_ids[i]], i);
   EXPECT_EQ(m.units, "m, N (SI)");
   EXPECT_NE(m.material_summary.find("85000"), std::string::npos) << m.material_summary;
   EXPECT_EQ(m.input_hash.rfind("sha256:", 0), 0u);
@@ -127,8 +127,8 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
   auto client = connect("kinds");
   const ModelInfo m = box_info(*client);
   const Reference& ref = *reference_;
-  const std::uint32_t a = m.vertex_ids[2], b = m.vertex_ids[9], c = m.vertex_ids[14],
-                      d = m.vertex_ids[30];
+  const std::uint32_t a = m.surface.vertex_ids[2], b = m.surface.vertex_ids[9], c = m.surface.vertex_ids[14],
+                      d = m.surface.vertex_ids[30];
 
   // Forces: the surface field is G f.
   {
@@ -201,7 +201,7 @@ TEST_F(PalpatedTest, ServesEachModelWithItsOwnCompliance) {
   auto client = connect("models");
   const ModelInfo m = box_info(*client);
   const std::vector<ConstraintSpec> cs{
-      ConstraintSpec::displacement(m.vertex_ids[5], {0, 0, -0.001})};
+      ConstraintSpec::displacement(m.surface.vertex_ids[5], {0, 0, -0.001})};
   const Reply soft = client->request("box", cs);
   const Reply stiff = client->request("stiff", cs);
   ASSERT_EQ(soft.status, RequestStatus::kOk);
@@ -214,7 +214,7 @@ TEST_F(PalpatedTest, SeveralClientsAtOnceGetOnlyTheirOwnReplies) {
   std::vector<std::unique_ptr<Client>> clients;
   for (int c = 0; c < kClients; ++c) clients.push_back(connect("concurrent-" + std::to_string(c)));
   const ModelInfo m = box_info(*clients[0]);
-  const std::uint32_t vertex = m.vertex_ids[7];
+  const std::uint32_t vertex = m.surface.vertex_ids[7];
   // A single imposed displacement has force (G^kk)⁻¹ u: linear in u, so each
   // client's depth is recognisable in the force it gets back.
   const Reply unit =
@@ -246,7 +246,7 @@ TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMove
   const ModelInfo m = box_info(*toucher);
   const Reference& ref = *reference_;
   const std::vector<ConstraintSpec> press{
-      ConstraintSpec::displacement(m.vertex_ids[11], {0, 0, -0.003})};
+      ConstraintSpec::displacement(m.surface.vertex_ids[11], {0, 0, -0.003})};
   const Reply shown = toucher->request("box", press, false, true);
   ASSERT_EQ(shown.status, RequestStatus::kOk);
 
@@ -261,7 +261,7 @@ TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMove
             kRelativeTolerance);
   EXPECT_LT((vec(sample->total_force_n) - vec(shown.total_force_n)).norm(), 1e-15);
   // The constraint that made the state comes with it, for drawing.
-  ASSERT_EQ(sample->constrained_vertices, std::vector<std::uint32_t>{m.vertex_ids[11]});
+  ASSERT_EQ(sample->constrained_vertices, std::vector<std::uint32_t>{m.surface.vertex_ids[11]});
   ASSERT_EQ(sample->constrained_forces_n.size(), 3u);
   EXPECT_LT((Eigen::Map<const Eigen::Vector3d>(sample->constrained_forces_n.data()) -
              vec(shown.results[0].force_n))
@@ -271,13 +271,13 @@ TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMove
   // A query (update_state = false) and a refused request leave the state alone:
   // the next state the viewer sees is the next state-changing request's.
   const Reply query = toucher->request(
-      "box", std::vector{ConstraintSpec::force(m.vertex_ids[3], {0, 0, 1})}, false, false);
+      "box", std::vector{ConstraintSpec::force(m.surface.vertex_ids[3], {0, 0, 1})}, false, false);
   ASSERT_EQ(query.status, RequestStatus::kOk);
   const Reply refused =
       toucher->request("box", std::vector{ConstraintSpec::force(1u << 30, {0, 0, 1})});
   ASSERT_EQ(refused.status, RequestStatus::kVertexOutOfRange);
   const Reply next =
-      toucher->request("box", std::vector{ConstraintSpec::force(m.vertex_ids[4], {0, 0, -0.5})});
+      toucher->request("box", std::vector{ConstraintSpec::force(m.surface.vertex_ids[4], {0, 0, -0.5})});
   ASSERT_EQ(next.status, RequestStatus::kOk);
   const auto after = viewer.wait_surface("box", sample->sequence_number + 1, 0, kTimeout);
   ASSERT_TRUE(after);
@@ -289,10 +289,10 @@ TEST_F(PalpatedTest, EveryBadRequestGetsItsErrorAndTheDaemonKeepsServing) {
   auto client = connect("bad-requests", false, true);
   const ModelInfo m = box_info(*client);
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  const std::uint32_t v = m.vertex_ids[1];
-  const std::uint32_t fixed = m.vertex_ids.back();  // drawn after the compliance vertices
+  const std::uint32_t v = m.surface.vertex_ids[1];
+  const std::uint32_t fixed = m.surface.vertex_ids.back();  // drawn after the compliance vertices
   std::uint32_t interior = 0;
-  while (std::find(m.vertex_ids.begin(), m.vertex_ids.end(), interior) != m.vertex_ids.end())
+  while (std::find(m.surface.vertex_ids.begin(), m.surface.vertex_ids.end(), interior) != m.surface.vertex_ids.end())
     ++interior;
   struct Case {
     std::string model;
@@ -353,8 +353,8 @@ TEST_F(PalpatedTest, RefusesIllConditionedSystemsWithTheEstimate) {
   ASSERT_TRUE(m) << strict.log();
   ASSERT_TRUE(client.wait_for_service(kTimeout));
   const std::vector<ConstraintSpec> cs{
-      ConstraintSpec::displacement(m->vertex_ids[0], {0, 0, 0.001}),
-      ConstraintSpec::displacement(m->vertex_ids[1], {0, 0, 0.001})};
+      ConstraintSpec::displacement(m->surface.vertex_ids[0], {0, 0, 0.001}),
+      ConstraintSpec::displacement(m->surface.vertex_ids[1], {0, 0, 0.001})};
   const Reply reply = client.request("box", cs);
   EXPECT_EQ(reply.status, RequestStatus::kIllConditioned);
   EXPECT_GT(reply.condition_estimate, 1.5);

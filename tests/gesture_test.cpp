@@ -32,22 +32,20 @@ constexpr double kTol = 1e-12;
 ModelInfo octahedron() {
   ModelInfo m;
   m.model_id = "octahedron";
-  m.compliance_vertex_count = 5;
+  m.surface.compliance_vertex_count = 5;
   const double r = 0.01;
   // drawn: 0 top, 1 +x, 2 +y, 3 -x, 4 -y, 5 bottom (fixed)
-  m.rest_positions_m = {0, 0, r, r, 0, 0, 0, r, 0, -r, 0, 0, 0, -r, 0, 0, 0, -r};
-  m.vertex_ids = {100, 101, 102, 103, 104, 105};
+  m.surface.rest_positions_m = {0, 0, r, r, 0, 0, 0, r, 0, -r, 0, 0, 0, -r, 0, 0, 0, -r};
+  m.surface.vertex_ids = {100, 101, 102, 103, 104, 105};
   for (std::uint32_t i = 0; i < 4; ++i) {
     const std::uint32_t a = 1 + i, b = 1 + (i + 1) % 4;
-    m.triangles.insert(m.triangles.end(), {0, a, b});  // upper: counter-clockwise seen from outside
-    m.triangles.insert(m.triangles.end(), {5, b, a});  // lower
+    m.surface.triangles.insert(m.surface.triangles.end(), {0, a, b});  // upper: counter-clockwise seen from outside
+    m.surface.triangles.insert(m.surface.triangles.end(), {5, b, a});  // lower
   }
   return m;
 }
 
-SurfaceView view(const ModelInfo& m) {
-  return {m.compliance_vertex_count, m.vertex_ids, m.rest_positions_m, m.triangles};
-}
+const DrawnSurface& view(const ModelInfo& m) { return m.surface; }
 
 void expect_near(const Eigen::Vector3d& actual, const Eigen::Vector3d& expected,
                  double tol = kTol) {
@@ -159,7 +157,7 @@ TEST(Gesture, ErrorsNameTheFileLineAndKey) {
 
 TEST(Gesture, OutwardNormalsAreAreaWeighted) {
   const ModelInfo m = octahedron();
-  const SurfaceView s = view(m);
+  const DrawnSurface& s = view(m);
   expect_near(outward_normal(s, 0), {0, 0, 1});
   expect_near(outward_normal(s, 1), {1, 0, 0});
   // Raise +x to (r, 0, r/2): the faces around the top are no longer alike.
@@ -167,11 +165,11 @@ TEST(Gesture, OutwardNormalsAreAreaWeighted) {
   // Σ p_i × p_i+1 (the apex cancels): here (−2rh, 0, 4r²) with h = r/2,
   // so the normal is (−1, 0, 4)/√17, leaning away from the raised side.
   ModelInfo raised = m;
-  raised.rest_positions_m[5] = 0.005;
+  raised.surface.rest_positions_m[5] = 0.005;
   expect_near(outward_normal(view(raised), 0), Eigen::Vector3d(-1, 0, 4) / std::sqrt(17.0));
 
   ModelInfo lonely = m;
-  lonely.triangles.clear();
+  lonely.surface.triangles.clear();
   expect_error<InputError>([&] { outward_normal(view(lonely), 0); },
                            {"vertex 100", "no surface triangle"});
 }
@@ -189,10 +187,10 @@ TEST(Gesture, AutoAnchorIsTheFreeVertexFarthestFromTheAttachment) {
   // Mirror it (z → −z, windings reversed to stay outward): the attached
   // vertex is now at the top, and the free one farthest from it at the bottom.
   ModelInfo flipped = m;
-  for (std::size_t i = 2; i < flipped.rest_positions_m.size(); i += 3)
-    flipped.rest_positions_m[i] = -flipped.rest_positions_m[i];
-  for (std::size_t t = 0; t < flipped.triangles.size(); t += 3)
-    std::swap(flipped.triangles[t + 1], flipped.triangles[t + 2]);
+  for (std::size_t i = 2; i < flipped.surface.rest_positions_m.size(); i += 3)
+    flipped.surface.rest_positions_m[i] = -flipped.surface.rest_positions_m[i];
+  for (std::size_t t = 0; t < flipped.surface.triangles.size(); t += 3)
+    std::swap(flipped.surface.triangles[t + 1], flipped.surface.triangles[t + 2]);
   const AnchorFrame b = auto_anchor(view(flipped));
   EXPECT_EQ(b.drawn_index, 0);
   expect_near(b.origin_m, {0, 0, -0.01});
@@ -200,11 +198,11 @@ TEST(Gesture, AutoAnchorIsTheFreeVertexFarthestFromTheAttachment) {
 
   // No fixed vertex at all: farthest from the centroid (all equal here: the lowest index).
   ModelInfo free = m;
-  free.compliance_vertex_count = 6;
+  free.surface.compliance_vertex_count = 6;
   EXPECT_EQ(auto_anchor(view(free)).drawn_index, 0);
 
   ModelInfo empty = m;
-  empty.compliance_vertex_count = 0;
+  empty.surface.compliance_vertex_count = 0;
   expect_error<InputError>([&] { auto_anchor(view(empty)); }, {"0 compliance vertices"});
 }
 

@@ -42,11 +42,11 @@ class ToolContactTest : public ::testing::Test {
 
   /// The compliance vertex of the top face (z = 40 mm) nearest (x, y) in mm.
   static int top_vertex(double x_mm, double y_mm) {
-    return testing::box_top_vertex(model().drawn_rest_positions_m, model().compliance_vertex_count(),
+    return testing::box_top_vertex(model().surface.rest_positions_m, model().compliance_vertex_count(),
                                    x_mm, y_mm);
   }
   static Vector3d rest(int j) {
-    return Eigen::Map<const Vector3d>(&model().drawn_rest_positions_m[3 * static_cast<std::size_t>(j)]);
+    return Eigen::Map<const Vector3d>(&model().surface.rest_positions_m[3 * static_cast<std::size_t>(j)]);
   }
   static Eigen::Matrix3d G_block(int a, int b) { return model().G.block<3, 3>(3 * a, 3 * b); }
 

@@ -73,11 +73,11 @@ class ToolsOverDdsTest : public ::testing::Test {
   }
 
   static int top_vertex(double x_mm, double y_mm) {
-    return testing::box_top_vertex(info_->rest_positions_m, info_->compliance_vertex_count, x_mm,
+    return testing::box_top_vertex(info_->surface.rest_positions_m, info_->surface.compliance_vertex_count, x_mm,
                                    y_mm);
   }
   static Vector3d rest(int j) {
-    return Eigen::Map<const Vector3d>(&info_->rest_positions_m[3 * static_cast<std::size_t>(j)]);
+    return Eigen::Map<const Vector3d>(&info_->surface.rest_positions_m[3 * static_cast<std::size_t>(j)]);
   }
 
   /// One tool driven at the haptic rate: a pose, then its feedback.

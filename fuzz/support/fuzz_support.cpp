@@ -70,15 +70,15 @@ const SurfaceModel& box_model() { return box().model; }
 void serve(const SurfaceModel& model) {
   const int n = model.compliance_vertex_count();
   const std::uint32_t vertices = model.mesh_vertex_count();
-  const std::size_t drawn = model.drawn_vertex_ids.size();
+  const std::size_t drawn = model.surface.vertex_ids.size();
   PALPATE_FUZZ_CHECK(model.G.rows() == 3 * n && model.G.cols() == 3 * n && model.G.allFinite());
-  PALPATE_FUZZ_CHECK(model.drawn_rest_positions_m.size() == 3 * drawn);
-  PALPATE_FUZZ_CHECK(drawn >= static_cast<std::size_t>(n) && model.drawn_triangles.size() % 3 == 0);
-  for (const std::uint32_t id : model.drawn_vertex_ids) PALPATE_FUZZ_CHECK(id < vertices);
-  for (const std::uint32_t t : model.drawn_triangles) PALPATE_FUZZ_CHECK(t < drawn);
+  PALPATE_FUZZ_CHECK(model.surface.rest_positions_m.size() == 3 * drawn);
+  PALPATE_FUZZ_CHECK(drawn >= static_cast<std::size_t>(n) && model.surface.triangles.size() % 3 == 0);
+  for (const std::uint32_t id : model.surface.vertex_ids) PALPATE_FUZZ_CHECK(id < vertices);
+  for (const std::uint32_t t : model.surface.triangles) PALPATE_FUZZ_CHECK(t < drawn);
   for (int a = 0; a < n; ++a)
-    PALPATE_FUZZ_CHECK(model.compliance_index_of_vertex[model.drawn_vertex_ids[a]] == a);
-  for (const double x : model.drawn_rest_positions_m) PALPATE_FUZZ_CHECK(std::isfinite(x));
+    PALPATE_FUZZ_CHECK(model.compliance_index_of_vertex[model.surface.vertex_ids[a]] == a);
+  for (const double x : model.surface.rest_positions_m) PALPATE_FUZZ_CHECK(std::isfinite(x));
   if (n == 0) return;
 
   SolverLimits limits;
@@ -87,7 +87,7 @@ void serve(const SurfaceModel& model) {
   const double up[3] = {0, 0, 1e-3}, normal[3] = {0, 0, 1};
   RequestStatus status = solver.begin(1);
   if (status == RequestStatus::kOk)
-    status = solver.add(model.drawn_vertex_ids[0], 1, up, normal);
+    status = solver.add(model.surface.vertex_ids[0], 1, up, normal);
   if (status == RequestStatus::kOk) status = solver.solve();
   if (status == RequestStatus::kOk) {
     Eigen::VectorXd u(3 * n);
@@ -100,7 +100,7 @@ void serve(const SurfaceModel& model) {
   ToolContactEngine engine(model, {probe}, ContactSettings{}, limits);
   ToolPoseInput pose;
   pose.sequence = 1;
-  pose.position_m = Eigen::Vector3d(model.drawn_rest_positions_m.data());
+  pose.position_m = Eigen::Vector3d(model.surface.rest_positions_m.data());
   if (engine.check(0, pose) == PoseProblem::kNone) {
     engine.update(0, pose, 0);
     PALPATE_FUZZ_CHECK(engine.output(0).force_n.allFinite());

@@ -48,10 +48,10 @@ struct Box {
   ModelInfo info;
   std::map<std::uint32_t, Vector3d> rest;  // by mesh vertex id
   int drawn(double x_mm, double y_mm) const {
-    return testing::box_top_vertex(info.rest_positions_m, info.compliance_vertex_count, x_mm, y_mm);
+    return testing::box_top_vertex(info.surface.rest_positions_m, info.surface.compliance_vertex_count, x_mm, y_mm);
   }
   std::uint32_t id(int drawn_index) const {
-    return info.vertex_ids[static_cast<std::size_t>(drawn_index)];
+    return info.surface.vertex_ids[static_cast<std::size_t>(drawn_index)];
   }
   Vector3d at(int drawn_index) const { return rest.at(id(drawn_index)); }
 };
@@ -60,8 +60,8 @@ Box describe(Client& client, const std::string& model) {
   auto info = client.wait_for_model(model, kLiveness);
   if (!info) throw std::runtime_error("no model description");
   Box box{*info, {}};
-  for (std::size_t i = 0; i < info->vertex_ids.size(); ++i)
-    box.rest[info->vertex_ids[i]] = Vector3d(&info->rest_positions_m[3 * i]);
+  for (std::size_t i = 0; i < info->surface.vertex_ids.size(); ++i)
+    box.rest[info->surface.vertex_ids[i]] = Vector3d(&info->surface.rest_positions_m[3 * i]);
   return box;
 }
 
@@ -628,7 +628,7 @@ TEST(Faults, AFileReplacedWhileTheDaemonServesChangesNothingItServes) {
   Client client(ClientOptions{"faults-replaced", 8, "", false, false});
   const Box box = describe(client, "box");
   const std::vector<ConstraintSpec> press{
-      ConstraintSpec::displacement(box.info.vertex_ids[3], {0, 0, -0.001})};
+      ConstraintSpec::displacement(box.info.surface.vertex_ids[3], {0, 0, -0.001})};
   const auto original = ask(client, press);
   ASSERT_TRUE(original) << daemon.log();
   ASSERT_EQ(original->status, RequestStatus::kOk);
@@ -688,7 +688,7 @@ TEST(Faults, AFileOverwrittenWhileTheDaemonLoadsItIsServedWholeOrRefused) {
                  dir / "clean.log");
     if (press.empty()) {
       const Box box = describe(client, "box");
-      press = {ConstraintSpec::displacement(box.info.vertex_ids[3], {0, 0, -0.001})};
+      press = {ConstraintSpec::displacement(box.info.surface.vertex_ids[3], {0, 0, -0.001})};
     }
     const auto reply = ask(client, press);
     ASSERT_TRUE(reply) << clean.log();

@@ -185,7 +185,7 @@ void write_json(const fs::path& file, const json& j) {
 /// attachment), then each next station at the compliance vertex farthest
 /// from the anchors before it among those at least half as far from the
 /// attachment as the first: spread over the free part of the organ.
-std::uint32_t shared_anchor(const palpate::SurfaceView& surface, int station) {
+std::uint32_t shared_anchor(const palpate::DrawnSurface& surface, int station) {
   const int n = surface.compliance_vertex_count;
   const auto drawn = static_cast<int>(surface.vertex_ids.size());
   auto at = [&](int j) {
@@ -227,8 +227,7 @@ int station_child(const Settings& s, int station, const std::string& role, doubl
       std::chrono::milliseconds(static_cast<std::int64_t>(s.start_timeout_s * 1e3));
   const auto model = client.wait_for_model(model_id, timeout);
   if (!model) throw palpate::SystemError("no description of model " + model_id);
-  const palpate::SurfaceView surface{model->compliance_vertex_count, model->vertex_ids,
-                                     model->rest_positions_m, model->triangles};
+  const palpate::DrawnSurface& surface = model->surface;
   if (s.shared_organ) gesture.anchor_vertex_id = shared_anchor(surface, station);
   const palpate::GesturePlayer player(gesture, palpate::place_gesture(gesture, surface));
   if (!client.wait_for_daemon(timeout)) throw palpate::SystemError("palpated reads no tool poses");
@@ -512,11 +511,10 @@ int requester_child(const Settings& s, const std::string& role, double seconds,
   for (const std::string& model_id : models) {
     const auto model = client.wait_for_model(model_id, timeout);
     if (!model) throw palpate::SystemError("no description of model " + model_id);
-    const palpate::SurfaceView surface{model->compliance_vertex_count, model->vertex_ids,
-                                       model->rest_positions_m, model->triangles};
-    const int n = model->compliance_vertex_count;
+    const palpate::DrawnSurface& surface = model->surface;
+    const int n = model->surface.compliance_vertex_count;
     auto rest = [&](int j) {
-      return Eigen::Vector3d(&model->rest_positions_m[3 * static_cast<std::size_t>(j)]);
+      return Eigen::Vector3d(&model->surface.rest_positions_m[3 * static_cast<std::size_t>(j)]);
     };
     auto& mine = patches.emplace_back();
     for (int p = 0; p < kPatches; ++p) {
@@ -532,7 +530,7 @@ int requester_child(const Settings& s, const std::string& role, double seconds,
         const int j = order[static_cast<std::size_t>(c)];
         const Eigen::Vector3d normal = palpate::outward_normal(surface, j);
         patch.push_back(palpate::ConstraintSpec::normal_displacement(
-            model->vertex_ids[static_cast<std::size_t>(j)], {normal.x(), normal.y(), normal.z()},
+            model->surface.vertex_ids[static_cast<std::size_t>(j)], {normal.x(), normal.y(), normal.z()},
             -0.0015));
       }
     }

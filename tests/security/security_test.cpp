@@ -224,10 +224,10 @@ bool take_one(dds_entity_t reader, Clock::time_point deadline,
   std::array<double, 3> top{0.050, 0.025, 0.040};
   if (model) {
     const int v =
-        testing::box_top_vertex(model->rest_positions_m, model->compliance_vertex_count, 50, 25);
+        testing::box_top_vertex(model->surface.rest_positions_m, model->surface.compliance_vertex_count, 50, 25);
     for (int i = 0; i < 3; ++i)
       top[static_cast<std::size_t>(i)] =
-          model->rest_positions_m[3 * static_cast<std::size_t>(v) + static_cast<std::size_t>(i)];
+          model->surface.rest_positions_m[3 * static_cast<std::size_t>(v) + static_cast<std::size_t>(i)];
   }
   constexpr double kTipRadius = 0.002, kDepth = 0.001;
   int feedback = 0, touching = 0;
@@ -271,8 +271,8 @@ bool take_one(dds_entity_t reader, Clock::time_point deadline,
     report["service"] = client.wait_for_service(20s) ? "1" : "0";
   }
   const std::uint32_t vertex =
-      model ? model->vertex_ids[static_cast<std::size_t>(testing::box_top_vertex(
-                  model->rest_positions_m, model->compliance_vertex_count, 50, 25))]
+      model ? model->surface.vertex_ids[static_cast<std::size_t>(testing::box_top_vertex(
+                  model->surface.rest_positions_m, model->surface.compliance_vertex_count, 50, 25))]
             : 0;
   const std::vector<ConstraintSpec> press{ConstraintSpec::displacement(vertex, {0, 0, -0.002})};
   int replies = 0, ok = 0;

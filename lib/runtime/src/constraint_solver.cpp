@@ -2,8 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
-#include <cstdio>
+#include <fmt/format.h>
+
+#include <array>
 #include <limits>
 
 #include "palpate/core/error.hpp"
@@ -17,6 +18,21 @@ void dpocon_(const char* uplo, const int* n, const double* a, const int* lda, co
 }
 
 namespace palpate {
+
+namespace {
+
+/// Explains a refused request in @p message (truncated to its size, never
+/// allocating) and returns @p status.
+template <typename... Args>
+RequestStatus fail(std::array<char, 256>& message, RequestStatus status,
+                   fmt::format_string<Args...> format, Args&&... args) {
+  const auto end =
+      fmt::format_to_n(message.data(), message.size() - 1, format, std::forward<Args>(args)...);
+  *end.out = '\0';
+  return status;
+}
+
+}  // namespace
 
 const char* status_name(RequestStatus status) {
   switch (status) {
@@ -102,15 +118,6 @@ ConstraintSolver::ConstraintSolver(const SurfaceModel& model, const SolverLimits
 
 ConstraintSolver::~ConstraintSolver() = default;
 
-RequestStatus ConstraintSolver::fail(RequestStatus status, const char* format, ...) {
-  std::va_list args;
-  va_start(args, format);
-  std::vsnprintf(message_.data(), message_.size(), format, args);
-  va_end(args);
-  solved_ = false;
-  return status;
-}
-
 RequestStatus ConstraintSolver::begin(std::size_t count) {
   message_[0] = '\0';
   solved_ = false;
@@ -118,8 +125,8 @@ RequestStatus ConstraintSolver::begin(std::size_t count) {
   count_ = 0;
   added_ = 0;
   if (count > static_cast<std::size_t>(limits_.max_constraints))
-    return fail(RequestStatus::kTooManyConstraints,
-                "%zu constraints in one request; at most %d are accepted", count,
+    return fail(message_, RequestStatus::kTooManyConstraints,
+                "{} constraints in one request; at most {} are accepted", count,
                 limits_.max_constraints);
   count_ = static_cast<int>(count);
   // A new epoch marks the vertices of this request without clearing seen_.
@@ -135,30 +142,30 @@ RequestStatus ConstraintSolver::add(std::uint32_t vertex_id, std::int32_t kind, 
   PALPATE_DEMAND(added_ < count_);
   const int j = added_;
   if (vertex_id >= model_.mesh_vertex_count())
-    return fail(RequestStatus::kVertexOutOfRange,
-                "constraint %d: vertex %u is not a vertex of model '%s' (ids are 0..%u)", j,
-                vertex_id, model_.id.c_str(), model_.mesh_vertex_count() - 1);
+    return fail(message_, RequestStatus::kVertexOutOfRange,
+                "constraint {}: vertex {} is not a vertex of model '{}' (ids are 0..{})", j,
+                vertex_id, model_.id, model_.mesh_vertex_count() - 1);
   const std::int32_t index = model_.compliance_index_of_vertex[vertex_id];
   if (index == static_cast<std::int32_t>(VertexRole::kFixed))
     return fail(
-        RequestStatus::kVertexFixed,
-        "constraint %d: vertex %u of model '%s' is fixed (attached); only free surface vertices "
+        message_, RequestStatus::kVertexFixed,
+        "constraint {}: vertex {} of model '{}' is fixed (attached); only free surface vertices "
         "(ModelDescription.vertex_ids, first compliance_vertex_count) can be constrained",
-        j, vertex_id, model_.id.c_str());
+        j, vertex_id, model_.id);
   if (index < 0)
     return fail(
-        RequestStatus::kVertexNotOnSurface,
-        "constraint %d: vertex %u of model '%s' is inside the organ; only free surface vertices "
+        message_, RequestStatus::kVertexNotOnSurface,
+        "constraint {}: vertex {} of model '{}' is inside the organ; only free surface vertices "
         "(ModelDescription.vertex_ids, first compliance_vertex_count) can be constrained",
-        j, vertex_id, model_.id.c_str());
+        j, vertex_id, model_.id);
   if (seen_[static_cast<std::size_t>(index)] == epoch_)
-    return fail(RequestStatus::kDuplicateVertex,
-                "constraint %d: vertex %u appears twice; each vertex at most once", j, vertex_id);
+    return fail(message_, RequestStatus::kDuplicateVertex,
+                "constraint {}: vertex {} appears twice; each vertex at most once", j, vertex_id);
   seen_[static_cast<std::size_t>(index)] = epoch_;
 
   if (kind < 0 || kind > 2)
-    return fail(RequestStatus::kBadConstraint,
-                "constraint %d (vertex %u): unknown kind %d; accepted: 0 force, "
+    return fail(message_, RequestStatus::kBadConstraint,
+                "constraint {} (vertex {}): unknown kind {}; accepted: 0 force, "
                 "1 displacement, 2 normal displacement",
                 j, vertex_id, kind);
   const auto k = static_cast<ConstraintKind>(kind);
@@ -166,24 +173,24 @@ RequestStatus ConstraintSolver::add(std::uint32_t vertex_id, std::int32_t kind, 
   const int value_count = uses_normal ? 1 : 3;
   for (int d = 0; d < value_count; ++d)
     if (!std::isfinite(value[d]))
-      return fail(RequestStatus::kNonFiniteValue,
-                  "constraint %d (vertex %u): value[%d] is %g; finite numbers "
+      return fail(message_, RequestStatus::kNonFiniteValue,
+                  "constraint {} (vertex {}): value[{}] is {:g}; finite numbers "
                   "only",
                   j, vertex_id, d, value[d]);
   double* n = &normal_[3 * static_cast<std::size_t>(j)];
   if (uses_normal) {
     for (int d = 0; d < 3; ++d)
       if (!std::isfinite(normal[d]))
-        return fail(RequestStatus::kNonFiniteValue,
-                    "constraint %d (vertex %u): normal[%d] is %g; finite "
+        return fail(message_, RequestStatus::kNonFiniteValue,
+                    "constraint {} (vertex {}): normal[{}] is {:g}; finite "
                     "numbers only",
                     j, vertex_id, d, normal[d]);
     const double length =
         std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
     // Below this a direction is noise; the solve would divide by it.
     if (!(length > 1e-12))
-      return fail(RequestStatus::kBadConstraint,
-                  "constraint %d (vertex %u): normal (%g, %g, %g) has no direction; "
+      return fail(message_, RequestStatus::kBadConstraint,
+                  "constraint {} (vertex {}): normal ({:g}, {:g}, {:g}) has no direction; "
                   "a normal displacement needs a non-zero normal",
                   j, vertex_id, normal[0], normal[1], normal[2]);
     for (int d = 0; d < 3; ++d) n[d] = normal[d] / length;
@@ -289,18 +296,19 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
 }
 
 RequestStatus ConstraintSolver::solve() {
+  solved_ = false;
   if (added_ != count_)
-    return fail(RequestStatus::kInternalError, "solve() after %d of %d constraints", added_,
+    return fail(message_, RequestStatus::kInternalError, "solve() after {} of {} constraints", added_,
                 count_);
   const int k = count_;
   const Slot& slot = find_or_build_slot();
   condition_ = slot.condition;
   if (!slot.valid)
     return fail(
-        RequestStatus::kIllConditioned,
-        "the %d × %d system of the imposed displacements has condition estimate %.3g, above the "
+        message_, RequestStatus::kIllConditioned,
+        "the {} × {} system of the imposed displacements has condition estimate {:.3g}, above the "
         "limit "
-        "%.3g: constrained vertices too close together, or normals nearly parallel on neighbours; "
+        "{:.3g}: constrained vertices too close together, or normals nearly parallel on neighbours; "
         "constrain fewer vertices or give forces instead",
         slot.unknowns, slot.unknowns, condition_, limits_.max_condition);
 
@@ -325,7 +333,7 @@ RequestStatus ConstraintSolver::solve() {
     int info = 0;
     const int one = 1;
     dpotrs_("L", &m, &one, slot.L.data(), &m, rhs.data(), &m, &info);
-    if (info != 0) return fail(RequestStatus::kInternalError, "dpotrs failed with info %d", info);
+    if (info != 0) return fail(message_, RequestStatus::kInternalError, "dpotrs failed with info {}", info);
     for (int p = 0; p < m; ++p) {
       const int j = slot.unknown_vertex[p];
       for (int d = 0; d < 3; ++d) f(3 * j + d) += rhs(p) * slot.unknown_dir[3 * p + d];
@@ -339,7 +347,7 @@ RequestStatus ConstraintSolver::solve() {
   // Finite values can still overflow (a displacement of 1e300 m needs an
   // infinite force): no reply carries an infinity or a NaN.
   if (!f.allFinite() || !u.allFinite() || !total_force().allFinite())
-    return fail(RequestStatus::kNonFiniteValue,
+    return fail(message_, RequestStatus::kNonFiniteValue,
                 "the solution overflows (a force or displacement is not finite): the values are "
                 "too large for this model; give displacements in metres and forces in newtons");
   solved_ = true;

@@ -7,7 +7,7 @@
 
 #include "palpate/core/ids.hpp"
 #include "palpate/core/error.hpp"
-#include "palpate/runtime/tool_contact.hpp"
+#include "palpate/core/units.hpp"
 #include "palpate/core/detail/toml_reader.hpp"
 
 namespace palpate {
@@ -159,18 +159,12 @@ Gesture read(const toml::table& root, const std::string& source) {
   return g;
 }
 
-double squared_distance(const SurfaceView& s, int a, const Eigen::Vector3d& p) {
-  const double* q = &s.rest_positions_m[3 * static_cast<std::size_t>(a)];
-  return (Eigen::Vector3d(q[0], q[1], q[2]) - p).squaredNorm();
-}
-
-Eigen::Vector3d position(const SurfaceView& s, int v) {
-  const double* q = &s.rest_positions_m[3 * static_cast<std::size_t>(v)];
-  return {q[0], q[1], q[2]};
+double squared_distance(const DrawnSurface& s, int a, const Eigen::Vector3d& p) {
+  return (s.rest_position(a) - p).squaredNorm();
 }
 
 /// The compliance vertex nearest to @p p (ties: the lowest index).
-int nearest_compliance_vertex(const SurfaceView& s, const Eigen::Vector3d& p) {
+int nearest_compliance_vertex(const DrawnSurface& s, const Eigen::Vector3d& p) {
   int best = 0;
   double best_d2 = std::numeric_limits<double>::infinity();
   for (int v = 0; v < s.compliance_vertex_count; ++v)
@@ -181,7 +175,7 @@ int nearest_compliance_vertex(const SurfaceView& s, const Eigen::Vector3d& p) {
   return best;
 }
 
-void check_surface(const SurfaceView& s) {
+void check_surface(const DrawnSurface& s) {
   const auto drawn = s.vertex_ids.size();
   if (s.compliance_vertex_count <= 0 ||
       static_cast<std::size_t>(s.compliance_vertex_count) > drawn ||
@@ -225,30 +219,21 @@ Eigen::Matrix3d AnchorFrame::rotation() const {
   return r;
 }
 
-Eigen::Vector3d outward_normal(const SurfaceView& s, int v) {
-  Eigen::Vector3d n = Eigen::Vector3d::Zero();
-  const auto vertex = static_cast<std::uint32_t>(v);
-  for (std::size_t t = 0; t + 2 < s.triangles.size(); t += 3) {
-    const std::uint32_t a = s.triangles[t], b = s.triangles[t + 1], c = s.triangles[t + 2];
-    if (a != vertex && b != vertex && c != vertex) continue;
-    const Eigen::Vector3d pa = position(s, static_cast<int>(a));
-    // (b − a) × (c − a): twice the triangle's area times its outward unit normal.
-    n += (position(s, static_cast<int>(b)) - pa).cross(position(s, static_cast<int>(c)) - pa);
-  }
-  const double length = n.norm();
-  if (!(length > 0))
+Eigen::Vector3d outward_normal(const DrawnSurface& s, int v) {
+  const Eigen::Vector3d n = vertex_normals(s).row(v).transpose();
+  if (!(n.squaredNorm() > 0))
     throw InputError(fmt::format(
         "vertex {} (drawn vertex {}) belongs to no surface triangle of non-zero area: no normal "
         "to anchor a gesture on",
         s.vertex_ids[static_cast<std::size_t>(v)], v));
-  return n / length;
+  return n;
 }
 
-AnchorFrame anchor_frame(const SurfaceView& s, int v, const Eigen::Vector3d& x_hint) {
+AnchorFrame anchor_frame(const DrawnSurface& s, int v, const Eigen::Vector3d& x_hint) {
   AnchorFrame f;
   f.drawn_index = v;
   f.vertex_id = s.vertex_ids[static_cast<std::size_t>(v)];
-  f.origin_m = position(s, v);
+  f.origin_m = s.rest_position(v);
   f.normal = outward_normal(s, v);
   Eigen::Vector3d hint = x_hint.normalized();
   // Within 10° of the normal the projection is too short to trust.
@@ -259,7 +244,7 @@ AnchorFrame anchor_frame(const SurfaceView& s, int v, const Eigen::Vector3d& x_h
   return f;
 }
 
-AnchorFrame auto_anchor(const SurfaceView& s) {
+AnchorFrame auto_anchor(const DrawnSurface& s) {
   check_surface(s);
   const int n = s.compliance_vertex_count;
   const int drawn = static_cast<int>(s.vertex_ids.size());
@@ -269,7 +254,7 @@ AnchorFrame auto_anchor(const SurfaceView& s) {
     // Largest distance to the nearest fixed vertex: the freest place.
     for (int v = 0; v < n; ++v) {
       double nearest = std::numeric_limits<double>::infinity();
-      const Eigen::Vector3d p = position(s, v);
+      const Eigen::Vector3d p = s.rest_position(v);
       for (int f = n; f < drawn; ++f) nearest = std::min(nearest, squared_distance(s, f, p));
       if (nearest > best_score) {
         best_score = nearest;
@@ -278,7 +263,7 @@ AnchorFrame auto_anchor(const SurfaceView& s) {
     }
   } else {
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-    for (int v = 0; v < drawn; ++v) centroid += position(s, v);
+    for (int v = 0; v < drawn; ++v) centroid += s.rest_position(v);
     centroid /= drawn;
     for (int v = 0; v < n; ++v)
       if (const double d2 = squared_distance(s, v, centroid); d2 > best_score) {
@@ -289,7 +274,7 @@ AnchorFrame auto_anchor(const SurfaceView& s) {
   return anchor_frame(s, best);
 }
 
-std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const SurfaceView& s) {
+std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const DrawnSurface& s) {
   check_surface(s);
   AnchorFrame base;
   if (gesture.anchor_vertex_id < 0) {

@@ -28,10 +28,10 @@ SurfaceModel load_surface_model(std::string id, const std::filesystem::path& pat
   std::vector<std::int32_t> drawn_index(vertex_count, -1);
   auto draw = [&](int vertex) {
     drawn_index[static_cast<std::size_t>(vertex)] =
-        static_cast<std::int32_t>(model.drawn_vertex_ids.size());
-    model.drawn_vertex_ids.push_back(static_cast<std::uint32_t>(vertex));
+        static_cast<std::int32_t>(model.surface.vertex_ids.size());
+    model.surface.vertex_ids.push_back(static_cast<std::uint32_t>(vertex));
     for (int axis = 0; axis < 3; ++axis)
-      model.drawn_rest_positions_m.push_back(file.vertices_m(vertex, axis));
+      model.surface.rest_positions_m.push_back(file.vertices_m(vertex, axis));
   };
   for (Eigen::Index i = 0; i < file.compliance_vertices.size(); ++i) {
     const int vertex = file.compliance_vertices(i);
@@ -39,7 +39,8 @@ SurfaceModel load_surface_model(std::string id, const std::filesystem::path& pat
         static_cast<std::int32_t>(i);
     draw(vertex);
   }
-  model.drawn_triangles.reserve(static_cast<std::size_t>(file.surface_triangles.size()));
+  model.surface.compliance_vertex_count = static_cast<int>(file.compliance_vertices.size());
+  model.surface.triangles.reserve(static_cast<std::size_t>(file.surface_triangles.size()));
   for (Eigen::Index t = 0; t < file.surface_triangles.rows(); ++t) {
     for (int corner = 0; corner < 3; ++corner) {
       const int vertex = file.surface_triangles(t, corner);
@@ -52,7 +53,7 @@ SurfaceModel load_surface_model(std::string id, const std::filesystem::path& pat
               "the surface minus the fixed vertices)");
         draw(vertex);
       }
-      model.drawn_triangles.push_back(
+      model.surface.triangles.push_back(
           static_cast<std::uint32_t>(drawn_index[static_cast<std::size_t>(vertex)]));
     }
   }

@@ -149,26 +149,22 @@ struct ToolContactEngine::Impl {
       tools.push_back(std::move(tool));
     }
     rest.resize(static_cast<std::size_t>(n));
-    vertex_normal.assign(static_cast<std::size_t>(n), Vector3d::Zero());
+    vertex_normal.resize(static_cast<std::size_t>(n));
     box_min = Vector3d::Constant(std::numeric_limits<double>::infinity());
     box_max = -box_min;
-    const auto& p = m.drawn_rest_positions_m;
-    for (std::size_t v = 0; v < p.size() / 3; ++v) {
-      const Vector3d x(p[3 * v], p[3 * v + 1], p[3 * v + 2]);
-      if (v < static_cast<std::size_t>(n)) rest[v] = x;
+    const DrawnSurface& surface = m.surface;
+    for (int v = 0; v < surface.vertex_count(); ++v) {
+      const Vector3d x = surface.rest_position(v);
+      if (v < n) rest[static_cast<std::size_t>(v)] = x;
       box_min = box_min.cwiseMin(x);
       box_max = box_max.cwiseMax(x);
     }
-    const auto& tri = m.drawn_triangles;
-    for (std::size_t f = 0; f + 2 < tri.size(); f += 3) {
-      const auto a = tri[f], b = tri[f + 1], c = tri[f + 2];
-      auto at = [&](std::uint32_t v) { return Vector3d(p[3 * v], p[3 * v + 1], p[3 * v + 2]); };
-      const Vector3d area_normal = (at(b) - at(a)).cross(at(c) - at(a));  // outward, 2 × area
-      for (auto v : {a, b, c})
-        if (v < static_cast<std::uint32_t>(n)) vertex_normal[v] += area_normal;
-    }
-    for (auto& normal : vertex_normal)
-      normal = normal.norm() > 0 ? Vector3d(normal.normalized()) : Vector3d::UnitZ();
+    // A vertex without a normal (in no triangle of non-zero area) pushes along z.
+    const Eigen::MatrixX3d surface_normals = vertex_normals(surface);
+    for (int v = 0; v < n; ++v)
+      vertex_normal[static_cast<std::size_t>(v)] =
+          surface_normals.row(v).squaredNorm() > 0 ? Vector3d(surface_normals.row(v).transpose())
+                                                   : Vector3d::UnitZ();
     owner.assign(static_cast<std::size_t>(n), -1);
     previous_tip_owner.assign(static_cast<std::size_t>(n), -1);
     candidates.resize(static_cast<std::size_t>(n));
@@ -395,7 +391,7 @@ struct ToolContactEngine::Impl {
       for (int b = 0; b < building && status == RequestStatus::kOk; ++b) {
         const auto bb = static_cast<std::size_t>(b);
         if (released[bb]) continue;
-        status = solver.add(model.drawn_vertex_ids[static_cast<std::size_t>(b_index[bb])],
+        status = solver.add(model.surface.vertex_ids[static_cast<std::size_t>(b_index[bb])],
                             static_cast<std::int32_t>(b_kind[bb]), &b_value[3 * bb],
                             &b_normal[3 * bb]);
       }
@@ -435,7 +431,9 @@ struct ToolContactEngine::Impl {
     }
     for (auto& o : owner) o = -1;  // cleared sparsely below would be cheaper; n is small
     if (status != RequestStatus::kOk) {
-      std::snprintf(message, sizeof message, "%s", solver.message());
+      const std::size_t length = strnlen(solver.message(), sizeof message - 1);
+      std::memcpy(message, solver.message(), length);
+      message[length] = '\0';
       return status;
     }
     store_solution();

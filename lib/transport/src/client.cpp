@@ -8,6 +8,7 @@
 #include "palpate.h"
 #include "palpate/core/ids.hpp"
 #include "palpate/transport/dds.hpp"
+#include "palpate/transport/wire.hpp"
 #include "palpate/core/error.hpp"
 
 namespace palpate {
@@ -15,8 +16,6 @@ namespace palpate {
 namespace {
 
 using Clock = detail::ClientClock;
-using detail::bounded;
-using detail::to_array;
 using detail::WaitableReader;
 
 void check_client_id(const std::string& id) {
@@ -73,7 +72,6 @@ Client::Client(const ClientOptions& options) : impl_(std::make_unique<Impl>()) {
     c.statuses =
         WaitableReader(p, p, status_topic, dds::status_qos().get(), "creating the status reader");
   c.watch = detail::DaemonWatch(p, status_topic, options.daemon_timeout);
-  std::strncpy(c.request.client_id, options.client_id.c_str(), sizeof c.request.client_id - 1);
 }
 
 Client::~Client() = default;
@@ -101,24 +99,9 @@ std::optional<ModelInfo> Client::wait_for_model(const std::string& model_id,
 std::uint64_t Client::send(const std::string& model_id, std::span<const ConstraintSpec> constraints,
                            bool want_surface, bool update_state) {
   Impl& c = *impl_;
-  c.constraints.resize(constraints.size());
-  for (std::size_t j = 0; j < constraints.size(); ++j) {
-    const ConstraintSpec& s = constraints[j];
-    palpate_Constraint& out = c.constraints[j];
-    out.vertex = s.vertex;
-    out.kind = static_cast<palpate_ConstraintKind>(s.kind);
-    std::copy(s.value.begin(), s.value.end(), out.value);
-    std::copy(s.normal.begin(), s.normal.end(), out.normal);
-  }
   palpate_ConstraintRequest& r = c.request;
-  std::memset(r.model_id, 0, sizeof r.model_id);
-  std::strncpy(r.model_id, model_id.c_str(), sizeof r.model_id - 1);
-  r.request_id = c.next_request_id++;
-  r.want_surface = want_surface;
-  r.update_state = update_state;
-  r.constraints._buffer = c.constraints.data();
-  r.constraints._length = r.constraints._maximum = static_cast<std::uint32_t>(c.constraints.size());
-  r.constraints._release = false;
+  wire::to_idl(c.options.client_id, model_id, c.next_request_id++, constraints, want_surface,
+               update_state, c.constraints, r);
   dds::check(dds_write(c.request_writer, &r), "sending a request");
   return r.request_id;
 }
@@ -134,22 +117,7 @@ std::optional<Reply> Client::wait_reply(std::uint64_t request_id,
           return false;
         }
         if (r.request_id != request_id) return false;
-        Reply& out = reply.emplace();
-        out.request_id = r.request_id;
-        out.model_id = bounded(r.model_id, sizeof r.model_id);
-        out.status = static_cast<RequestStatus>(r.status);
-        out.message = bounded(r.message, sizeof r.message);
-        out.condition_estimate = r.condition_estimate;
-        out.total_force_n = to_array(r.total_force);
-        out.solve_ns = r.solve_ns;
-        out.results.resize(r.results._length);
-        for (std::uint32_t j = 0; j < r.results._length; ++j) {
-          const palpate_ConstraintResult& in = r.results._buffer[j];
-          out.results[j] = {in.vertex, to_array(in.force), to_array(in.displacement)};
-        }
-        out.surface_displacement_m.assign(
-            r.surface_displacement._buffer,
-            r.surface_displacement._buffer + r.surface_displacement._length);
+        reply = wire::from_idl(r);
         return true;
       });
   return reply;
@@ -176,23 +144,10 @@ std::optional<SurfaceSample> Client::wait_surface(const std::string& model_id,
   std::optional<SurfaceSample> sample;
   impl_->surfaces.take_until<palpate_SurfaceDisplacement>(
       Clock::now() + timeout, [&](const palpate_SurfaceDisplacement& s) {
-        if (bounded(s.model_id, sizeof s.model_id) != model_id || s.sequence_number < min_sequence)
+        if (wire::bounded(s.model_id) != model_id || s.sequence_number < min_sequence)
           return false;
         if (request_id != 0 && s.source_request_id != request_id) return false;
-        SurfaceSample& out = sample.emplace();
-        out.model_id = model_id;
-        out.sequence_number = s.sequence_number;
-        out.source_client_id = bounded(s.source_client_id, sizeof s.source_client_id);
-        out.source_request_id = s.source_request_id;
-        out.total_force_n = to_array(s.total_force);
-        out.displacement_m.assign(s.displacement._buffer,
-                                  s.displacement._buffer + s.displacement._length);
-        out.constrained_vertices.assign(
-            s.constrained_vertices._buffer,
-            s.constrained_vertices._buffer + s.constrained_vertices._length);
-        out.constrained_forces_n.assign(
-            s.constrained_forces._buffer,
-            s.constrained_forces._buffer + s.constrained_forces._length);
+        sample = wire::from_idl(s);
         return true;
       });
   return sample;
@@ -203,19 +158,7 @@ std::optional<StatusSample> Client::wait_status(std::chrono::milliseconds timeou
   std::optional<StatusSample> status;
   impl_->statuses.take_until<palpate_DaemonStatus>(
       Clock::now() + timeout, [&](const palpate_DaemonStatus& s) {
-        auto latency = [](const palpate_Latency& l) {
-          return LatencySummary{l.p50_us, l.p99_us, l.p999_us, l.max_us};
-        };
-        status = StatusSample{bounded(s.daemon_id, sizeof s.daemon_id),
-                              s.uptime_ns,
-                              s.requests_served,
-                              s.error_replies,
-                              s.request_rate_hz,
-                              s.surface_rate_hz,
-                              latency(s.solve),
-                              latency(s.request_to_reply),
-                              s.models,
-                              s.clients};
+        status = wire::from_idl(s);
         return true;
       });
   return status;

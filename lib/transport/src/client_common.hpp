@@ -20,23 +20,12 @@
 #include "palpate.h"
 #include "palpate/transport/client.hpp"
 #include "palpate/transport/dds.hpp"
+#include "palpate/transport/wire.hpp"
 #include "palpate/core/error.hpp"
 
 namespace palpate::detail {
 
 using ClientClock = std::chrono::steady_clock;
-
-/// A bounded IDL string (char[N], not necessarily terminated) as a std::string.
-inline std::string bounded(const char* text, std::size_t size) {
-  return {text, strnlen(text, size)};
-}
-
-template <typename T, std::size_t N>
-std::array<T, N> to_array(const T (&values)[N]) {
-  std::array<T, N> a;
-  std::copy_n(values, N, a.begin());
-  return a;
-}
 
 /// A reader and the waitset that wakes on its data.
 struct WaitableReader {
@@ -108,7 +97,7 @@ class ModelDescriptions {
   std::optional<ModelInfo> wait_for(const std::string& model_id, ClientClock::time_point deadline) {
     if (auto m = find(model_id)) return m;
     reader_.take_until<palpate_ModelDescription>(deadline, [&](const palpate_ModelDescription& d) {
-      ModelInfo info = from_idl(d);
+      ModelInfo info = wire::from_idl(d);
       const bool wanted = info.model_id == model_id;
       known_[info.model_id] = std::move(info);
       return wanted;
@@ -121,20 +110,6 @@ class ModelDescriptions {
     std::vector<std::string> ids;
     for (const auto& [id, info] : known_) ids.push_back(id);
     return ids;
-  }
-
-  static ModelInfo from_idl(const palpate_ModelDescription& d) {
-    ModelInfo info;
-    info.model_id = bounded(d.model_id, sizeof d.model_id);
-    info.units = bounded(d.units, sizeof d.units);
-    info.material_summary = bounded(d.material_summary, sizeof d.material_summary);
-    info.input_hash = bounded(d.input_hash, sizeof d.input_hash);
-    info.compliance_vertex_count = static_cast<int>(d.compliance_vertex_count);
-    info.vertex_ids.assign(d.vertex_ids._buffer, d.vertex_ids._buffer + d.vertex_ids._length);
-    info.rest_positions_m.assign(d.rest_positions._buffer,
-                                 d.rest_positions._buffer + d.rest_positions._length);
-    info.triangles.assign(d.triangles._buffer, d.triangles._buffer + d.triangles._length);
-    return info;
   }
 
  private:

@@ -9,6 +9,7 @@
 #include "palpate.h"
 #include "palpate/core/ids.hpp"
 #include "palpate/transport/dds.hpp"
+#include "palpate/transport/wire.hpp"
 #include "palpate/core/error.hpp"
 
 namespace palpate {
@@ -16,8 +17,6 @@ namespace palpate {
 namespace {
 
 using Clock = detail::ClientClock;
-using detail::bounded;
-using detail::to_array;
 using detail::WaitableReader;
 
 /// A fixed-capacity FIFO that drops its oldest element when full.
@@ -71,22 +70,6 @@ struct ToolSlot {
     return id_length == tool_id.size() && std::memcmp(id, tool_id.data(), id_length) == 0;
   }
 };
-
-ToolFeedbackSample from_idl(const palpate_ToolFeedback& f, std::int64_t receive_time_ns) {
-  ToolFeedbackSample s;
-  s.sequence = f.pose_sequence;
-  s.send_time_ns = f.send_time_ns;
-  s.receive_time_ns = receive_time_ns;
-  s.force_n = to_array(f.force);
-  s.torque_nm = to_array(f.torque);
-  s.grip_n = f.grip_force;
-  s.contacts = f.contacts;
-  s.state = static_cast<ToolState>(f.state);
-  s.force_limited = f.force_limited;
-  s.watchdog = f.watchdog;
-  s.compute_ns = f.compute_ns;
-  return s;
-}
 
 void copy_id(char (&out)[64], std::string_view id) {
   std::memset(out, 0, sizeof out);
@@ -194,12 +177,7 @@ std::int64_t ToolClient::send_pose(std::string_view tool_id, std::string_view mo
   if (!is_valid_id(model_id))
     throw InputError(fmt::format(
         "model id '{}': expected 1 to 63 characters among A-Z a-z 0-9 _ - .", model_id));
-  copy_id(pose.tool_id, tool_id);
-  copy_id(pose.model_id, model_id);
-  pose.pose_sequence = sequence;
-  std::copy(position_m.begin(), position_m.end(), pose.position);
-  std::copy(orientation_wxyz.begin(), orientation_wxyz.end(), pose.orientation);
-  pose.jaw_angle = jaw_angle_rad;
+  wire::to_idl(tool_id, model_id, sequence, position_m, orientation_wxyz, jaw_angle_rad, pose);
   // Stamped last, as close to the write as possible.
   pose.send_time_ns = now_ns();
   dds::check(dds_write(c.pose_writer, &pose), "sending a tool pose");
@@ -235,7 +213,7 @@ std::optional<ToolFeedbackSample> ToolClient::wait_feedback(
         ++c.foreign;
         return false;
       }
-      const ToolFeedbackSample s = from_idl(f, received);
+      const ToolFeedbackSample s = wire::from_idl(f, received);
       owner->saw(s);
       if (owner == slot) return consider(s);
       if (s.sequence <= owner->done)
@@ -268,14 +246,7 @@ std::vector<ToolEventSample> ToolClient::take_events() {
   std::vector<ToolEventSample> events;
   // A deadline in the past: take what is there, do not wait.
   impl_->events.take_until<palpate_ToolEvent>(Clock::time_point{}, [&](const palpate_ToolEvent& e) {
-    ToolEventSample& s = events.emplace_back();
-    s.tool_id = bounded(e.tool_id, sizeof e.tool_id);
-    s.model_id = bounded(e.model_id, sizeof e.model_id);
-    s.kind = static_cast<ToolEventKind>(e.kind);
-    s.pose_sequence = e.pose_sequence;
-    s.held_vertices = e.held_vertices;
-    s.daemon_time_ns = e.daemon_time_ns;
-    s.receive_time_ns = now_ns();
+    events.push_back(wire::from_idl(e, now_ns()));
     return false;
   });
   return events;

@@ -111,7 +111,6 @@ class ConstraintSolver {
  private:
   struct Slot;
   Slot& find_or_build_slot();
-  RequestStatus fail(RequestStatus status, const char* format, ...);
 
   const SurfaceModel& model_;
   SolverLimits limits_;

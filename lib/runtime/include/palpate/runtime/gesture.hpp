@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "palpate/core/eigen.hpp"
+#include "palpate/runtime/drawn_surface.hpp"
 
 namespace palpate {
 
@@ -74,14 +75,6 @@ Gesture read_gesture_file(const std::filesystem::path& file);
 /// The same from TOML text; @p source names it in messages.
 Gesture parse_gesture(std::string_view toml_text, const std::string& source);
 
-/// The drawn surface of a model, as ModelDescription / ModelInfo carry it.
-struct SurfaceView {
-  int compliance_vertex_count = 0;            ///< N_S: the first N_S drawn vertices can move
-  std::span<const std::uint32_t> vertex_ids;  ///< mesh vertex id per drawn vertex
-  std::span<const double> rest_positions_m;   ///< 3 per drawn vertex, m
-  std::span<const std::uint32_t> triangles;   ///< 3 per triangle, outward, into drawn vertices
-};
-
 /// An anchor frame on the organ's rest surface (model frame).
 struct AnchorFrame {
   int drawn_index = -1;         ///< drawn vertex (a compliance vertex)
@@ -94,15 +87,14 @@ struct AnchorFrame {
   Eigen::Matrix3d rotation() const;
 };
 
-/// Unit outward normal at drawn vertex @p v: the sum of the outward normals
-/// of the triangles around it weighted by their areas, (b − a) × (c − a).
+/// Unit outward normal at drawn vertex @p v (vertex_normals(), drawn_surface.hpp).
 /// @throws InputError when the vertex belongs to no triangle of non-zero area.
-Eigen::Vector3d outward_normal(const SurfaceView& surface, int v);
+Eigen::Vector3d outward_normal(const DrawnSurface& surface, int v);
 
 /// The frame at compliance vertex @p v: its outward normal, x the model's
 /// @p x_hint projected on the tangent plane (the model's y axis instead when
 /// @p x_hint is within 10° of the normal), y = normal × x.
-AnchorFrame anchor_frame(const SurfaceView& surface, int v,
+AnchorFrame anchor_frame(const DrawnSurface& surface, int v,
                          const Eigen::Vector3d& x_hint = Eigen::Vector3d::UnitX());
 
 /// The "auto" anchor: the compliance vertex whose distance to the nearest
@@ -110,11 +102,11 @@ AnchorFrame anchor_frame(const SurfaceView& surface, int v,
 /// surface with no fixed vertex, the compliance vertex farthest from the
 /// centroid of the drawn vertices.
 /// @throws InputError for a surface without compliance vertices.
-AnchorFrame auto_anchor(const SurfaceView& surface);
+AnchorFrame auto_anchor(const DrawnSurface& surface);
 
 /// The anchors of every tool of @p gesture, in its tool order.
 /// @throws InputError when the anchor vertex id is not a compliance vertex.
-std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const SurfaceView& surface);
+std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const DrawnSurface& surface);
 
 /// A tool's pose at one instant, model frame.
 struct GesturePose {

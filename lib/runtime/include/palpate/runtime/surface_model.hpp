@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "palpate/core/eigen.hpp"
+#include "palpate/runtime/drawn_surface.hpp"
 
 namespace palpate {
 
@@ -31,12 +32,9 @@ struct SurfaceModel {
   std::string material_summary;  ///< from the file
   std::string input_hash;        ///< "sha256:<hex>", from the file
 
-  /// Drawn vertices: the N_S compliance vertices first (compliance order),
-  /// then the fixed vertices of the surface.
-  std::vector<std::uint32_t> drawn_vertex_ids;  ///< mesh vertex id of each drawn vertex
-  std::vector<double> drawn_rest_positions_m;   ///< 3 per drawn vertex, m
-  std::vector<std::uint32_t>
-      drawn_triangles;  ///< 3 per surface triangle, into drawn vertices, outward
+  /// The surface to draw and touch: the N_S compliance vertices first
+  /// (compliance order), then the fixed vertices of the surface.
+  DrawnSurface surface;
 
   /// For each mesh vertex id: its compliance index (≥ 0), or a VertexRole.
   std::vector<std::int32_t> compliance_index_of_vertex;

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/transport/messages.hpp"
 
 namespace palpate {
 
@@ -58,75 +58,6 @@ struct DaemonPresence {
 /// clients to report the daemon going and coming back.
 std::optional<std::string> describe_presence_change(const DaemonPresence& before,
                                                     const DaemonPresence& now);
-
-/// A model as ModelDescription gives it.
-struct ModelInfo {
-  std::string model_id, units, material_summary, input_hash;
-  int compliance_vertex_count = 0;        ///< N_S: the first N_S drawn vertices
-  std::vector<std::uint32_t> vertex_ids;  ///< mesh vertex id of each drawn vertex
-  std::vector<double> rest_positions_m;   ///< 3 per drawn vertex
-  std::vector<std::uint32_t> triangles;   ///< 3 per triangle, into the drawn vertices
-};
-
-/// One constraint of a request (see ConstraintKind).
-struct ConstraintSpec {
-  std::uint32_t vertex = 0;  ///< mesh vertex id
-  ConstraintKind kind = ConstraintKind::kForce;
-  std::array<double, 3> value{};   ///< N or m
-  std::array<double, 3> normal{};  ///< kNormalDisplacement only
-
-  static ConstraintSpec force(std::uint32_t vertex, std::array<double, 3> force_n) {
-    return {vertex, ConstraintKind::kForce, force_n, {}};
-  }
-  static ConstraintSpec displacement(std::uint32_t vertex, std::array<double, 3> displacement_m) {
-    return {vertex, ConstraintKind::kDisplacement, displacement_m, {}};
-  }
-  static ConstraintSpec normal_displacement(std::uint32_t vertex, std::array<double, 3> normal,
-                                            double depth_m) {
-    return {vertex, ConstraintKind::kNormalDisplacement, {depth_m, 0, 0}, normal};
-  }
-};
-
-struct VertexResult {
-  std::uint32_t vertex = 0;
-  std::array<double, 3> force_n{};
-  std::array<double, 3> displacement_m{};
-};
-
-struct Reply {
-  std::uint64_t request_id = 0;
-  std::string model_id;
-  RequestStatus status = RequestStatus::kInternalError;
-  std::string message;
-  double condition_estimate = 0;
-  std::array<double, 3> total_force_n{};
-  std::uint64_t solve_ns = 0;
-  std::vector<VertexResult> results;
-  std::vector<double> surface_displacement_m;  ///< 3 per compliance vertex when asked
-};
-
-struct SurfaceSample {
-  std::string model_id;
-  std::uint64_t sequence_number = 0;
-  std::string source_client_id;
-  std::uint64_t source_request_id = 0;
-  std::array<double, 3> total_force_n{};
-  std::vector<double> displacement_m;  ///< 3 per compliance vertex
-  std::vector<std::uint32_t> constrained_vertices;  ///< mesh vertex ids; empty at rest
-  std::vector<double> constrained_forces_n;         ///< 3 per constrained vertex
-};
-
-struct LatencySummary {
-  double p50_us = 0, p99_us = 0, p999_us = 0, max_us = 0;
-};
-
-struct StatusSample {
-  std::string daemon_id;
-  std::uint64_t uptime_ns = 0, requests_served = 0, error_replies = 0;
-  double request_rate_hz = 0, surface_rate_hz = 0;
-  LatencySummary solve, request_to_reply;
-  std::uint32_t models = 0, clients = 0;
-};
 
 class Client {
  public:

@@ -28,7 +28,6 @@
 #include <vector>
 
 #include "palpate/transport/client.hpp"
-#include "palpate/runtime/tool_contact.hpp"
 
 namespace palpate {
 
@@ -47,34 +46,6 @@ struct ToolClientOptions {
   /// watchdog does when poses stop (docs/tools.md; its defaults).
   std::chrono::milliseconds feedback_timeout{50};
   std::chrono::milliseconds feedback_ramp{250};
-};
-
-/// One ToolFeedback sample as this client took it.
-struct ToolFeedbackSample {
-  std::uint64_t sequence = 0;         ///< of the pose it answers
-  std::int64_t send_time_ns = 0;      ///< that pose's send_pose() time, steady clock
-  std::int64_t receive_time_ns = 0;   ///< when this client took it from DDS, steady clock
-  std::array<double, 3> force_n{};    ///< the organ on the tool, model frame (render this)
-  std::array<double, 3> torque_nm{};  ///< about the hinge, model frame
-  double grip_n = 0;                  ///< squeeze per jaw (0 unless grasping)
-  std::uint32_t contacts = 0;         ///< vertices the tool constrains
-  ToolState state = ToolState::kFree;
-  bool force_limited = false;    ///< clamped or rate limited this tick
-  bool watchdog = false;         ///< poses stopped: the force ramps to zero
-  std::uint64_t compute_ns = 0;  ///< palpated's time from taking the pose to writing this
-
-  /// Round trip on this client's clock, ns.
-  std::int64_t round_trip_ns() const { return receive_time_ns - send_time_ns; }
-};
-
-/// One ToolEvent sample.
-struct ToolEventSample {
-  std::string tool_id, model_id;
-  ToolEventKind kind = ToolEventKind::kTouch;
-  std::uint64_t pose_sequence = 0;   ///< the pose that caused it (the last one for the watchdog)
-  std::uint32_t held_vertices = 0;   ///< vertices held by the jaws (grasp)
-  std::int64_t daemon_time_ns = 0;   ///< palpated's UTC clock
-  std::int64_t receive_time_ns = 0;  ///< when this client took it, steady clock
 };
 
 class ToolClient {

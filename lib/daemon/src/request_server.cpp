@@ -1,0 +1,151 @@
+#include "request_server.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cstring>
+
+#include "palpate/core/error.hpp"
+#include "palpate/transport/wire.hpp"
+
+namespace palpate::daemon {
+
+RequestServer::RequestServer(const std::vector<std::unique_ptr<ServedModel>>& models,
+                             std::string served_ids, ReplyWriters& replies, int max_constraints)
+    : models_(models), served_ids_(std::move(served_ids)), replies_(replies) {
+  std::size_t max_surface = 0;
+  for (const auto& served : models)
+    max_surface = std::max(max_surface, static_cast<std::size_t>(served->model.compliance_rows()));
+  reply_results_.resize(static_cast<std::size_t>(max_constraints));
+  reply_surface_.resize(max_surface);
+  reply_.results._buffer = reply_results_.data();
+  reply_.results._maximum = static_cast<std::uint32_t>(reply_results_.size());
+  reply_.surface_displacement._buffer = reply_surface_.data();
+  reply_.surface_displacement._maximum = static_cast<std::uint32_t>(reply_surface_.size());
+  requests_.resize(kBatch);
+  request_infos_.resize(kBatch);
+  for (auto& r : requests_) request_pointers_.push_back(&r);
+}
+
+RequestServer::~RequestServer() {
+  stop();
+  // Request samples own the constraint buffers Cyclone allocated into them.
+  for (auto& r : requests_) dds_sample_free(&r, &palpate_ConstraintRequest_desc, DDS_FREE_CONTENTS);
+}
+
+void RequestServer::listen(dds_entity_t participant, dds_entity_t request_topic) {
+  listening_.store(true, std::memory_order_release);
+  dds_listener_t* listener = dds_create_listener(this);
+  dds_lset_data_available(listener, &RequestServer::on_requests);
+  const dds_entity_t reader =
+      dds_create_reader(participant, request_topic, dds::request_reply_qos().get(), listener);
+  dds_delete_listener(listener);
+  reader_ = dds::Entity(dds::check(reader, "creating the request reader"));
+}
+
+void RequestServer::stop() { reader_.reset(); }
+
+// The listener takes from the reader Cyclone names: it may fire before
+// dds_create_reader has returned, so before reader_ holds the handle (a data
+// race ThreadSanitizer found; the first request then failed with a bad handle).
+void RequestServer::on_requests(dds_entity_t reader, void* arg) {
+  try {
+    RequestServer& server = *static_cast<RequestServer*>(arg);
+    (void)server.listening_.load(std::memory_order_acquire);
+    server.serve(reader);
+  } catch (const std::exception& e) {
+    spdlog::error("event=requests_failed error=\"{}\"", e.what());
+  }
+}
+
+void RequestServer::serve(dds_entity_t reader) {
+  for (;;) {
+    const dds_return_t n =
+        dds_take(reader, request_pointers_.data(), request_infos_.data(), kBatch, kBatch);
+    if (n < 0) throw SystemError(std::string("taking requests: ") + dds_strretcode(n));
+    for (dds_return_t i = 0; i < n; ++i)
+      if (request_infos_[i].valid_data) handle(requests_[i], request_infos_[i]);
+    if (n < kBatch) return;
+  }
+}
+
+RequestStatus RequestServer::solve(const palpate_ConstraintRequest& request) {
+  ServedModel* served = nullptr;
+  const std::string_view model_id = wire::bounded(request.model_id);
+  for (const auto& candidate : models_)
+    if (candidate->model.id == model_id) served = candidate.get();
+  if (served == nullptr) {
+    const auto end = fmt::format_to_n(reply_.message, sizeof reply_.message - 1,
+                                      "model '{}' is not served here; served: {}", model_id,
+                                      served_ids_);
+    *end.out = '\0';
+    return RequestStatus::kUnknownModel;
+  }
+  ConstraintSolver& solver = *served->solver;
+  RequestStatus status = wire::load_constraints(request, solver);
+  if (status == RequestStatus::kOk) status = solver.solve();
+  reply_.condition_estimate = solver.condition_estimate();
+  if (status != RequestStatus::kOk) {
+    wire::copy_bounded(reply_.message, solver.message());
+    return status;
+  }
+  wire::write_results(request, solver, reply_);
+  if (request.want_surface) {
+    const auto n = static_cast<Eigen::Index>(served->model.compliance_rows());
+    solver.surface_displacement(Eigen::Map<Eigen::VectorXd>(reply_surface_.data(), n));
+    reply_.surface_displacement._length = static_cast<std::uint32_t>(n);
+  }
+  if (request.update_state) {
+    // The latest successful state-changing request defines what the model
+    // shows: its vertices and forces; the stream thread does the big product.
+    const auto k = static_cast<std::size_t>(solver.size());
+    served->shown.show(solver.indices(), {solver.forces().data(), 3 * k}, "",
+                       wire::bounded(reply_.client_id), request.request_id, reply_.total_force);
+  }
+  return RequestStatus::kOk;
+}
+
+void RequestServer::handle(const palpate_ConstraintRequest& request,
+                           const dds_sample_info_t& info) {
+  const auto start = Clock::now();
+  wire::copy_bounded(reply_.client_id, wire::bounded(request.client_id));
+  wire::copy_bounded(reply_.model_id, wire::bounded(request.model_id));
+  reply_.request_id = request.request_id;
+  reply_.message[0] = '\0';
+  reply_.condition_estimate = 1;
+  reply_.total_force[0] = reply_.total_force[1] = reply_.total_force[2] = 0;
+  reply_.results._length = 0;
+  reply_.surface_displacement._length = 0;
+
+  // A request that cannot be answered (no valid reply partition) changes nothing.
+  if (!ReplyWriters::names_a_partition(reply_.client_id)) {
+    errors_.fetch_add(1, std::memory_order_relaxed);
+    spdlog::warn(
+        "event=request_ignored client=\"{}\" request={} reason=\"client id cannot name a reply "
+        "partition\"",
+        reply_.client_id, request.request_id);
+    return;
+  }
+  RequestStatus status = RequestStatus::kInternalError;
+  try {
+    status = solve(request);
+  } catch (const std::exception& e) {
+    wire::copy_bounded(reply_.message, e.what());
+  }
+  reply_.status = static_cast<palpate_ReplyStatus>(status);
+  if (status != RequestStatus::kOk) {
+    reply_.results._length = 0;
+    reply_.surface_displacement._length = 0;
+    errors_.fetch_add(1, std::memory_order_relaxed);
+    spdlog::debug("event=request_refused client={} request={} status={} message=\"{}\"",
+                  reply_.client_id, request.request_id, status_name(status), reply_.message);
+  }
+  replies_.send<Clock>(reply_, start);
+  served_.fetch_add(1, std::memory_order_relaxed);
+  const double solve_us = static_cast<double>(reply_.solve_ns) * 1e-3;
+  const double request_to_reply_us = static_cast<double>(dds_time() - info.source_timestamp) * 1e-3;
+  latencies_.record(solve_us, request_to_reply_us);
+}
+
+}  // namespace palpate::daemon

@@ -1,0 +1,92 @@
+#include "served_model.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <cstring>
+
+
+namespace palpate::daemon {
+
+namespace {
+
+ShownState::Snapshot make_snapshot_of(std::size_t capacity) {
+  ShownState::Snapshot s;
+  s.indices.resize(capacity);
+  s.forces.resize(3 * capacity);
+  return s;
+}
+
+}  // namespace
+
+ShownState::ShownState(std::size_t capacity) : state_(make_snapshot_of(capacity)) {}
+
+ShownState::Snapshot ShownState::make_snapshot() const { return make_snapshot_of(state_.indices.size()); }
+
+void ShownState::show(std::span<const int> indices, std::span<const double> forces_n,
+                      std::string_view source_prefix, std::string_view source_id,
+                      std::uint64_t source_request, const double* total_force_n) {
+  const std::lock_guard lock(mutex_);
+  const std::size_t k = std::min(indices.size(), state_.indices.size());
+  state_.count = static_cast<int>(k);
+  std::copy_n(indices.begin(), k, state_.indices.begin());
+  std::copy_n(forces_n.begin(), 3 * k, state_.forces.begin());
+  const std::size_t prefix = std::min(source_prefix.size(), sizeof state_.source - 1);
+  std::memcpy(state_.source, source_prefix.data(), prefix);
+  const std::size_t id = std::min(source_id.size(), sizeof state_.source - 1 - prefix);
+  std::memcpy(state_.source + prefix, source_id.data(), id);
+  state_.source[prefix + id] = '\0';
+  state_.source_request = source_request;
+  std::copy_n(total_force_n, 3, state_.total_force);
+  ++version_;
+}
+
+bool ShownState::copy_if_newer(std::uint64_t& version, Snapshot& out) {
+  const std::lock_guard lock(mutex_);
+  if (version_ == version) return false;
+  version = version_;
+  out.count = state_.count;
+  std::copy_n(state_.indices.begin(), state_.count, out.indices.begin());
+  std::copy_n(state_.forces.begin(), 3 * state_.count, out.forces.begin());
+  std::memcpy(out.source, state_.source, sizeof out.source);
+  out.source_request = state_.source_request;
+  std::copy_n(state_.total_force, 3, out.total_force);
+  return true;
+}
+
+ServedModel::ServedModel(SurfaceModel loaded, const DaemonConfig& config,
+                         std::int64_t start_unix_ns)
+    : model(std::move(loaded)),
+      shown(static_cast<std::size_t>(config.limits.max_constraints)) {
+  solver = std::make_unique<ConstraintSolver>(model, config.limits);
+  const auto k = static_cast<std::size_t>(config.limits.max_constraints);
+  tools.engine = std::make_unique<ToolContactEngine>(model, config.tools, config.contact, config.limits);
+  tools.record_vertices.resize(k);
+  tools.record_forces.resize(3 * k);
+  if (config.record_directory.empty()) return;
+  try {
+    SessionInfo info;
+    info.model_id = model.id;
+    info.model_file = model.path.string();
+    info.input_hash = model.input_hash;
+    info.daemon_id = config.daemon_id;
+    info.tools = config.tools;
+    info.contact = config.contact;
+    info.start_unix_ns = start_unix_ns;
+    const std::time_t seconds = static_cast<std::time_t>(start_unix_ns / 1'000'000'000);
+    std::tm utc{};
+    gmtime_r(&seconds, &utc);
+    char stamp[32];
+    std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
+    const auto file = config.record_directory / fmt::format("session-{}-{}.h5", model.id, stamp);
+    tools.recorder = std::make_unique<SessionRecorder>(file, info);
+    spdlog::info("event=recording_started model={} file={}", model.id, file.string());
+  } catch (const std::exception& e) {
+    spdlog::error("event=recording_failed model={} error=\"{}\"", model.id, e.what());
+  }
+}
+
+}  // namespace palpate::daemon

@@ -1,0 +1,81 @@
+#pragma once
+// Private to palpate_daemon: one model as palpated serves it, and the state
+// it shows on the surface stream.
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "palpate/daemon/daemon_config.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/session_recorder.hpp"
+#include "palpate/runtime/surface_model.hpp"
+#include "palpate/runtime/tool_contact.hpp"
+
+namespace palpate::daemon {
+
+/// What a model shows on the surface stream: the constrained vertices and
+/// their forces of the latest state-changing request or tool tick, and who
+/// set it. The request and tool servers write it, the stream publisher reads
+/// it; each takes its lock. Allocation-free after construction.
+class ShownState {
+ public:
+  /// A copy of the state, for the stream publisher.
+  struct Snapshot {
+    int count = 0;
+    std::vector<int> indices;    // compliance indices
+    std::vector<double> forces;  // 3 per index, N, tool on organ
+    char source[64] = {};        // client id, or "tool:<id>"
+    std::uint64_t source_request = 0;
+    double total_force[3] = {};
+  };
+
+  /// Room for @p capacity constrained vertices (the solver's limit).
+  explicit ShownState(std::size_t capacity);
+  /// A snapshot sized for this state.
+  Snapshot make_snapshot() const;
+
+  /// Replaces the state; vertices beyond the capacity are cut. The source
+  /// is @p source_prefix followed by @p source_id.
+  void show(std::span<const int> indices, std::span<const double> forces_n,
+            std::string_view source_prefix, std::string_view source_id,
+            std::uint64_t source_request, const double* total_force_n);
+  /// Copies the state into @p out when it changed since @p version (then
+  /// updated); false when it did not.
+  bool copy_if_newer(std::uint64_t& version, Snapshot& out);
+
+ private:
+  std::mutex mutex_;
+  std::uint64_t version_ = 1;  // the rest state: a late viewer gets a surface before any request
+  Snapshot state_;
+};
+
+/// One model: its compliance, the request server's solver, the shown state,
+/// and the tools acting on it.
+struct ServedModel {
+  /// Serves @p loaded, sized for @p config. When recording is configured,
+  /// the model's session file starts now, before any pose, so that the
+  /// pose listener never creates a file (a recorder that cannot start is
+  /// logged and the model served without). @p start_unix_ns: the wall
+  /// clock at palpated's start, time 0 of the tools' clock.
+  ServedModel(SurfaceModel loaded, const DaemonConfig& config, std::int64_t start_unix_ns);
+
+  SurfaceModel model;
+  std::unique_ptr<ConstraintSolver> solver;  // the request listener's
+  ShownState shown;
+
+  /// The tools acting on the model. The pose listener and the watchdog
+  /// (stream thread) take turns under `mutex`.
+  struct Tools {
+    std::mutex mutex;
+    std::unique_ptr<ToolContactEngine> engine;
+    std::unique_ptr<SessionRecorder> recorder;  // when recording
+    std::vector<std::uint32_t> record_vertices;  // one tool's contacts, for the recorder
+    std::vector<double> record_forces;
+  } tools;
+};
+
+}  // namespace palpate::daemon

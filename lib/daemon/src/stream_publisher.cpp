@@ -1,0 +1,159 @@
+#include "stream_publisher.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/transport/wire.hpp"
+
+namespace palpate::daemon {
+
+StreamPublisher::StreamPublisher(Sources sources, const DaemonConfig& config,
+                                 dds_entity_t participant, dds_entity_t surface_topic,
+                                 dds_entity_t status_topic)
+    : sources_(sources),
+      config_(config),
+      first_us_(LatencyLog::kCapacity),
+      second_us_(LatencyLog::kCapacity) {
+  surface_writer_ = dds::Entity(dds::check(
+      dds_create_writer(participant, surface_topic, dds::surface_qos().get(), nullptr),
+      "creating the surface writer"));
+  status_writer_ = dds::Entity(dds::check(
+      dds_create_writer(participant, status_topic, dds::status_qos().get(), nullptr),
+      "creating the status writer"));
+  streams_.resize(sources.models.size());
+  for (std::size_t i = 0; i < streams_.size(); ++i) {
+    const ServedModel& served = *sources.models[i];
+    ModelStream& s = streams_[i];
+    s.shown = served.shown.make_snapshot();
+    s.vertex_ids.resize(s.shown.indices.size());
+    s.displacement = Eigen::VectorXd::Zero(served.model.compliance_rows());
+  }
+}
+
+StreamPublisher::~StreamPublisher() {
+  request_stop();
+  join();
+}
+
+void StreamPublisher::start(std::function<void(const std::string&)> on_failure) {
+  thread_ = std::thread([this, on_failure = std::move(on_failure)] {
+    try {
+      loop();
+    } catch (const std::exception& e) {
+      spdlog::critical("event=stream_thread_failed error=\"{}\"", e.what());
+      on_failure(e.what());
+    }
+  });
+}
+
+void StreamPublisher::request_stop() {
+  {
+    const std::lock_guard lock(mutex_);
+    stopping_.store(true);
+  }
+  wake_.notify_all();
+}
+
+void StreamPublisher::join() {
+  if (thread_.joinable()) thread_.join();
+}
+
+void StreamPublisher::publish_surfaces() {
+  for (std::size_t i = 0; i < streams_.size(); ++i) {
+    ServedModel& served = *sources_.models[i];
+    ModelStream& s = streams_[i];
+    if (!served.shown.copy_if_newer(s.published_version, s.shown)) continue;
+    const auto count = static_cast<std::size_t>(s.shown.count);
+    // u_S = G_SC f_C, off the request path.
+    surface_displacement(served.model, {s.shown.indices.data(), count}, s.shown.forces.data(),
+                         s.displacement);
+    palpate_SurfaceDisplacement& sample = s.sample;
+    wire::copy_bounded(sample.model_id, served.model.id);
+    ++sample.sequence_number;
+    wire::copy_bounded(sample.source_client_id, wire::bounded(s.shown.source));
+    sample.source_request_id = s.shown.source_request;
+    std::copy_n(s.shown.total_force, 3, sample.total_force);
+    for (std::size_t c = 0; c < count; ++c)
+      s.vertex_ids[c] = served.model.surface.vertex_ids[static_cast<std::size_t>(s.shown.indices[c])];
+    wire::view(sample.displacement, std::span<const double>(s.displacement.data(),
+                                                            static_cast<std::size_t>(s.displacement.size())));
+    wire::view(sample.constrained_vertices, std::span<const std::uint32_t>(s.vertex_ids.data(), count));
+    wire::view(sample.constrained_forces, std::span<const double>(s.shown.forces.data(), 3 * count));
+    if (const dds_return_t rc = dds_write(surface_writer_.get(), &sample); rc < 0)
+      spdlog::error("event=dds_error what=\"writing the surface of {}\" error={}", served.model.id,
+                    dds_strretcode(rc));
+    else
+      surface_samples_.fetch_add(1, std::memory_order_relaxed);
+  }
+}
+
+void StreamPublisher::publish_status(double interval_s, std::uint64_t served_in_interval,
+                                     std::uint64_t surfaces_in_interval) {
+  palpate_DaemonStatus status{};
+  wire::copy_bounded(status.daemon_id, config_.daemon_id);
+  status.uptime_ns = sources_.clock.uptime_ns();
+  status.requests_served = sources_.requests.served();
+  status.error_replies = sources_.requests.errors();
+  status.request_rate_hz = static_cast<double>(served_in_interval) / interval_s;
+  status.surface_rate_hz = static_cast<double>(surfaces_in_interval) / interval_s;
+  {
+    const std::size_t n = sources_.requests.latencies().drain(first_us_, second_us_);
+    status.solve = percentiles(first_us_, n);
+    status.request_to_reply = percentiles(second_us_, n);
+  }
+  status.models = static_cast<std::uint32_t>(sources_.models.size());
+  status.clients = static_cast<std::uint32_t>(sources_.replies.count());
+  status.tool_poses = sources_.tools.poses();
+  status.tool_poses_refused = sources_.tools.refused();
+  {
+    const std::size_t n = sources_.tools.latencies().drain(first_us_, second_us_);
+    status.tool_compute = percentiles(first_us_, n);
+  }
+  if (const dds_return_t rc = dds_write(status_writer_.get(), &status); rc < 0)
+    spdlog::error("event=dds_error what=\"writing the status\" error={}", dds_strretcode(rc));
+}
+
+void StreamPublisher::loop() {
+  using namespace std::chrono;
+  const auto surface_period =
+      duration_cast<Clock::duration>(duration<double>(1.0 / config_.surface_rate_hz));
+  const auto status_period =
+      duration_cast<Clock::duration>(duration<double>(1.0 / config_.status_rate_hz));
+  // The tools' watchdog: a few milliseconds of resolution on its timeout.
+  const auto watchdog_period = duration_cast<Clock::duration>(milliseconds(5));
+  auto next_surface = Clock::now();
+  auto next_status = Clock::now() + status_period;
+  auto next_watchdog = Clock::now() + watchdog_period;
+  auto last_status = Clock::now();
+  std::uint64_t last_served = 0, last_surfaces = 0;
+  std::unique_lock lock(mutex_);
+  while (!stopping_.load()) {
+    wake_.wait_until(lock, std::min({next_surface, next_status, next_watchdog}),
+                     [&] { return stopping_.load(); });
+    if (stopping_.load()) break;
+    auto now = Clock::now();
+    if (now >= next_watchdog) {
+      sources_.tools.run_watchdogs();
+      next_watchdog = std::max(next_watchdog + watchdog_period, now);
+      now = Clock::now();
+    }
+    if (now >= next_surface) {
+      publish_surfaces();
+      next_surface = std::max(next_surface + surface_period, now);
+    }
+    if (now >= next_status) {
+      const std::uint64_t s = sources_.requests.served(), f = surface_samples_.load();
+      publish_status(duration<double>(now - last_status).count(), s - last_served,
+                     f - last_surfaces);
+      last_served = s;
+      last_surfaces = f;
+      last_status = now;
+      next_status = std::max(next_status + status_period, now);
+    }
+  }
+}
+
+}  // namespace palpate::daemon

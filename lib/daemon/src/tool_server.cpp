@@ -1,0 +1,220 @@
+#include "tool_server.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+
+#include "palpate/core/error.hpp"
+#include "palpate/transport/wire.hpp"
+
+namespace palpate::daemon {
+
+namespace {
+/// Reasons of the pose path's rate-limited warnings (WarningLimiter).
+enum PoseWarning { kUnknownModel, kUnknownTool, kBadPose, kSolveFailed };
+}  // namespace
+
+ToolServer::ToolServer(const std::vector<std::unique_ptr<ServedModel>>& models,
+                       std::string served_ids, const DaemonClock& clock)
+    : models_(models), served_ids_(std::move(served_ids)), clock_(clock) {
+  for (int i = 0; i < kBatch; ++i) sample_pointers_[i] = &samples_[i];
+}
+
+ToolServer::~ToolServer() { stop(); }
+
+void ToolServer::listen(dds_entity_t participant, dds_entity_t pose_topic,
+                        dds_entity_t feedback_topic, dds_entity_t event_topic) {
+  feedback_writer_ = dds::Entity(dds::check(
+      dds_create_writer(participant, feedback_topic, dds::tool_stream_qos().get(), nullptr),
+      "creating the tool feedback writer"));
+  event_writer_ = dds::Entity(dds::check(
+      dds_create_writer(participant, event_topic, dds::tool_event_qos().get(), nullptr),
+      "creating the tool event writer"));
+  listening_.store(true, std::memory_order_release);
+  dds_listener_t* listener = dds_create_listener(this);
+  dds_lset_data_available(listener, &ToolServer::on_poses);
+  const dds_entity_t reader =
+      dds_create_reader(participant, pose_topic, dds::tool_stream_qos().get(), listener);
+  dds_delete_listener(listener);
+  reader_ = dds::Entity(dds::check(reader, "creating the tool pose reader"));
+}
+
+void ToolServer::stop() { reader_.reset(); }
+
+// Takes from the reader Cyclone names (RequestServer::on_requests says why).
+void ToolServer::on_poses(dds_entity_t reader, void* arg) {
+  try {
+    ToolServer& server = *static_cast<ToolServer*>(arg);
+    (void)server.listening_.load(std::memory_order_acquire);
+    server.serve(reader);
+  } catch (const std::exception& e) {
+    spdlog::error("event=poses_failed error=\"{}\"", e.what());
+  }
+}
+
+void ToolServer::serve(dds_entity_t reader) {
+  for (;;) {
+    const dds_return_t n = dds_take(reader, sample_pointers_, infos_, kBatch, kBatch);
+    if (n < 0) throw SystemError(std::string("taking tool poses: ") + dds_strretcode(n));
+    for (dds_return_t i = 0; i < n; ++i)
+      if (infos_[i].valid_data) take(samples_[i]);
+    if (n < kBatch) return;
+  }
+}
+
+void ToolServer::take(const palpate_ToolPose& pose) {
+  const auto start = Clock::now();
+  const std::string_view tool_id = wire::bounded(pose.tool_id);
+  const std::string_view model_id = wire::bounded(pose.model_id);
+  ServedModel* served = nullptr;
+  for (const auto& candidate : models_)
+    if (candidate->model.id == model_id) served = candidate.get();
+  if (served == nullptr) {
+    refused_.fetch_add(1, std::memory_order_relaxed);
+    warnings_.warn(kUnknownModel,
+                   "event=pose_ignored tool=\"{}\" model=\"{}\" reason=unknown_model "
+                   "served=\"{}\"",
+                   tool_id, model_id, served_ids_);
+    return;
+  }
+  ToolContactEngine& engine = *served->tools.engine;
+  const int tool = engine.tool_index(tool_id);
+  if (tool < 0) {
+    refused_.fetch_add(1, std::memory_order_relaxed);
+    warnings_.warn(kUnknownTool,
+                   "event=pose_ignored tool=\"{}\" model={} reason=unknown_tool "
+                   "hint=\"tools are configured in [[tools]]\"",
+                   tool_id, model_id);
+    return;
+  }
+  ToolPoseInput input = wire::from_idl(pose);
+  const std::lock_guard lock(served->tools.mutex);
+  if (const PoseProblem problem = engine.check(tool, input); problem != PoseProblem::kNone) {
+    refused_.fetch_add(1, std::memory_order_relaxed);
+    warnings_.warn(kBadPose + static_cast<int>(problem) * 4,
+                   "event=pose_ignored tool={} model={} sequence={} reason={} "
+                   "position=[{:g},{:g},{:g}] jaw_angle={:g}",
+                   tool_id, model_id, pose.pose_sequence, pose_problem_name(problem),
+                   pose.position[0], pose.position[1], pose.position[2], pose.jaw_angle);
+    return;
+  }
+  const RequestStatus status = engine.update(tool, input, clock_.seconds());
+  if (status != RequestStatus::kOk)
+    warnings_.warn(kSolveFailed,
+                   "event=tool_solve_failed tool={} model={} status={} message=\"{}\"", tool_id,
+                   model_id, status_name(status), engine.solver_message());
+  poses_.fetch_add(1, std::memory_order_relaxed);
+  publish(*served, tool,
+          static_cast<std::uint64_t>(
+              std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count()));
+}
+
+void ToolServer::publish(ServedModel& served, int tool, std::uint64_t compute_ns) {
+  const ToolContactEngine& engine = *served.tools.engine;
+  const ToolOutput& out = engine.output(tool);
+  const std::string& tool_id = engine.tool(tool).id;
+  palpate_ToolFeedback feedback{};
+  wire::to_idl(out, tool_id, served.model.id, compute_ns, feedback);
+  if (const dds_return_t rc = dds_write(feedback_writer_.get(), &feedback); rc < 0)
+    spdlog::error("event=dds_error what=\"writing tool feedback\" tool={} error={}", tool_id,
+                  dds_strretcode(rc));
+  const double compute_us = static_cast<double>(compute_ns) * 1e-3;
+  latencies_.record(compute_us, compute_us);
+
+  for (int e = 0; e < out.event_count; ++e) {
+    const ToolEventKind kind = out.events[static_cast<std::size_t>(e)];
+    palpate_ToolEvent event{};
+    wire::to_idl(kind, out, tool_id, served.model.id,
+                 std::chrono::duration_cast<std::chrono::nanoseconds>(
+                     std::chrono::system_clock::now().time_since_epoch())
+                     .count(),
+                 event);
+    if (const dds_return_t rc = dds_write(event_writer_.get(), &event); rc < 0)
+      spdlog::error("event=dds_error what=\"writing a tool event\" tool={} error={}", tool_id,
+                    dds_strretcode(rc));
+    spdlog::info("event=tool_{} tool={} model={} sequence={} held={}", tool_event_name(kind),
+                 tool_id, served.model.id, out.sequence, out.held);
+  }
+
+  // The tools' contacts become the model's shown state.
+  const auto forces = engine.contact_forces();
+  double total[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < forces.size(); ++i) total[i % 3] += forces[i];
+  served.shown.show(engine.contact_indices(), forces, "tool:", tool_id, out.sequence, total);
+
+  if (served.tools.recorder) record(served, tool, compute_ns);
+}
+
+void ToolServer::record(ServedModel& served, int tool, std::uint64_t compute_ns) {
+  const ToolContactEngine& engine = *served.tools.engine;
+  const ToolOutput& out = engine.output(tool);
+  const ToolPoseInput& pose = engine.pose(tool);
+  const double now_s = clock_.seconds();
+  ToolTickRecord tick;
+  tick.time_s = now_s;
+  tick.tool = tool;
+  tick.sequence = out.sequence;
+  tick.send_time_ns = out.send_time_ns;
+  for (int d = 0; d < 3; ++d) {
+    tick.position_m[d] = pose.position_m[d];
+    tick.force_n[d] = out.force_n[d];
+    tick.torque_nm[d] = out.torque_nm[d];
+  }
+  tick.orientation_wxyz[0] = pose.orientation.w();
+  tick.orientation_wxyz[1] = pose.orientation.x();
+  tick.orientation_wxyz[2] = pose.orientation.y();
+  tick.orientation_wxyz[3] = pose.orientation.z();
+  tick.jaw_angle_rad = pose.jaw_angle_rad;
+  tick.grip_n = out.grip_n;
+  tick.state = out.state;
+  tick.watchdog = out.watchdog;
+  tick.force_limited = out.force_limited;
+  tick.held = static_cast<std::uint32_t>(out.held);
+  tick.compute_ns = compute_ns;
+  // This tool's contacts, by mesh vertex id.
+  const auto indices = engine.contact_indices();
+  const auto forces = engine.contact_forces();
+  const auto tools_of = engine.contact_tools();
+  auto& vertices = served.tools.record_vertices;
+  auto& vertex_forces = served.tools.record_forces;
+  std::size_t m = 0;
+  for (std::size_t c = 0; c < indices.size() && m < vertices.size(); ++c) {
+    if (tools_of[c] != tool) continue;
+    vertices[m] = served.model.surface.vertex_ids[static_cast<std::size_t>(indices[c])];
+    std::copy_n(&forces[3 * c], 3, &vertex_forces[3 * m]);
+    ++m;
+  }
+  SessionRecorder& recorder = *served.tools.recorder;
+  recorder.record(tick, {vertices.data(), m}, {vertex_forces.data(), 3 * m});
+  for (int e = 0; e < out.event_count; ++e)
+    recorder.record_event(now_s, tool, out.events[static_cast<std::size_t>(e)], out.sequence);
+}
+
+void ToolServer::run_watchdogs() {
+  for (const auto& served : models_) {
+    const std::lock_guard lock(served->tools.mutex);
+    ToolContactEngine& engine = *served->tools.engine;
+    const std::uint64_t changed = engine.watchdog(clock_.seconds());
+    for (int t = 0; t < engine.tool_count(); ++t)
+      if (changed >> t & 1) publish(*served, t, 0);
+  }
+}
+
+void ToolServer::close_recorders() {
+  for (const auto& served : models_) {
+    const std::lock_guard lock(served->tools.mutex);
+    auto& recorder = served->tools.recorder;
+    if (!recorder) continue;
+    try {
+      recorder->close();
+      spdlog::info("event=recording_closed model={} file={} ticks={} dropped={}", served->model.id,
+                   recorder->path().string(), recorder->recorded(), recorder->dropped());
+    } catch (const std::exception& e) {
+      spdlog::error("event=recording_failed model={} error=\"{}\"", served->model.id, e.what());
+    }
+    recorder.reset();
+  }
+}
+
+}  // namespace palpate::daemon

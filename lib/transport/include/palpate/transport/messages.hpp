@@ -1,0 +1,115 @@
+#pragma once
+/// @file
+/// What palpated and its clients say to each other, as C++ values: the
+/// domain side of every message on palpate's topics (docs/dds.md). wire.hpp
+/// converts them from and to the IDL types; Client and ToolClient hand them
+/// to applications.
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/drawn_surface.hpp"
+#include "palpate/runtime/tool_contact.hpp"
+
+namespace palpate {
+
+/// A model as ModelDescription gives it.
+struct ModelInfo {
+  std::string model_id, units, material_summary, input_hash;
+  DrawnSurface surface;  ///< vertex_ids, rest_positions, triangles, compliance_vertex_count
+};
+
+/// One constraint of a request (see ConstraintKind).
+struct ConstraintSpec {
+  std::uint32_t vertex = 0;  ///< mesh vertex id
+  ConstraintKind kind = ConstraintKind::kForce;
+  std::array<double, 3> value{};   ///< N or m
+  std::array<double, 3> normal{};  ///< kNormalDisplacement only
+
+  static ConstraintSpec force(std::uint32_t vertex, std::array<double, 3> force_n) {
+    return {vertex, ConstraintKind::kForce, force_n, {}};
+  }
+  static ConstraintSpec displacement(std::uint32_t vertex, std::array<double, 3> displacement_m) {
+    return {vertex, ConstraintKind::kDisplacement, displacement_m, {}};
+  }
+  static ConstraintSpec normal_displacement(std::uint32_t vertex, std::array<double, 3> normal,
+                                            double depth_m) {
+    return {vertex, ConstraintKind::kNormalDisplacement, {depth_m, 0, 0}, normal};
+  }
+};
+
+struct VertexResult {
+  std::uint32_t vertex = 0;
+  std::array<double, 3> force_n{};
+  std::array<double, 3> displacement_m{};
+};
+
+struct Reply {
+  std::uint64_t request_id = 0;
+  std::string model_id;
+  RequestStatus status = RequestStatus::kInternalError;
+  std::string message;
+  double condition_estimate = 0;
+  std::array<double, 3> total_force_n{};
+  std::uint64_t solve_ns = 0;
+  std::vector<VertexResult> results;
+  std::vector<double> surface_displacement_m;  ///< 3 per compliance vertex when asked
+};
+
+struct SurfaceSample {
+  std::string model_id;
+  std::uint64_t sequence_number = 0;
+  std::string source_client_id;
+  std::uint64_t source_request_id = 0;
+  std::array<double, 3> total_force_n{};
+  std::vector<double> displacement_m;  ///< 3 per compliance vertex
+  std::vector<std::uint32_t> constrained_vertices;  ///< mesh vertex ids; empty at rest
+  std::vector<double> constrained_forces_n;         ///< 3 per constrained vertex
+};
+
+struct LatencySummary {
+  double p50_us = 0, p99_us = 0, p999_us = 0, max_us = 0;
+};
+
+struct StatusSample {
+  std::string daemon_id;
+  std::uint64_t uptime_ns = 0, requests_served = 0, error_replies = 0;
+  double request_rate_hz = 0, surface_rate_hz = 0;
+  LatencySummary solve, request_to_reply;
+  std::uint32_t models = 0, clients = 0;
+  std::uint64_t tool_poses = 0, tool_poses_refused = 0;  ///< since start
+  LatencySummary tool_compute;                           ///< pose taken to feedback written
+};
+
+/// One ToolFeedback sample as this client took it.
+struct ToolFeedbackSample {
+  std::uint64_t sequence = 0;         ///< of the pose it answers
+  std::int64_t send_time_ns = 0;      ///< that pose's send_pose() time, steady clock
+  std::int64_t receive_time_ns = 0;   ///< when this client took it from DDS, steady clock
+  std::array<double, 3> force_n{};    ///< the organ on the tool, model frame (render this)
+  std::array<double, 3> torque_nm{};  ///< about the hinge, model frame
+  double grip_n = 0;                  ///< squeeze per jaw (0 unless grasping)
+  std::uint32_t contacts = 0;         ///< vertices the tool constrains
+  ToolState state = ToolState::kFree;
+  bool force_limited = false;    ///< clamped or rate limited this tick
+  bool watchdog = false;         ///< poses stopped: the force ramps to zero
+  std::uint64_t compute_ns = 0;  ///< palpated's time from taking the pose to writing this
+
+  /// Round trip on this client's clock, ns.
+  std::int64_t round_trip_ns() const { return receive_time_ns - send_time_ns; }
+};
+
+/// One ToolEvent sample.
+struct ToolEventSample {
+  std::string tool_id, model_id;
+  ToolEventKind kind = ToolEventKind::kTouch;
+  std::uint64_t pose_sequence = 0;   ///< the pose that caused it (the last one for the watchdog)
+  std::uint32_t held_vertices = 0;   ///< vertices held by the jaws (grasp)
+  std::int64_t daemon_time_ns = 0;   ///< palpated's UTC clock
+  std::int64_t receive_time_ns = 0;  ///< when this client took it, steady clock
+};
+
+}  // namespace palpate

@@ -1,0 +1,247 @@
+#include "palpate/transport/wire.hpp"
+
+#include <algorithm>
+
+namespace palpate::wire {
+
+// The wire enums and the library's agree number for number.
+static_assert(static_cast<int>(RequestStatus::kOk) == palpate_STATUS_OK);
+static_assert(static_cast<int>(RequestStatus::kUnknownModel) == palpate_STATUS_UNKNOWN_MODEL);
+static_assert(static_cast<int>(RequestStatus::kIllConditioned) == palpate_STATUS_ILL_CONDITIONED);
+static_assert(static_cast<int>(RequestStatus::kInternalError) == palpate_STATUS_INTERNAL_ERROR);
+static_assert(static_cast<int>(ConstraintKind::kForce) == palpate_CONSTRAINT_FORCE);
+static_assert(static_cast<int>(ConstraintKind::kNormalDisplacement) ==
+              palpate_CONSTRAINT_NORMAL_DISPLACEMENT);
+static_assert(static_cast<int>(ToolState::kFree) == palpate_TOOL_FREE);
+static_assert(static_cast<int>(ToolState::kGrasping) == palpate_TOOL_GRASPING);
+static_assert(static_cast<int>(ToolEventKind::kTouch) == palpate_TOOL_EVENT_TOUCH);
+static_assert(static_cast<int>(ToolEventKind::kResumed) == palpate_TOOL_EVENT_RESUMED);
+
+namespace {
+
+template <typename T, std::size_t N>
+std::array<T, N> to_array(const T (&values)[N]) {
+  std::array<T, N> a;
+  std::copy_n(values, N, a.begin());
+  return a;
+}
+
+template <typename Sequence>
+auto to_vector(const Sequence& sequence) {
+  return std::vector(sequence._buffer, sequence._buffer + sequence._length);
+}
+
+}  // namespace
+
+palpate_ModelDescription describe(const SurfaceModel& model) {
+  palpate_ModelDescription d{};
+  copy_bounded(d.model_id, model.id);
+  copy_bounded(d.units, "m, N (SI)");
+  copy_bounded(d.material_summary, model.material_summary);
+  copy_bounded(d.input_hash, model.input_hash);
+  d.compliance_vertex_count = static_cast<std::uint32_t>(model.compliance_vertex_count());
+  view(d.vertex_ids, std::span(model.surface.vertex_ids));
+  view(d.rest_positions, std::span(model.surface.rest_positions_m));
+  view(d.triangles, std::span(model.surface.triangles));
+  return d;
+}
+
+ModelInfo from_idl(const palpate_ModelDescription& d) {
+  ModelInfo info;
+  info.model_id = bounded(d.model_id);
+  info.units = bounded(d.units);
+  info.material_summary = bounded(d.material_summary);
+  info.input_hash = bounded(d.input_hash);
+  info.surface.compliance_vertex_count = static_cast<int>(d.compliance_vertex_count);
+  info.surface.vertex_ids = to_vector(d.vertex_ids);
+  info.surface.rest_positions_m = to_vector(d.rest_positions);
+  info.surface.triangles = to_vector(d.triangles);
+  return info;
+}
+
+void to_idl(std::string_view client_id, std::string_view model_id, std::uint64_t request_id,
+            std::span<const ConstraintSpec> constraints, bool want_surface, bool update_state,
+            std::vector<palpate_Constraint>& storage, palpate_ConstraintRequest& out) {
+  storage.resize(constraints.size());
+  for (std::size_t j = 0; j < constraints.size(); ++j) {
+    const ConstraintSpec& s = constraints[j];
+    palpate_Constraint& c = storage[j];
+    c.vertex = s.vertex;
+    c.kind = static_cast<palpate_ConstraintKind>(s.kind);
+    std::copy(s.value.begin(), s.value.end(), c.value);
+    std::copy(s.normal.begin(), s.normal.end(), c.normal);
+  }
+  std::memset(out.client_id, 0, sizeof out.client_id);
+  std::memset(out.model_id, 0, sizeof out.model_id);
+  copy_bounded(out.client_id, client_id);
+  copy_bounded(out.model_id, model_id);
+  out.request_id = request_id;
+  out.want_surface = want_surface;
+  out.update_state = update_state;
+  view(out.constraints, std::span(storage));
+}
+
+RequestStatus load_constraints(const palpate_ConstraintRequest& request, ConstraintSolver& solver) {
+  const std::uint32_t k = request.constraints._length;
+  RequestStatus status = solver.begin(k);
+  for (std::uint32_t j = 0; j < k && status == RequestStatus::kOk; ++j) {
+    const palpate_Constraint& c = request.constraints._buffer[j];
+    status = solver.add(c.vertex, static_cast<std::int32_t>(c.kind), c.value, c.normal);
+  }
+  return status;
+}
+
+void write_results(const palpate_ConstraintRequest& request, const ConstraintSolver& solver,
+                   palpate_ConstraintReply& reply) {
+  const auto forces = solver.forces();
+  const auto displacements = solver.displacements();
+  const auto k = static_cast<std::uint32_t>(solver.size());
+  reply.results._length = k;
+  for (std::uint32_t j = 0; j < k; ++j) {
+    palpate_ConstraintResult& result = reply.results._buffer[j];
+    result.vertex = request.constraints._buffer[j].vertex;
+    for (std::uint32_t d = 0; d < 3; ++d) {
+      result.force[d] = forces(3 * j + d);
+      result.displacement[d] = displacements(3 * j + d);
+    }
+  }
+  const Eigen::Vector3d total = solver.total_force();
+  for (int d = 0; d < 3; ++d) reply.total_force[d] = total[d];
+}
+
+Reply from_idl(const palpate_ConstraintReply& r) {
+  Reply out;
+  out.request_id = r.request_id;
+  out.model_id = bounded(r.model_id);
+  out.status = static_cast<RequestStatus>(r.status);
+  out.message = bounded(r.message);
+  out.condition_estimate = r.condition_estimate;
+  out.total_force_n = to_array(r.total_force);
+  out.solve_ns = r.solve_ns;
+  out.results.resize(r.results._length);
+  for (std::uint32_t j = 0; j < r.results._length; ++j) {
+    const palpate_ConstraintResult& in = r.results._buffer[j];
+    out.results[j] = {in.vertex, to_array(in.force), to_array(in.displacement)};
+  }
+  out.surface_displacement_m = to_vector(r.surface_displacement);
+  return out;
+}
+
+SurfaceSample from_idl(const palpate_SurfaceDisplacement& s) {
+  SurfaceSample out;
+  out.model_id = bounded(s.model_id);
+  out.sequence_number = s.sequence_number;
+  out.source_client_id = bounded(s.source_client_id);
+  out.source_request_id = s.source_request_id;
+  out.total_force_n = to_array(s.total_force);
+  out.displacement_m = to_vector(s.displacement);
+  out.constrained_vertices = to_vector(s.constrained_vertices);
+  out.constrained_forces_n = to_vector(s.constrained_forces);
+  return out;
+}
+
+LatencySummary from_idl(const palpate_Latency& l) {
+  return {l.p50_us, l.p99_us, l.p999_us, l.max_us};
+}
+
+palpate_Latency to_idl(const LatencySummary& l) { return {l.p50_us, l.p99_us, l.p999_us, l.max_us}; }
+
+StatusSample from_idl(const palpate_DaemonStatus& s) {
+  StatusSample out;
+  out.daemon_id = bounded(s.daemon_id);
+  out.uptime_ns = s.uptime_ns;
+  out.requests_served = s.requests_served;
+  out.error_replies = s.error_replies;
+  out.request_rate_hz = s.request_rate_hz;
+  out.surface_rate_hz = s.surface_rate_hz;
+  out.solve = from_idl(s.solve);
+  out.request_to_reply = from_idl(s.request_to_reply);
+  out.models = s.models;
+  out.clients = s.clients;
+  out.tool_poses = s.tool_poses;
+  out.tool_poses_refused = s.tool_poses_refused;
+  out.tool_compute = from_idl(s.tool_compute);
+  return out;
+}
+
+void to_idl(std::string_view tool_id, std::string_view model_id, std::uint64_t sequence,
+            const std::array<double, 3>& position_m, const std::array<double, 4>& orientation_wxyz,
+            double jaw_angle_rad, palpate_ToolPose& out) {
+  std::memset(out.tool_id, 0, sizeof out.tool_id);
+  std::memset(out.model_id, 0, sizeof out.model_id);
+  copy_bounded(out.tool_id, tool_id);
+  copy_bounded(out.model_id, model_id);
+  out.pose_sequence = sequence;
+  std::copy(position_m.begin(), position_m.end(), out.position);
+  std::copy(orientation_wxyz.begin(), orientation_wxyz.end(), out.orientation);
+  out.jaw_angle = jaw_angle_rad;
+}
+
+ToolPoseInput from_idl(const palpate_ToolPose& pose) {
+  ToolPoseInput input;
+  input.sequence = pose.pose_sequence;
+  input.send_time_ns = pose.send_time_ns;
+  input.position_m = Eigen::Vector3d(pose.position[0], pose.position[1], pose.position[2]);
+  input.orientation = Eigen::Quaterniond(pose.orientation[0], pose.orientation[1],
+                                         pose.orientation[2], pose.orientation[3]);
+  input.jaw_angle_rad = pose.jaw_angle;
+  return input;
+}
+
+void to_idl(const ToolOutput& out, std::string_view tool_id, std::string_view model_id,
+            std::uint64_t compute_ns, palpate_ToolFeedback& feedback) {
+  copy_bounded(feedback.tool_id, tool_id);
+  copy_bounded(feedback.model_id, model_id);
+  feedback.pose_sequence = out.sequence;
+  feedback.send_time_ns = out.send_time_ns;
+  for (int d = 0; d < 3; ++d) {
+    feedback.force[d] = out.force_n[d];
+    feedback.torque[d] = out.torque_nm[d];
+  }
+  feedback.grip_force = out.grip_n;
+  feedback.contacts = static_cast<std::uint32_t>(out.contacts);
+  feedback.state = static_cast<palpate_ToolState>(out.state);
+  feedback.force_limited = out.force_limited;
+  feedback.watchdog = out.watchdog;
+  feedback.compute_ns = compute_ns;
+}
+
+ToolFeedbackSample from_idl(const palpate_ToolFeedback& f, std::int64_t receive_time_ns) {
+  ToolFeedbackSample s;
+  s.sequence = f.pose_sequence;
+  s.send_time_ns = f.send_time_ns;
+  s.receive_time_ns = receive_time_ns;
+  s.force_n = to_array(f.force);
+  s.torque_nm = to_array(f.torque);
+  s.grip_n = f.grip_force;
+  s.contacts = f.contacts;
+  s.state = static_cast<ToolState>(f.state);
+  s.force_limited = f.force_limited;
+  s.watchdog = f.watchdog;
+  s.compute_ns = f.compute_ns;
+  return s;
+}
+
+void to_idl(ToolEventKind kind, const ToolOutput& output, std::string_view tool_id,
+            std::string_view model_id, std::int64_t daemon_time_ns, palpate_ToolEvent& out) {
+  copy_bounded(out.tool_id, tool_id);
+  copy_bounded(out.model_id, model_id);
+  out.kind = static_cast<palpate_ToolEventKind>(kind);
+  out.pose_sequence = output.sequence;
+  out.held_vertices = static_cast<std::uint32_t>(output.held);
+  out.daemon_time_ns = daemon_time_ns;
+}
+
+ToolEventSample from_idl(const palpate_ToolEvent& e, std::int64_t receive_time_ns) {
+  ToolEventSample s;
+  s.tool_id = bounded(e.tool_id);
+  s.model_id = bounded(e.model_id);
+  s.kind = static_cast<ToolEventKind>(e.kind);
+  s.pose_sequence = e.pose_sequence;
+  s.held_vertices = e.held_vertices;
+  s.daemon_time_ns = e.daemon_time_ns;
+  s.receive_time_ns = receive_time_ns;
+  return s;
+}
+
+}  // namespace palpate::wire
