@@ -10,8 +10,8 @@
 #   bench/batch_precompute.sh BUILD_DIR OUT_DIR [SHARD_COUNTS] [palpate-precompute job options…]
 #
 # SHARD_COUNTS defaults to "1 2 4"; the job defaults to the h8 OpenHELP liver
-# (../shared/data/liver, posterior-superior box attachment, E = 85 kPa,
-# ν = 0.45). Examples:
+# (../shared/data/liver, docs/data.md; posterior-superior box attachment,
+# E = 85 kPa, ν = 0.45). Examples:
 #   bench/batch_precompute.sh build out/bench/batch                       # h8 liver
 #   bench/batch_precompute.sh build out/bench/batch "1 2 4" --mesh ../shared/data/liver/openhelp-liver.stl \
 #       --mesh-unit mm --fill-size 6.8 -E 85e3 --nu 0.45 --fix-box -200 100 190 100 250 250   # ~100k tets
@@ -31,7 +31,7 @@ precompute=$build/precompute/palpate-precompute
 [ -x "$precompute" ] || { echo "$0: $precompute not built" >&2; exit 2; }
 if [ $# -eq 0 ]; then
   data=$here/../shared/data/liver
-  [ -f "$data/openhelp-liver-h8.msh" ] || { echo "$0: $data/openhelp-liver-h8.msh is absent (see ../shared/data/README.md); give a job" >&2; exit 2; }
+  [ -f "$data/openhelp-liver-h8.msh" ] || { echo "$0: $data/openhelp-liver-h8.msh is absent (see docs/data.md); give a job" >&2; exit 2; }
   set -- --mesh "$data/openhelp-liver-h8.msh" --mesh-unit mm -E 85e3 --nu 0.45 --fix-box -200 100 190 100 250 250
 fi
 mkdir -p "$out"

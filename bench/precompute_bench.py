@@ -3,7 +3,7 @@
 the machine's dgemm rate measured in the same run as the baseline.
 
 Usage: bench/precompute_bench.py BUILD_DIR [--large]   (from the checkout)
-Needs ../shared/data/liver (see ../shared/data/README.md); says so if absent.
+Needs ../shared/data/liver (see docs/data.md); says so if absent.
 Prints a Markdown table for BENCHMARKS.md and writes out/bench/*.json.
 """
 import json
@@ -53,7 +53,7 @@ def main():
     build = sys.argv[1]
     large = "--large" in sys.argv
     if not os.path.isdir(DATA):
-        raise SystemExit(f"precompute_bench: {DATA} is absent: the reference livers live in ../shared/data")
+        raise SystemExit(f"precompute_bench: {DATA} is absent: the reference livers live in ../shared/data (see docs/data.md)")
     rates, context = dgemm_rate(build)
     dgemm = max(v for k, v in rates.items() if k.startswith("BM_dgemm"))
     print(f"machine: {platform.node()}, {os.cpu_count()} cores, {context.get('mhz_per_cpu')} MHz; BLAS {context.get('blas')}")

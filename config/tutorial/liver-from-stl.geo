@@ -15,7 +15,8 @@
 
 DefineConstant[
   // A relative path is taken from this file's directory; give an absolute
-  // path with -setstring.
+  // path with -setstring. The default is the OpenHELP liver beside the
+  // checkout (docs/data.md).
   stl = {"../../../shared/data/liver/openhelp-liver.stl", Name "Parameters/STL file"},
   size = {8, Min 0.1, Name "Parameters/Largest element size (STL unit)"},
   // 180: no patch boundary at sharp edges (an organ has none worth keeping);
@@ -45,7 +46,7 @@ Physical Volume("liver", 1) = {1};
 Mesh.MeshSizeMax = size;
 Mesh.MeshSizeMin = size / 4;
 
-// MSH 2.2, like ../shared/data: palpate reads 2.2 and 4.1 alike (through the
-// Gmsh SDK), but a 4.1 file also stores the patches' parametrizations here
-// (several times the size of the mesh itself).
+// MSH 2.2, like the reference meshes (docs/data.md): palpate reads 2.2 and
+// 4.1 alike (through the Gmsh SDK), but a 4.1 file also stores the patches'
+// parametrizations here (several times the size of the mesh itself).
 Mesh.MshFileVersion = 2.2;
