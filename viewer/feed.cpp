@@ -18,6 +18,7 @@
 
 #include "palpate.h"
 #include "palpate/transport/dds.hpp"
+#include "palpate/transport/wire.hpp"
 #include "palpate/core/error.hpp"
 
 namespace palpate::viewer {
@@ -29,7 +30,6 @@ static_assert(std::endian::native == std::endian::little,
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
-std::string bounded(const char* text, std::size_t size) { return {text, strnlen(text, size)}; }
 
 /// Appends little-endian 32-bit words to a binary frame; every field starts
 /// on a 4-byte boundary so the page can view arrays in place.
@@ -58,28 +58,7 @@ constexpr std::uint32_t kGeometryFrame = 1;
 constexpr std::uint32_t kSurfaceFrame = 2;
 constexpr std::uint32_t kNoVertex = 0xffffffffu;
 
-const char* state_name(palpate_ToolState s) {
-  switch (s) {
-    case palpate_TOOL_FREE: return "free";
-    case palpate_TOOL_TOUCHING: return "touching";
-    case palpate_TOOL_GRASPING: return "grasping";
-  }
-  return "unknown";
-}
-
-const char* event_name(palpate_ToolEventKind k) {
-  switch (k) {
-    case palpate_TOOL_EVENT_TOUCH: return "touch";
-    case palpate_TOOL_EVENT_LEAVE: return "leave";
-    case palpate_TOOL_EVENT_GRASP: return "grasp";
-    case palpate_TOOL_EVENT_RELEASE: return "release";
-    case palpate_TOOL_EVENT_WATCHDOG: return "watchdog";
-    case palpate_TOOL_EVENT_RESUMED: return "resumed";
-  }
-  return "unknown";
-}
-
-json latency_json(const palpate_Latency& l) {
+json latency_json(const LatencySummary& l) {
   return {{"p50_us", l.p50_us}, {"p99_us", l.p99_us}, {"p999_us", l.p999_us}, {"max_us", l.max_us}};
 }
 
@@ -97,7 +76,7 @@ struct ToolView {
   double force[3] = {};
   double grip_force = 0;
   std::uint32_t contacts = 0;
-  palpate_ToolState state = palpate_TOOL_FREE;
+  ToolState state = ToolState::kFree;
   bool force_limited = false, watchdog = false;
   std::uint64_t poses = 0, feedbacks = 0;
   double compute_us = 0;
@@ -219,78 +198,81 @@ struct Feed::Impl {
     }
   }
 
-  void on_model(const palpate_ModelDescription& d) {
-    const std::string id = bounded(d.model_id, sizeof d.model_id);
-    const std::uint32_t nv = d.vertex_ids._length;
-    const std::uint32_t nt = d.triangles._length / 3;
-    if (d.rest_positions._length != 3 * nv || d.compliance_vertex_count > nv) {
+  void on_model(const palpate_ModelDescription& description) {
+    const ModelInfo m = wire::from_idl(description);
+    const DrawnSurface& surface = m.surface;
+    const auto nv = static_cast<std::uint32_t>(surface.vertex_count());
+    const auto nt = static_cast<std::uint32_t>(surface.triangle_count());
+    const auto compliance = static_cast<std::uint32_t>(surface.compliance_vertex_count);
+    if (surface.rest_positions_m.size() != 3 * std::size_t{nv} || compliance > nv) {
       // A daemon of another version: say so once per description, draw nothing.
-      sink({Message::Kind::kEvent, id,
+      sink({Message::Kind::kEvent, m.model_id,
             json{{"type", "warning"},
-                 {"message", "model " + id + ": inconsistent description (" +
-                                 std::to_string(d.rest_positions._length) + " coordinates for " +
-                                 std::to_string(nv) + " vertices); not drawn"}}
+                 {"message", "model " + m.model_id + ": inconsistent description (" +
+                                 std::to_string(surface.rest_positions_m.size()) +
+                                 " coordinates for " + std::to_string(nv) + " vertices); not drawn"}}
                 .dump(),
             {}});
       return;
     }
-    auto& index = drawn_index[id];
+    auto& index = drawn_index[m.model_id];
     index.clear();
-    for (std::uint32_t v = 0; v < nv; ++v) index.emplace(d.vertex_ids._buffer[v], v);
+    for (std::uint32_t v = 0; v < nv; ++v) index.emplace(surface.vertex_ids[v], v);
 
     json text = {{"type", "model"},
-                 {"model_id", id},
-                 {"units", bounded(d.units, sizeof d.units)},
-                 {"material", bounded(d.material_summary, sizeof d.material_summary)},
-                 {"input_hash", bounded(d.input_hash, sizeof d.input_hash)},
+                 {"model_id", m.model_id},
+                 {"units", m.units},
+                 {"material", m.material_summary},
+                 {"input_hash", m.input_hash},
                  {"vertex_count", nv},
-                 {"compliance_vertex_count", d.compliance_vertex_count},
+                 {"compliance_vertex_count", compliance},
                  {"triangle_count", nt}};
     FrameWriter frame(kGeometryFrame);
     frame.reserve(64 + 12 * static_cast<std::size_t>(nv) + 12 * static_cast<std::size_t>(nt));
-    frame.string(id);
+    frame.string(m.model_id);
     frame.u32(nv);
-    frame.u32(d.compliance_vertex_count);
+    frame.u32(compliance);
     frame.u32(nt);
-    for (std::uint32_t i = 0; i < 3 * nv; ++i) frame.f32(d.rest_positions._buffer[i]);
+    for (const double x : surface.rest_positions_m) frame.f32(x);
     for (std::uint32_t i = 0; i < 3 * nt; ++i) {
-      const std::uint32_t v = d.triangles._buffer[i];
+      const std::uint32_t v = surface.triangles[i];
       frame.u32(v < nv ? v : 0);
     }
-    sink({Message::Kind::kModel, id, text.dump(), frame.take()});
+    sink({Message::Kind::kModel, m.model_id, text.dump(), frame.take()});
   }
 
-  void on_surface(const palpate_SurfaceDisplacement& s) {
+  void on_surface(const palpate_SurfaceDisplacement& sample) {
     ++surfaces;
-    const std::string id = bounded(s.model_id, sizeof s.model_id);
-    const auto index = drawn_index.find(id);
-    const std::uint32_t ns = s.displacement._length / 3;
-    const std::uint32_t nc =
-        std::min(s.constrained_vertices._length, s.constrained_forces._length / 3);
+    const SurfaceSample s = wire::from_idl(sample);
+    const auto index = drawn_index.find(s.model_id);
+    const auto ns = static_cast<std::uint32_t>(s.displacement_m.size() / 3);
+    const auto nc = static_cast<std::uint32_t>(
+        std::min(s.constrained_vertices.size(), s.constrained_forces_n.size() / 3));
     FrameWriter frame(kSurfaceFrame);
     frame.reserve(96 + 12 * static_cast<std::size_t>(ns) + 16 * static_cast<std::size_t>(nc));
-    frame.string(id);
-    frame.string(bounded(s.source_client_id, sizeof s.source_client_id));
+    frame.string(s.model_id);
+    frame.string(s.source_client_id);
     frame.u32(static_cast<std::uint32_t>(s.sequence_number));
     frame.u32(static_cast<std::uint32_t>(s.sequence_number >> 32));
     frame.u32(ns);
     frame.u32(nc);
-    for (double f : s.total_force) frame.f32(f);
-    for (std::uint32_t i = 0; i < 3 * ns; ++i) frame.f32(s.displacement._buffer[i]);
+    for (const double f : s.total_force_n) frame.f32(f);
+    for (std::uint32_t i = 0; i < 3 * ns; ++i) frame.f32(s.displacement_m[i]);
     for (std::uint32_t c = 0; c < nc; ++c) {
       std::uint32_t drawn = kNoVertex;
       if (index != drawn_index.end())
-        if (const auto it = index->second.find(s.constrained_vertices._buffer[c]);
+        if (const auto it = index->second.find(s.constrained_vertices[c]);
             it != index->second.end())
           drawn = it->second;
       frame.u32(drawn);
     }
-    for (std::uint32_t i = 0; i < 3 * nc; ++i) frame.f32(s.constrained_forces._buffer[i]);
-    sink({Message::Kind::kSurface, id, {}, frame.take()});
+    for (std::uint32_t i = 0; i < 3 * nc; ++i) frame.f32(s.constrained_forces_n[i]);
+    sink({Message::Kind::kSurface, s.model_id, {}, frame.take()});
   }
 
-  void on_status(const palpate_DaemonStatus& s) {
-    daemon_status = {{"daemon_id", bounded(s.daemon_id, sizeof s.daemon_id)},
+  void on_status(const palpate_DaemonStatus& status) {
+    const StatusSample s = wire::from_idl(status);
+    daemon_status = {{"daemon_id", s.daemon_id},
                      {"uptime_s", static_cast<double>(s.uptime_ns) * 1e-9},
                      {"models", s.models},
                      {"clients", s.clients},
@@ -304,12 +286,11 @@ struct Feed::Impl {
   }
 
   /// The view of tool @p id, made on first sight; nullptr beyond kMaxTools.
-  ToolView* tool(const char* id, std::size_t size) {
-    std::string key = bounded(id, size);
-    auto it = tools.find(key);
+  ToolView* tool(std::string_view id) {
+    auto it = tools.find(std::string(id));
     if (it == tools.end()) {
       if (tools.size() >= kMaxTools) return nullptr;
-      it = tools.emplace(std::move(key), ToolView{}).first;
+      it = tools.emplace(std::string(id), ToolView{}).first;
     }
     it->second.last_heard = Clock::now();
     return &it->second;
@@ -323,42 +304,47 @@ struct Feed::Impl {
 
   void on_pose(const palpate_ToolPose& p) {
     ++poses;
-    ToolView* view = tool(p.tool_id, sizeof p.tool_id);
+    ToolView* view = tool(wire::bounded(p.tool_id));
     if (!view) return;
     ToolView& t = *view;
-    t.model_id = bounded(p.model_id, sizeof p.model_id);
-    std::copy_n(p.position, 3, t.position);
-    std::copy_n(p.orientation, 4, t.orientation);
-    t.jaw_angle = p.jaw_angle;
+    const ToolPoseInput pose = wire::from_idl(p);
+    t.model_id = wire::bounded(p.model_id);
+    for (int d = 0; d < 3; ++d) t.position[d] = pose.position_m[d];
+    t.orientation[0] = pose.orientation.w();
+    t.orientation[1] = pose.orientation.x();
+    t.orientation[2] = pose.orientation.y();
+    t.orientation[3] = pose.orientation.z();
+    t.jaw_angle = pose.jaw_angle_rad;
     ++t.poses;
     tools_changed = true;
   }
 
   void on_feedback(const palpate_ToolFeedback& f) {
     ++feedbacks;
-    ToolView* view = tool(f.tool_id, sizeof f.tool_id);
+    ToolView* view = tool(wire::bounded(f.tool_id));
     if (!view) return;
     ToolView& t = *view;
-    std::copy_n(f.force, 3, t.force);
-    t.grip_force = f.grip_force;
-    t.contacts = f.contacts;
-    t.state = f.state;
-    t.force_limited = f.force_limited;
-    t.watchdog = f.watchdog;
-    t.compute_us = static_cast<double>(f.compute_ns) * 1e-3;
+    const ToolFeedbackSample sample = wire::from_idl(f, 0);
+    std::copy_n(sample.force_n.begin(), 3, t.force);
+    t.grip_force = sample.grip_n;
+    t.contacts = sample.contacts;
+    t.state = sample.state;
+    t.force_limited = sample.force_limited;
+    t.watchdog = sample.watchdog;
+    t.compute_us = static_cast<double>(sample.compute_ns) * 1e-3;
     ++t.feedbacks;
     tools_changed = true;
   }
 
   void on_event(const palpate_ToolEvent& e) {
-    const std::string tool = bounded(e.tool_id, sizeof e.tool_id);
-    sink({Message::Kind::kEvent, tool,
+    const ToolEventSample event = wire::from_idl(e, 0);
+    sink({Message::Kind::kEvent, event.tool_id,
           json{{"type", "event"},
-               {"tool_id", tool},
-               {"model_id", bounded(e.model_id, sizeof e.model_id)},
-               {"kind", event_name(e.kind)},
-               {"held_vertices", e.held_vertices},
-               {"pose_sequence", e.pose_sequence}}
+               {"tool_id", event.tool_id},
+               {"model_id", event.model_id},
+               {"kind", tool_event_name(event.kind)},
+               {"held_vertices", event.held_vertices},
+               {"pose_sequence", event.pose_sequence}}
               .dump(),
           {}});
   }
@@ -383,7 +369,7 @@ struct Feed::Impl {
                       {"force", array_json(t.force)},
                       {"grip_force", t.grip_force},
                       {"contacts", t.contacts},
-                      {"state", state_name(t.state)},
+                      {"state", tool_state_name(t.state)},
                       {"force_limited", t.force_limited},
                       {"watchdog", t.watchdog},
                       {"compute_us", t.compute_us},
