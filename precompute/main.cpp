@@ -180,7 +180,7 @@ int run(int argc, char** argv) {
                   stale.path.string(), stale.pid);
     palpate::install_interrupt_cleanup();
     const auto report = palpate::merge_shards(job, hooks);
-    if (json_out) std::cout << report.dump(2) << std::endl;
+    if (json_out) std::cout << palpate::to_json(report, 2) << std::endl;
     if (!quiet) std::cerr << palpate::format_report(report);
     return 0;
   }
@@ -240,7 +240,7 @@ int run(int argc, char** argv) {
 
   palpate::install_interrupt_cleanup();
   const auto report = palpate::run_precompute(job, hooks);
-  if (json_out) std::cout << report.dump(2) << std::endl;
+  if (json_out) std::cout << palpate::to_json(report, 2) << std::endl;
   if (!quiet) std::cerr << palpate::format_report(report);
   return 0;
 }

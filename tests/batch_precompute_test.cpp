@@ -50,7 +50,7 @@ bool same_bits(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
 }
 
 // Runs shards `count` of @p job, then merges them into @p output.
-nlohmann::json shard_and_merge(PrecomputeJob job, int count, const std::filesystem::path& output,
+PrecomputeReport shard_and_merge(PrecomputeJob job, int count, const std::filesystem::path& output,
                                std::vector<std::filesystem::path>* parts = nullptr) {
   MergeJob merge;
   merge.output = output;
@@ -58,7 +58,7 @@ nlohmann::json shard_and_merge(PrecomputeJob job, int count, const std::filesyst
   for (int k = 0; k < count; ++k) {
     job.shard = {k, count};
     const auto report = run_precompute(job, {});
-    merge.shards.emplace_back(report["output"]["file"].get<std::string>());
+    merge.shards.emplace_back(report.output->file);
   }
   if (parts) *parts = merge.shards;
   return merge_shards(merge, {});
@@ -79,14 +79,15 @@ TEST(BatchPrecompute, ThreeShardsMergedEqualASingleRunBitForBit) {
   EXPECT_EQ(parts[0].filename(), "box.part-0-80.h5");
   EXPECT_EQ(parts[1].filename(), "box.part-80-160.h5");
   EXPECT_EQ(parts[2].filename(), "box.part-160-228.h5");
-  EXPECT_EQ(report["shards"].size(), 3u);
+  ASSERT_TRUE(report.shards);
+  EXPECT_EQ(report.shards->size(), 3u);
   const Read merged = read(dir / "merged.h5");
   EXPECT_TRUE(same_bits(merged.G, single.G));
   EXPECT_EQ(merged.model.content_sha256, single.model.content_sha256);
   EXPECT_EQ(merged.model.content_sha256.rfind("sha256:", 0), 0u);
   EXPECT_EQ(merged.model.input_hash, single.model.input_hash);
   EXPECT_EQ(merged.model.method, "solves");
-  EXPECT_LE(report["checks"]["symmetry_error"].get<double>(), 1e-10);
+  EXPECT_LE(report.checks->symmetry_error.value(), 1e-10);
 
   // The streaming single run (solves) gives the same bits too.
   PrecomputeJob solves = job;
@@ -120,7 +121,7 @@ TEST(BatchPrecompute, MergeRefusesMismatchedShardsClearly) {
     std::vector<std::filesystem::path> out;
     for (int k = 0; k < count; ++k) {
       j.shard = {k, count};
-      out.emplace_back(run_precompute(j, {})["output"]["file"].get<std::string>());
+      out.emplace_back(run_precompute(j, {}).output->file);
     }
     return out;
   };
@@ -209,7 +210,7 @@ TEST(BatchPrecompute, AnInterruptedRunResumesFromItsCheckpointAndGivesTheSameFil
   hooks.info = [&](const std::string& s) { lines.push_back(s); };
   hooks.warn = [&](const std::string& s) { lines.push_back("warning: " + s); };
   const auto report = run_precompute(job, hooks);
-  const int resumed = report["columns"]["resumed_blocks"].get<int>();
+  const long resumed = report.columns->resumed_blocks;
   // Half of 228 columns is 114: at least 8 blocks of 16 were flagged complete.
   EXPECT_GE(resumed, 8);
   EXPECT_LT(resumed, 15);
@@ -244,18 +245,18 @@ TEST(BatchPrecompute, AMemoryBoundSmallerThanGIsEnoughAndGivesTheSameFile) {
   job.block_columns = 8;
   job.write_xdmf = false;
   const auto in_ram = run_precompute(job, {});  // method both
-  const double g_bytes = in_ram["memory"]["G_bytes"].get<double>();
+  const double g_bytes = in_ram.memory->G_bytes.value();
 
   PrecomputeJob bounded = job;
   bounded.method = Method::kSolves;
   bounded.output = dir / "bounded.h5";
   bounded.memory_limit_bytes = 0.75 * g_bytes;
   const auto report = run_precompute(bounded, {});
-  EXPECT_LT(report["memory"]["estimate_bytes"].get<double>(), bounded.memory_limit_bytes);
-  EXPECT_LT(bounded.memory_limit_bytes, report["memory"]["G_bytes"].get<double>());
+  EXPECT_LT(report.memory->estimate_bytes.value(), bounded.memory_limit_bytes);
+  EXPECT_LT(bounded.memory_limit_bytes, report.memory->G_bytes.value());
   // The final file was written in bands of rows, not from a whole G.
-  const int m = report["dofs"]["surface"].get<int>();
-  EXPECT_LT(report["memory"]["merge_band_rows"].get<long>(), m);
+  const long m = report.dofs->surface;
+  EXPECT_LT(report.memory->merge_band_rows.value(), m);
   EXPECT_TRUE(same_bits(read(bounded.output).G, read(job.output).G));
   EXPECT_EQ(read(bounded.output).model.content_sha256, read(job.output).model.content_sha256);
 

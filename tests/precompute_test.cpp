@@ -29,8 +29,8 @@ TEST(Precompute, WritesAFileThatReadsBackWithTheContract) {
   TempDir dir;
   const PrecomputeJob job = box_job(dir);
   const auto report = run_precompute(job, {});
-  EXPECT_LE(report["checks"]["max_relative_difference"].get<double>(), 1e-8);
-  EXPECT_LE(report["checks"]["max_residual"].get<double>(), 1e-10);
+  EXPECT_LE(report.checks->max_relative_difference.value(), 1e-8);
+  EXPECT_LE(report.checks->max_residual, 1e-10);
   Eigen::MatrixXd G;
   const ComplianceModel model = read_compliance_file(job.output, &G);
   const Eigen::Index n = model.compliance_vertices.size();

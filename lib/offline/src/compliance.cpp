@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <numeric>
 #include <mutex>
@@ -285,37 +286,43 @@ double symmetry_error(CRef<Eigen::MatrixXd> G) {
   return scale > 0 ? worst / scale : worst;
 }
 
-namespace {
-
-// Eigenvalues, increasing, of the symmetric part of G's k-th 3 × 3 diagonal
-// block. Symmetrized: the eigenvalues of the symmetric part decide
-// definiteness, and G from `solves` is symmetric only to round-off.
-Eigen::Vector3d diagonal_block_eigenvalues(CRef<Eigen::MatrixXd> G, Eigen::Index k) {
-  const Eigen::Matrix3d B = G.block<3, 3>(3 * k, 3 * k);
-  const Eigen::Matrix3d S = 0.5 * (B + B.transpose());
-  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(S, Eigen::EigenvaluesOnly).eigenvalues();
+Eigen::Matrix3Xd diagonal_blocks(CRef<Eigen::MatrixXd> G) {
+  PALPATE_DEMAND(G.rows() == G.cols() && G.rows() % 3 == 0);
+  Eigen::Matrix3Xd blocks(3, G.cols());
+  for (Eigen::Index k = 0; 3 * k < G.rows(); ++k)
+    blocks.middleCols<3>(3 * k) = G.block<3, 3>(3 * k, 3 * k);
+  return blocks;
 }
 
-}  // namespace
-
-double min_diagonal_block_eigenvalue(CRef<Eigen::MatrixXd> G, int* vertex) {
-  double lowest = INFINITY;
-  for (Eigen::Index k = 0; 3 * k < G.rows(); ++k) {
-    const double e = diagonal_block_eigenvalues(G, k)[0];
-    if (e < lowest) {
-      lowest = e;
-      if (vertex) *vertex = static_cast<int>(k);
+DiagonalBlockSpectrum diagonal_block_spectrum(CRef<Eigen::Matrix3Xd> blocks) {
+  PALPATE_DEMAND(blocks.cols() % 3 == 0);
+  DiagonalBlockSpectrum spectrum;
+  const Eigen::Index n = blocks.cols() / 3;
+  spectrum.largest.resize(n);
+  spectrum.smallest = INFINITY;
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const Eigen::Matrix3d B = blocks.middleCols<3>(3 * k);
+    const Eigen::Matrix3d S = 0.5 * (B + B.transpose());
+    const Eigen::Vector3d e =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(S, Eigen::EigenvaluesOnly).eigenvalues();
+    spectrum.largest[k] = e[2];
+    // A NaN eigenvalue stays the smallest, so that the block is refused.
+    if (std::isnan(e[0]) || (!std::isnan(spectrum.smallest) && e[0] < spectrum.smallest)) {
+      spectrum.smallest = e[0];
+      spectrum.smallest_at = static_cast<int>(k);
     }
   }
-  return lowest;
+  return spectrum;
+}
+
+double min_diagonal_block_eigenvalue(CRef<Eigen::MatrixXd> G, int* vertex) {
+  const DiagonalBlockSpectrum spectrum = diagonal_block_spectrum(diagonal_blocks(G));
+  if (vertex) *vertex = spectrum.smallest_at;
+  return spectrum.smallest;
 }
 
 Eigen::VectorXd diagonal_block_largest_eigenvalues(CRef<Eigen::MatrixXd> G) {
-  PALPATE_DEMAND(G.rows() == G.cols() && G.rows() % 3 == 0);
-  Eigen::VectorXd largest(G.rows() / 3);
-  for (Eigen::Index k = 0; k < largest.size(); ++k)
-    largest[k] = diagonal_block_eigenvalues(G, k)[2];
-  return largest;
+  return diagonal_block_spectrum(diagonal_blocks(G)).largest;
 }
 
 }  // namespace palpate

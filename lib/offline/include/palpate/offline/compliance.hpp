@@ -118,21 +118,40 @@ double max_relative_difference(CRef<Eigen::MatrixXd> a, CRef<Eigen::MatrixXd> b)
 /// max|G − Gᵀ| / max|G|.
 double symmetry_error(CRef<Eigen::MatrixXd> G);
 
+/// The eigenvalues of the 3 × 3 diagonal blocks G^kk that decide whether a
+/// compliance is sound and how soft each vertex is. The blocks are
+/// symmetrized first: the eigenvalues of the symmetric part decide
+/// definiteness, and G from `solves` is symmetric only to round-off.
+struct DiagonalBlockSpectrum {
+  /// Softness of each compliance vertex: the largest eigenvalue λ_max (m/N)
+  /// of its block. For a force f on vertex k alone, the vertex moves by
+  /// u_k = G^kk f, and
+  ///
+  ///     max over ‖f‖ = 1 N of ‖u_k‖ = λ_max(G^kk)      (G^kk symmetric positive definite)
+  ///
+  /// so it is the largest displacement (m) one newton at that vertex can
+  /// produce there. n values, compliance order.
+  Eigen::VectorXd largest;
+  double smallest = 0;  ///< smallest eigenvalue over every block, m/N (> 0 for a sound G)
+  int smallest_at = 0;  ///< the compliance index where it occurs
+};
+
+/// The diagonal blocks of a 3n × 3n compliance side by side, 3 × 3n:
+/// columns 3k..3k+2 hold G^kk.
+Eigen::Matrix3Xd diagonal_blocks(CRef<Eigen::MatrixXd> G);
+
+/// The spectrum of the diagonal blocks @p blocks (3 × 3n, as
+/// diagonal_blocks() lays them; float64, before any storage rounding).
+/// n 3 × 3 symmetric eigenproblems: cheap next to G.
+DiagonalBlockSpectrum diagonal_block_spectrum(CRef<Eigen::Matrix3Xd> blocks);
+
 /// Smallest eigenvalue (m/N) of the 3 × 3 diagonal blocks G^kk, over all k;
-/// *vertex receives the compliance index where it occurs.
+/// *vertex receives the compliance index where it occurs
+/// (diagonal_block_spectrum()).
 double min_diagonal_block_eigenvalue(CRef<Eigen::MatrixXd> G, int* vertex = nullptr);
 
-/// Softness of each compliance vertex: the largest eigenvalue λ_max (m/N) of
-/// the symmetric part of its 3 × 3 diagonal block G^kk. For a force f on
-/// vertex k alone, the vertex moves by u_k = G^kk f, and
-///
-///     max over ‖f‖ = 1 N of ‖u_k‖ = λ_max(G^kk)      (G^kk symmetric positive definite)
-///
-/// so it is the largest displacement (m) one newton at that vertex can
-/// produce there. n 3 × 3 symmetric eigenproblems: cheap next to G.
-/// @param G 3n × 3n compliance, m/N, in compliance order (float64, before
-///   any storage rounding)
-/// @returns n values, m/N, in compliance order
+/// The softness of each compliance vertex (DiagonalBlockSpectrum::largest),
+/// m/N, compliance order.
 Eigen::VectorXd diagonal_block_largest_eigenvalues(CRef<Eigen::MatrixXd> G);
 
 }  // namespace palpate
