@@ -19,6 +19,7 @@ set -eu
 enter_private_netns "$0" "$@"
 
 BUILD=$1
+LOOPBACK_URI=$(loopback_uri "$BUILD")
 LARGE=$2
 BASELINE=$(realpath "${3:?usage: $0 BUILD_DIR LARGE.h5 BASELINE.h5 [SECONDS]}")
 SECONDS_MEASURED=${4:-10}

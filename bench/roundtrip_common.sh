@@ -2,9 +2,13 @@
 # round-trip benchmarks need to run DDS safely and to measure Cyclone's own
 # ping-pong in the same run. POSIX sh.
 
-# palpate::dds::loopback_config() (lib/src/dds.cpp), verbatim: ddsperf and
-# every other process get it through CYCLONEDDS_URI.
-LOOPBACK_URI='<General><Interfaces><NetworkInterface name="lo" multicast="false"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>100</MaxAutoParticipantIndex><Peers><Peer address="127.0.0.1"/></Peers></Discovery>'
+# loopback_uri BUILD_DIR: palpate's built-in loopback configuration
+# (config/dds-loopback.xml, as palpated prints it), for CYCLONEDDS_URI: ddsperf
+# and every other process of a benchmark get it.
+loopback_uri() {
+  [ -x "$1/server/palpated" ] || { echo "$1/server/palpated is missing: build it first" >&2; exit 1; }
+  env -u CYCLONEDDS_URI "$1/server/palpated" --print-dds-config
+}
 
 # enter_private_netns SCRIPT BUILD_DIR MODEL [ARGS...]: unless already
 # inside, re-executes SCRIPT in a new network namespace (paths made absolute).

@@ -15,6 +15,7 @@ set -eu
 enter_private_netns "$0" "$@"
 
 BUILD=$1
+LOOPBACK_URI=$(loopback_uri "$BUILD")
 MODEL=$2
 SECONDS_MEASURED=${3:-10}
 SOURCE=$(dirname "$(realpath "$0")")/..

@@ -34,6 +34,10 @@
 set -euo pipefail
 
 fail() { echo "dds-security: $*" >&2; exit 2; }
+# palpate's built-in loopback configuration (docs/dds.md, "Network
+# configuration"), the same file the library is built with.
+loopback_xml=$(dirname "$(realpath "$0")")/../config/dds-loopback.xml
+[ -r "$loopback_xml" ] || { echo "dds-security: $loopback_xml is missing: run this script from a palpate checkout" >&2; exit 1; }
 usage() { sed -n '2,/^set -euo/p' "$0" | sed -e '$d' -e 's/^# \{0,1\}//' >&2; exit 2; }
 
 [ $# -ge 1 ] || usage
@@ -276,15 +280,7 @@ cyclone_xml() {  # KIND NAME
      Loopback only, as palpate's built-in configuration (docs/dds.md, "Network configuration"). -->
 <CycloneDDS xmlns="https://cdds.io/config">
   <Domain Id="any">
-    <General>
-      <Interfaces><NetworkInterface name="lo" multicast="false"/></Interfaces>
-      <AllowMulticast>false</AllowMulticast>
-    </General>
-    <Discovery>
-      <ParticipantIndex>auto</ParticipantIndex>
-      <MaxAutoParticipantIndex>100</MaxAutoParticipantIndex>
-      <Peers><Peer address="127.0.0.1"/></Peers>
-    </Discovery>
+    $(cat "$loopback_xml")
     <Security>
       <Authentication>
         <Library path="dds_security_auth" initFunction="init_authentication" finalizeFunction="finalize_authentication"/>

@@ -115,6 +115,10 @@ int run(int argc, char** argv) {
                  "record tool sessions (poses, forces, contacts) to HDF5 files in this directory");
   app.add_flag("--check-config", check_only,
                "check the configuration and the compliance files, then exit");
+  bool print_dds_config = false;
+  app.add_flag("--print-dds-config", print_dds_config,
+               "print the Cyclone DDS configuration palpated would use (the built-in loopback one "
+               "unless --dds-config or CYCLONEDDS_URI gives another), for CYCLONEDDS_URI, then exit");
   std::string probe_file;
   app.add_option("--probe-model", probe_file)->group("");  // internal: see probe_compliance_file
   try {
@@ -132,6 +136,12 @@ int run(int argc, char** argv) {
 
   palpate::DaemonConfig config;
   if (!config_file.empty()) config = palpate::read_daemon_config(config_file);
+  if (print_dds_config) {
+    const auto dds = palpate::dds::resolve_domain_config(
+        app.count("--dds-config") ? overrides.dds_config : config.dds_config);
+    std::printf("%s\n", dds.text.c_str());
+    return 0;
+  }
   if (app.count("--id")) config.daemon_id = overrides.daemon_id;
   if (app.count("--domain")) config.domain_id = overrides.domain_id;
   if (app.count("--dds-config")) config.dds_config = overrides.dds_config;

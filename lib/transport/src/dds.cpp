@@ -1,5 +1,7 @@
 #include "palpate/transport/dds.hpp"
 
+#include "loopback_config.hpp"
+
 #include <cstdlib>
 #include <fstream>
 #include <map>
@@ -21,13 +23,7 @@ dds_return_t check(dds_return_t status, std::string_view what) {
   return status;
 }
 
-std::string_view loopback_config() {
-  return "<General><Interfaces><NetworkInterface name=\"lo\" multicast=\"false\"/></Interfaces>"
-         "<AllowMulticast>false</AllowMulticast></General>"
-         "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
-         "<MaxAutoParticipantIndex>100</MaxAutoParticipantIndex>"
-         "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery>";
-}
+std::string_view loopback_config() { return detail::kLoopbackConfig; }
 
 DomainConfig resolve_domain_config(const std::string& user_config) {
   if (!user_config.empty()) {
