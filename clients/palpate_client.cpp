@@ -117,7 +117,7 @@ double percentile(std::vector<double> values, double q) {
 }
 
 /// Press the top of the organ, pinch a triangle, slide along the surface,
-/// release: the gestures of brief.md at the haptic rate, with the forces.
+/// release: the gestures of docs/model.md ("Tool contacts") at the haptic rate, with the forces.
 int demo(palpate::Client& client, const std::string& model_id, double rate_hz, int repeat) {
   const palpate::ModelInfo m = connect(client, model_id);
   std::printf("model %s: %d compliance vertices, %zu triangles; %s\n", m.model_id.c_str(),

@@ -82,7 +82,7 @@ TEST(ElementStiffness, EqualsTextbookBtDB) {
 }
 
 TEST(ElementStiffness, LectureFormulaWithSwappedIndicesIsTheTransposeAndWrong) {
-  // Documents brief.md's correction: swapping j and k in the first two terms
+  // Documents the lecture's mistake (docs/model.md): swapping j and k in the first two terms
   // transposes each off-diagonal block, which differs when λ ≠ μ.
   Matrix43d P;
   P << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;

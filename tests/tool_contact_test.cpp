@@ -1,4 +1,4 @@
-// Tools on an organ (docs/tools.md) against the direct solves of brief.md on
+// Tools on an organ (docs/tools.md) against the direct solves of docs/model.md on
 // the G of a real compliance file: probing, gliding, grasping, two tools,
 // the force limits, the watchdog and refused poses.
 
@@ -133,7 +133,7 @@ class ToolContactTest : public ::testing::Test {
 TEST_F(ToolContactTest, PressingToADepthGivesTheDirectImposedDisplacementForce) {
   // A probe pressed along the normal at vertex v to depth d imposes
   // u_v = −d e_z on v alone (its neighbours are 12.5 mm away, the tip 2 mm):
-  // brief.md's G_vv f_v = u_v.
+  // docs/model.md's G_vv f_v = u_v.
   const int v = top_vertex(75, 25);
   const double d = 0.003, r = 0.002;
   ToolContactEngine engine(model(), {probe("probe", kSticks, r)}, {}, {});

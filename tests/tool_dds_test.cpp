@@ -1,7 +1,7 @@
 // Haptic tools end to end: the real palpated, real Cyclone DDS on loopback
 // (CTest runs this binary in a private network namespace), poses sent by a
 // ToolClient at the haptic rate, feedback checked against the direct solves
-// of brief.md on G read from the compliance file.
+// of docs/model.md on G read from the compliance file.
 
 #include <gtest/gtest.h>
 
@@ -164,7 +164,7 @@ TEST_F(ToolsOverDdsTest, PressingGivesTheDirectSolveAndWithdrawingGivesNothing) 
     ASSERT_TRUE(probe.last) << daemon_->log();
     EXPECT_GT(probe.force().norm(), previous * 1.2) << "depth " << d;
     previous = probe.force().norm();
-    // brief.md: G_vv f = u_v with u_v = −d e_z; the probe feels −f.
+    // docs/model.md: G_vv f = u_v with u_v = −d e_z; the probe feels −f.
     const Vector3d f = G_->block<3, 3>(3 * v, 3 * v).ldlt().solve(Vector3d(0, 0, -d));
     EXPECT_LT((probe.force() + f).norm(), kRelativeTolerance * f.norm()) << "depth " << d;
     EXPECT_EQ(probe.last->state, ToolState::kTouching);

@@ -1,8 +1,9 @@
 #pragma once
 /// @file
 /// Linear elasticity on P1 tetrahedra: Lamé parameters, the element
-/// stiffness, and the assembled global stiffness K (brief.md, "Elasticity on
-/// a tetrahedral mesh"; Cotin, Delingette & Ayache, IEEE TVCG 5(1), 1999).
+/// stiffness, and the assembled global stiffness K (docs/model.md, "Linear
+/// elasticity on P1 tetrahedra", "Global stiffness and the attachment";
+/// Cotin, Delingette & Ayache, IEEE TVCG 5(1), 1999).
 
 #include <vector>
 

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The run-time algebra of the precomputed model (brief.md, "Run time"):
+/// The run-time algebra of the precomputed model (docs/model.md, "The reduced system of a request"):
 /// constraints on a few surface vertices in, forces and displacements out,
 /// by a small dense SPD solve on the compliance G. Allocation-free after
 /// construction, no exceptions: every failure is a RequestStatus.
@@ -63,7 +63,7 @@ struct SolverLimits {
 ///
 ///     (Bᵀ G_CC B) φ = b − (G_CC B)ᵀ f_known,
 ///
-/// m ≤ 3k (brief.md, "Imposed displacements on a set C": B = I when every
+/// m ≤ 3k (docs/model.md, "The reduced system of a request": B = I when every
 /// vertex has a full imposed displacement). The Cholesky factor of Bᵀ G_CC B
 /// depends only on the vertices, their kinds and normals; it is kept in one
 /// of `cache_slots` slots and reused while they stay the same, so that a tool
@@ -133,7 +133,7 @@ class ConstraintSolver {
 };
 
 /// u_S = G_SC f_C: the displacement of every compliance vertex under forces
-/// on the vertices @p indices (brief.md, "Run time"). 3N_S × 3k flops × 2.
+/// on the vertices @p indices (docs/model.md, "The surface field"). 3N_S × 3k flops × 2.
 /// @param forces_n 3 per index, N
 /// @param u_m receives 3N_S displacements, m
 void surface_displacement(const Eigen::MatrixXd& G, std::span<const int> indices,
