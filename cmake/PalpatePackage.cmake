@@ -17,5 +17,8 @@ install(FILES ${CMAKE_CURRENT_BINARY_DIR}/palpateConfig.cmake
         DESTINATION ${palpate_cmake_dir})
 
 # pkg-config: every layer, for builds without CMake.
+# Relocatable: the prefix is found from where the file is installed.
+file(RELATIVE_PATH palpate_pc_to_prefix ${CMAKE_INSTALL_FULL_LIBDIR}/pkgconfig ${CMAKE_INSTALL_PREFIX})
+string(REGEX REPLACE "/$" "" palpate_pc_to_prefix "${palpate_pc_to_prefix}")
 configure_file(${CMAKE_CURRENT_LIST_DIR}/palpate.pc.in ${CMAKE_CURRENT_BINARY_DIR}/palpate.pc @ONLY)
 install(FILES ${CMAKE_CURRENT_BINARY_DIR}/palpate.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)

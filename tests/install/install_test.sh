@@ -1,0 +1,57 @@
+#!/bin/sh
+# cmake --install into a fresh prefix, then two out-of-tree consumers of it:
+# a CMake project (find_package(palpate) + palpate::palpate, every public
+# header compiled alone, and a ToolClient on palpate::transport) and a
+# pkg-config build. Their programs run: the library and its dependencies are
+# found at run time. CTest runs it in a private network namespace (the
+# ToolClient joins DDS on loopback).
+# Usage: install_test.sh BUILD_DIR SOURCE_DIR WORK_DIR
+set -eu
+build=$1 source=$2 work=$3
+interfaces=$(ip -o link show | awk -F': ' '{print $2}' | tr '\n' ' ')
+if [ "$interfaces" != "lo " ]; then
+  echo "install_test: refusing to start DDS outside a private network namespace (interfaces: $interfaces)" >&2
+  exit 1
+fi
+rm -rf "$work"
+mkdir -p "$work"
+prefix=$work/prefix
+
+cmake --install "$build" --prefix "$prefix" >"$work/install.log"
+for f in bin/palpated bin/palpate-precompute bin/palpate-client bin/palpate-pliers \
+         include/palpate/core/error.hpp include/palpate/idl/palpate.h \
+         lib/cmake/palpate/palpateConfig.cmake lib/pkgconfig/palpate.pc; do
+  [ -e "$prefix/$f" ] || { echo "install_test: $f was not installed" >&2; exit 1; }
+done
+if find "$prefix/include" -path '*/detail/*' | grep -q .; then
+  echo "install_test: internal headers were installed:" >&2
+  find "$prefix/include" -path '*/detail/*' >&2
+  exit 1
+fi
+"$prefix/bin/palpated" --version
+
+# The CMake consumer, every public header in a unit of its own.
+cp -r "$source/tests/install/consumer" "$work/consumer"
+mkdir -p "$work/consumer-build/headers"
+i=0
+for h in $(cd "$prefix/include" && find palpate -name '*.hpp' | sort); do
+  i=$((i + 1))
+  printf '#include "%s"\n' "$h" >"$work/consumer-build/headers/header_$i.cpp"
+done
+echo "install_test: $i public headers"
+cmake -S "$work/consumer" -B "$work/consumer-build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+  -DCMAKE_PREFIX_PATH="$prefix" >"$work/consumer-configure.log"
+cmake --build "$work/consumer-build" -j2 >"$work/consumer-build.log" 2>&1 || {
+  cat "$work/consumer-build.log" >&2
+  exit 1
+}
+"$work/consumer-build/consumer"
+"$work/consumer-build/device_client"
+
+# pkg-config, for builds without CMake.
+PKG_CONFIG_PATH=$prefix/lib/pkgconfig
+export PKG_CONFIG_PATH
+# shellcheck disable=SC2046
+c++ -std=c++20 -o "$work/consumer-pkgconfig" "$work/consumer/main.cpp" $(pkg-config --cflags --libs palpate)
+LD_LIBRARY_PATH=$prefix/lib "$work/consumer-pkgconfig"
+echo "install_test: installed, found by CMake and pkg-config, programs run"
