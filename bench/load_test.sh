@@ -5,7 +5,7 @@
 # a loop), 4 viewers reading every surface stream and the heartbeat, and 100
 # reliable constraint requests per second; first, in the same run, station 1
 # alone (the baseline of the ratios). palpate_load_generator
-# (tests/load/load_generator.cpp) starts palpated and every client as
+# (bench/load/load_generator.cpp) starts palpated and every client as
 # separate processes, samples palpated's VmRSS, VmHWM and CPU time every
 # second, and prints the round trips over the whole run, per tool and per
 # minute, the requests, the viewers, palpated's memory and CPU, and its checks
@@ -15,7 +15,7 @@
 #   SECONDS    the load phase, default 600; the baseline and the RSS warm-up
 #              are 30 s each (a quarter of SECONDS when that is shorter)
 #   BUILD_DIR  default build (palpated, and palpate_load_generator: built with
-#              the tests in tests/load/, or with the benchmarks in bench/)
+#              the tests or the benchmarks, in bench/load/)
 #   MODEL.h5   default out/sample-organ.h5 (scripts/demo.sh writes it)
 # PALPATE_LOAD_FLAGS adds flags to palpate_load_generator, e.g.
 # --shared-organ (every station's tools on one model: 8 tools per solve).
@@ -45,7 +45,7 @@ build=$1 model=$2 seconds=$3
 require_loopback_only load_test
 
 generator=""
-for candidate in "$build/tests/load/palpate_load_generator" "$build/bench/palpate_load_generator"; do
+for candidate in "$build/bench/load/palpate_load_generator"; do
   [ -x "$candidate" ] && generator=$candidate && break
 done
 [ -n "$generator" ] || { echo "load_test: palpate_load_generator is missing in $build (ninja -C $build palpate_load_generator)" >&2; exit 1; }

@@ -1,7 +1,8 @@
 #pragma once
 // A program (palpated, palpate-pliers, palpate-client) as a child process of
-// a test, its output in a file that the test reads while it runs. The caller
-// runs inside a private network namespace (CTest does).
+// a test or a benchmark, its output in a file that the caller reads while it
+// runs. The caller runs inside a private network namespace (CTest and the
+// benchmark scripts do).
 
 #include <signal.h>
 #include <sys/prctl.h>
@@ -18,6 +19,20 @@
 
 namespace palpate::testing {
 
+/// Call first in a child just forked from @p parent: the child dies
+/// (SIGKILL) when its parent does, so that a test or a benchmark killed by
+/// its timeout leaves no process behind (one palpated lived on for 47
+/// minutes that way). If the parent is already gone, the child exits.
+inline void die_with_parent(pid_t parent) {
+  prctl(PR_SET_PDEATHSIG, SIGKILL);
+  if (getppid() != parent) _exit(125);
+}
+
+/// Exit code of a wait status: the code, or 128 + the signal that ended it.
+inline int exit_code(int status) {
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
 class ChildProcess {
  public:
   /// What goes to the output file; the rest stays the test's.
@@ -26,11 +41,11 @@ class ChildProcess {
   ChildProcess(const std::string& program, const std::vector<std::string>& args,
                const std::filesystem::path& output, Capture capture = Capture::kStdoutAndStderr)
       : output_(output) {
+    const pid_t parent = getpid();
+    std::fflush(nullptr);  // what the caller printed is not printed twice
     pid_ = fork();
     if (pid_ == 0) {
-      // Dies with the test: a test killed by CTest's timeout leaves no
-      // process behind (one palpated lived on for 47 minutes that way).
-      prctl(PR_SET_PDEATHSIG, SIGKILL);
+      die_with_parent(parent);
       if (capture == Capture::kStderr) {
         if (std::freopen(output.c_str(), "w", stderr) == nullptr) _exit(126);
       } else {
@@ -59,15 +74,34 @@ class ChildProcess {
   /// Waits for the exit: its code, 128 + signal if a signal ended it, -1 on timeout.
   int wait(std::chrono::milliseconds timeout) {
     const auto until = std::chrono::steady_clock::now() + timeout;
-    int status = 0;
-    while (std::chrono::steady_clock::now() < until) {
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        exited_ = true;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-      }
+    for (;;) {
+      if (!running()) return status_;
+      if (std::chrono::steady_clock::now() >= until) return -1;
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
-    return -1;
+  }
+  /// False once it has exited (its code is then exit_status()).
+  bool running() {
+    int status = 0;
+    if (!exited_ && waitpid(pid_, &status, WNOHANG) == pid_) {
+      exited_ = true;
+      status_ = exit_code(status);
+    }
+    return !exited_;
+  }
+  /// Its exit code (as wait()), −1 while it runs.
+  int exit_status() const { return status_; }
+  /// SIGTERM, then its exit code; SIGKILL (and −1) if it is still there
+  /// after @p grace.
+  int terminate(std::chrono::milliseconds grace) {
+    if (!running()) return status_;
+    signal(SIGTERM);
+    if (const int code = wait(grace); code != -1) return code;
+    kill(pid_, SIGKILL);
+    waitpid(pid_, nullptr, 0);
+    exited_ = true;
+    status_ = -1;
+    return status_;
   }
 
   std::string output() const {
@@ -97,6 +131,7 @@ class ChildProcess {
   std::filesystem::path output_;
   pid_t pid_ = -1;
   bool exited_ = false;
+  int status_ = -1;
 };
 
 }  // namespace palpate::testing

@@ -10,8 +10,8 @@ namespace palpate {
 
 using nlohmann::json;
 
-PhaseReport* PrecomputeReport::phase(std::string_view name) {
-  for (auto& p : phases)
+const PhaseReport* PrecomputeReport::phase(std::string_view name) const {
+  for (const auto& p : phases)
     if (p.name == name) return &p;
   return nullptr;
 }

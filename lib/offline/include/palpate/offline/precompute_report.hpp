@@ -124,7 +124,7 @@ struct PrecomputeReport {
   std::optional<std::vector<ShardReport>> shards;
 
   /// The phase named @p name, or null.
-  PhaseReport* phase(std::string_view name);
+  const PhaseReport* phase(std::string_view name) const;
 };
 
 /// The report as JSON text (docs/compliance-file.md, "The report"); @p indent

@@ -283,8 +283,8 @@ TEST(Gesture, SamplesInterpolateLinearlyAndSlerp) {
 
 TEST(Gesture, TheShippedGesturesReadAndPlaceOnAnyOrgan) {
   const auto dir =
-      std::filesystem::path(__FILE__).parent_path().parent_path() / "config" / "gestures";
-  if (!std::filesystem::exists(dir)) GTEST_SKIP() << dir << " not found";
+      std::filesystem::path(PALPATE_SOURCE_DIR) / "config" / "gestures";
+  ASSERT_TRUE(std::filesystem::is_directory(dir)) << dir;
   const ModelInfo m = octahedron();
   int count = 0;
   for (const auto& entry : std::filesystem::directory_iterator(dir)) {

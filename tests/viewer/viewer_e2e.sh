@@ -10,7 +10,7 @@
 set -euo pipefail
 build=$(realpath "$1")
 out=$(realpath -m "$2")
-source_dir=$(realpath "$(dirname "$0")/..")
+source_dir=$(realpath "$(dirname "$0")/../..")
 
 interfaces=$(ip -o link show | awk -F': ' '{print $2}' | tr '\n' ' ')
 if [ "$interfaces" != "lo " ]; then

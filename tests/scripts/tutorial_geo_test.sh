@@ -7,7 +7,7 @@
 # Usage: tests/tutorial_geo_test.sh PALPATE_PRECOMPUTE
 set -euo pipefail
 precompute=$1
-source_dir=$(realpath "$(dirname "$0")/..")
+source_dir=$(realpath "$(dirname "$0")/../..")
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 fail() { echo "tutorial_geo: $*" >&2; exit 1; }
