@@ -27,8 +27,8 @@
 #include <vector>
 
 #include "common.hpp"
-#include "palpate/runtime/surface_model.hpp"
 #include "palpate/core/system_info.hpp"
+#include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
 #include "patch.hpp"
 
@@ -62,7 +62,8 @@ Path path_at(int seed, const palpate::ToolGeometry& g) {
   return p;
 }
 
-/// The seed of the second tool: the compliance vertex nearest 25 mm from the first along the tangent.
+/// The seed of the second tool: the compliance vertex nearest 25 mm from the first along the
+/// tangent.
 int second_seed(int seed, const Path& path) {
   const auto& m = *g_model;
   const Vector3d want = rest(m, seed) + 0.025 * path.tangent;
@@ -148,24 +149,40 @@ void run_gesture(benchmark::State& state, int tools, const std::vector<Keyframe>
 
 void BM_press_glide(benchmark::State& state) {
   run_gesture(state, 1,
-              {{0, 0, 0, 1}, {0.005, 0, 0, 500}, {0.005, 0, 0, 500}, {0.005, 0.020, 0, 2000},
-               {0, 0.020, 0, 500}, {0, 0.020, 0, 500}});
+              {{0, 0, 0, 1},
+               {0.005, 0, 0, 500},
+               {0.005, 0, 0, 500},
+               {0.005, 0.020, 0, 2000},
+               {0, 0.020, 0, 500},
+               {0, 0.020, 0, 500}});
 }
 void BM_two_tools(benchmark::State& state) {
   run_gesture(state, 2,
-              {{0, 0, 0, 1}, {0.005, 0, 0, 500}, {0.005, 0, 0, 500}, {0.005, 0.020, 0, 2000},
-               {0, 0.020, 0, 500}, {0, 0.020, 0, 500}});
+              {{0, 0, 0, 1},
+               {0.005, 0, 0, 500},
+               {0.005, 0, 0, 500},
+               {0.005, 0.020, 0, 2000},
+               {0, 0.020, 0, 500},
+               {0, 0.020, 0, 500}});
 }
 void BM_wide_press(benchmark::State& state) {
   run_gesture(state, 1,
-              {{0, 0, 0, 1}, {0.008, 0, 0, 500}, {0.008, 0, 0, 500}, {0.008, 0.020, 0, 2000},
-               {0, 0.020, 0, 500}, {0, 0.020, 0, 500}},
+              {{0, 0, 0, 1},
+               {0.008, 0, 0, 500},
+               {0.008, 0, 0, 500},
+               {0.008, 0.020, 0, 2000},
+               {0, 0.020, 0, 500},
+               {0, 0.020, 0, 500}},
               0.015);
 }
 void BM_grasp_pull(benchmark::State& state) {
   run_gesture(state, 1,
-              {{0, 0, 40, 1}, {0.003, 0, 40, 500}, {0.003, 0, 0, 400}, {-0.007, 0, 0, 1000},
-               {-0.007, 0, 40, 400}, {-0.010, 0, 40, 500}});
+              {{0, 0, 40, 1},
+               {0.003, 0, 40, 500},
+               {0.003, 0, 0, 400},
+               {-0.007, 0, 0, 1000},
+               {-0.007, 0, 40, 400},
+               {-0.010, 0, 40, 500}});
 }
 
 }  // namespace
@@ -187,7 +204,8 @@ int main(int argc, char** argv) {
   g_model = &model;
   benchmark::Initialize(&argc, argv);
   benchmark::AddCustomContext("model", path);
-  benchmark::AddCustomContext("compliance_vertices", std::to_string(model.compliance_vertex_count()));
+  benchmark::AddCustomContext("compliance_vertices",
+                              std::to_string(model.compliance_vertex_count()));
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;

@@ -6,13 +6,18 @@
 
 #include <Eigen/Dense>
 
-#include "palpate/offline/dense.hpp"
 #include "common.hpp"
 #include "palpate/core/system_info.hpp"
+#include "palpate/offline/dense.hpp"
 
 namespace {
 
-BENCHMARK(palpate::bench::BM_dgemm)->Name("BM_dgemm")->Arg(2000)->Arg(4000)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(palpate::bench::BM_dgemm)
+    ->Name("BM_dgemm")
+    ->Arg(2000)
+    ->Arg(4000)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 void BM_spd_inverse_from_cholesky(benchmark::State& state) {
   const auto n = state.range(0);
@@ -27,9 +32,14 @@ void BM_spd_inverse_from_cholesky(benchmark::State& state) {
     palpate::invert_from_cholesky(work);
     benchmark::DoNotOptimize(work.data());
   }
-  state.counters["GFLOP/s"] = benchmark::Counter(2.0 * n * n * n / 3.0 * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["GFLOP/s"] = benchmark::Counter(2.0 * n * n * n / 3.0 * 1e-9,
+                                                 benchmark::Counter::kIsIterationInvariantRate);
 }
-BENCHMARK(BM_spd_inverse_from_cholesky)->Arg(3000)->Arg(6000)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_spd_inverse_from_cholesky)
+    ->Arg(3000)
+    ->Arg(6000)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace
 

@@ -41,8 +41,9 @@ inline Patch nearest_patch(const DrawnSurface& s, int seed, int k) {
   const auto distance2 = [&](int v) {
     double sum = 0;
     for (int d = 0; d < 3; ++d) {
-      const double x = s.rest_positions_m[3 * static_cast<std::size_t>(v) + static_cast<std::size_t>(d)] -
-                       s.rest_positions_m[3 * static_cast<std::size_t>(seed) + static_cast<std::size_t>(d)];
+      const double x =
+          s.rest_positions_m[3 * static_cast<std::size_t>(v) + static_cast<std::size_t>(d)] -
+          s.rest_positions_m[3 * static_cast<std::size_t>(seed) + static_cast<std::size_t>(d)];
       sum += x * x;
     }
     return sum;
@@ -51,7 +52,8 @@ inline Patch nearest_patch(const DrawnSurface& s, int seed, int k) {
   std::partial_sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(count), order.end(),
                     [&](int a, int b) { return distance2(a) < distance2(b); });
   Patch patch;
-  for (std::size_t j = 0; j < count; ++j) patch.vertex_ids.push_back(s.vertex_ids[static_cast<std::size_t>(order[j])]);
+  for (std::size_t j = 0; j < count; ++j)
+    patch.vertex_ids.push_back(s.vertex_ids[static_cast<std::size_t>(order[j])]);
   patch.inward_normal = inward_normal(s, seed);
   return patch;
 }
@@ -65,13 +67,16 @@ inline int main_seed(const DrawnSurface& s) { return s.compliance_vertex_count /
 inline std::vector<int> spread_seeds(const DrawnSurface& s, int count) {
   std::vector<int> seeds;
   for (int i = 0; i < count; ++i)
-    seeds.push_back((main_seed(s) + static_cast<int>(static_cast<long>(i) * s.compliance_vertex_count / count)) %
+    seeds.push_back((main_seed(s) +
+                     static_cast<int>(static_cast<long>(i) * s.compliance_vertex_count / count)) %
                     s.compliance_vertex_count);
   return seeds;
 }
 
 /// Imposed depth for request number @p i: 3 mm, varied by up to 1.5 % so that
 /// no two consecutive requests are identical.
-inline double press_depth_m(std::uint64_t i) { return 3e-3 * (1.0 + 1e-3 * static_cast<double>(i % 16)); }
+inline double press_depth_m(std::uint64_t i) {
+  return 3e-3 * (1.0 + 1e-3 * static_cast<double>(i % 16));
+}
 
 }  // namespace palpate::bench

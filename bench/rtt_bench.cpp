@@ -16,22 +16,21 @@
 // Run it next to palpated inside a private network namespace (see
 // bench/dds_roundtrip.sh); it uses palpate's loopback DDS configuration.
 
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 #include <vector>
 
-#include <unistd.h>
-
-#include <CLI/CLI.hpp>
-#include <nlohmann/json.hpp>
-
-#include "palpate/transport/client.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/core/system_info.hpp"
+#include "palpate/transport/client.hpp"
 #include "patch.hpp"
 
 namespace {
@@ -64,7 +63,11 @@ Summary summarize(std::vector<double> v) {
 }
 
 nlohmann::json to_json(const Summary& s) {
-  return {{"p50_us", s.p50}, {"p99_us", s.p99}, {"p999_us", s.p999}, {"max_us", s.max}, {"mean_us", s.mean}};
+  return {{"p50_us", s.p50},
+          {"p99_us", s.p99},
+          {"p999_us", s.p999},
+          {"max_us", s.max},
+          {"mean_us", s.mean}};
 }
 
 /// Approximate serialized sizes (XCDR2, bytes) of ConstraintRequest and
@@ -94,11 +97,14 @@ int main(int argc, char** argv) try {
   app.add_option("-k", k, "constrained vertices per request")->check(CLI::Range(1, 64));
   app.add_option("--rate-hz", rate_hz, "requests per second")->check(CLI::PositiveNumber);
   app.add_option("--seconds", seconds, "measured duration")->check(CLI::PositiveNumber);
-  app.add_option("--warmup-seconds", warmup_seconds, "unmeasured requests first")->check(CLI::NonNegativeNumber);
-  app.add_flag("--update-state", update_state, "requests change the model's shown state (the stream then runs)");
+  app.add_option("--warmup-seconds", warmup_seconds, "unmeasured requests first")
+      ->check(CLI::NonNegativeNumber);
+  app.add_flag("--update-state", update_state,
+               "requests change the model's shown state (the stream then runs)");
   app.add_option("--domain", domain, "DDS domain id");
   bool busy_wait = false;
-  app.add_flag("--busy-wait", busy_wait, "poll for the reply instead of sleeping on a waitset (ClientOptions::busy_wait)");
+  app.add_flag("--busy-wait", busy_wait,
+               "poll for the reply instead of sleeping on a waitset (ClientOptions::busy_wait)");
   app.add_flag("--json", json, "print one JSON object instead of text");
   CLI11_PARSE(app, argc, argv);
 
@@ -108,14 +114,18 @@ int main(int argc, char** argv) try {
   options.busy_wait = busy_wait;
   palpate::Client client(options);
   const auto model = client.wait_for_model(model_id, 20s);
-  if (!model) throw palpate::SystemError("no description of model '" + model_id + "' within 20 s: is palpated up?");
-  if (!client.wait_for_service(20s)) throw palpate::SystemError("palpated did not match this client within 20 s");
+  if (!model)
+    throw palpate::SystemError("no description of model '" + model_id +
+                               "' within 20 s: is palpated up?");
+  if (!client.wait_for_service(20s))
+    throw palpate::SystemError("palpated did not match this client within 20 s");
 
   const palpate::DrawnSurface& surface = model->surface;
   const auto patch = palpate::bench::nearest_patch(surface, palpate::bench::main_seed(surface), k);
   std::vector<palpate::ConstraintSpec> constraints(patch.vertex_ids.size());
 
-  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate_hz));
+  const auto period =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate_hz));
   const auto warmup_count = static_cast<std::uint64_t>(warmup_seconds * rate_hz);
   const auto total_count = warmup_count + static_cast<std::uint64_t>(seconds * rate_hz);
   std::vector<double> rtt_us, solve_us;
@@ -127,8 +137,8 @@ int main(int argc, char** argv) try {
     const double depth = palpate::bench::press_depth_m(i);
     for (std::size_t j = 0; j < constraints.size(); ++j)
       constraints[j] = palpate::ConstraintSpec::displacement(
-          patch.vertex_ids[j],
-          {depth * patch.inward_normal[0], depth * patch.inward_normal[1], depth * patch.inward_normal[2]});
+          patch.vertex_ids[j], {depth * patch.inward_normal[0], depth * patch.inward_normal[1],
+                                depth * patch.inward_normal[2]});
     // A fixed schedule; a late reply delays the next request, it does not
     // cause a burst.
     std::this_thread::sleep_until(next);
@@ -143,8 +153,8 @@ int main(int argc, char** argv) try {
     }
     if (reply->status != palpate::RequestStatus::kOk) {
       if (errors++ == 0)
-        std::fprintf(stderr, "palpate_rtt_bench: request refused: %s: %s\n", palpate::status_name(reply->status),
-                     reply->message.c_str());
+        std::fprintf(stderr, "palpate_rtt_bench: request refused: %s: %s\n",
+                     palpate::status_name(reply->status), reply->message.c_str());
       continue;
     }
     if (i < warmup_count) continue;
@@ -156,27 +166,24 @@ int main(int argc, char** argv) try {
   const auto req_bytes = request_bytes(patch.vertex_ids.size(), options.client_id, model_id);
   const auto rep_bytes = reply_bytes(patch.vertex_ids.size(), options.client_id, model_id);
   if (json) {
-    nlohmann::json out = {{"k", patch.vertex_ids.size()},
-                          {"rate_hz", rate_hz},
-                          {"seconds", seconds},
-                          {"samples", rtt_us.size()},
-                          {"timeouts", timeouts},
-                          {"errors", errors},
-                          {"update_state", update_state},
-                          {"busy_wait", busy_wait},
-                          {"request_bytes", req_bytes},
-                          {"reply_bytes", rep_bytes},
-                          {"round_trip", to_json(rtt)},
-                          {"daemon_solve", to_json(solve)}};
+    nlohmann::json out = {{"k", patch.vertex_ids.size()}, {"rate_hz", rate_hz},
+                          {"seconds", seconds},           {"samples", rtt_us.size()},
+                          {"timeouts", timeouts},         {"errors", errors},
+                          {"update_state", update_state}, {"busy_wait", busy_wait},
+                          {"request_bytes", req_bytes},   {"reply_bytes", rep_bytes},
+                          {"round_trip", to_json(rtt)},   {"daemon_solve", to_json(solve)}};
     std::printf("%s\n", out.dump().c_str());
   } else {
-    std::printf("k=%zu at %.0f Hz for %.0f s: %zu round trips, %llu timeouts, %llu errors (request ≈ %zu B, reply ≈ %zu B)\n",
-                patch.vertex_ids.size(), rate_hz, seconds, rtt_us.size(), static_cast<unsigned long long>(timeouts),
-                static_cast<unsigned long long>(errors), req_bytes, rep_bytes);
-    std::printf("  round trip   p50 %8.1f µs  p99 %8.1f µs  p99.9 %8.1f µs  max %8.1f µs\n", rtt.p50, rtt.p99,
-                rtt.p999, rtt.max);
-    std::printf("  daemon solve p50 %8.1f µs  p99 %8.1f µs  p99.9 %8.1f µs  max %8.1f µs\n", solve.p50, solve.p99,
-                solve.p999, solve.max);
+    std::printf(
+        "k=%zu at %.0f Hz for %.0f s: %zu round trips, %llu timeouts, %llu errors (request ≈ %zu "
+        "B, reply ≈ %zu B)\n",
+        patch.vertex_ids.size(), rate_hz, seconds, rtt_us.size(),
+        static_cast<unsigned long long>(timeouts), static_cast<unsigned long long>(errors),
+        req_bytes, rep_bytes);
+    std::printf("  round trip   p50 %8.1f µs  p99 %8.1f µs  p99.9 %8.1f µs  max %8.1f µs\n",
+                rtt.p50, rtt.p99, rtt.p999, rtt.max);
+    std::printf("  daemon solve p50 %8.1f µs  p99 %8.1f µs  p99.9 %8.1f µs  max %8.1f µs\n",
+                solve.p50, solve.p99, solve.p999, solve.max);
   }
   return timeouts + errors == 0 ? 0 : 1;
 } catch (const std::exception& e) {

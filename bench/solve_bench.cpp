@@ -1,6 +1,6 @@
-// In-process request rates of the run-time model (docs/model.md, "The reduced system of a request"):
-// what ConstraintSolver sustains on one core for k imposed displacements on a
-// clustered patch, before any transport. Three cases per k = 1, 3, 10, 20:
+// In-process request rates of the run-time model (docs/model.md, "The reduced system of a
+// request"): what ConstraintSolver sustains on one core for k imposed displacements on a clustered
+// patch, before any transport. Three cases per k = 1, 3, 10, 20:
 //
 //   force_reused   F_C only, same constrained set every request: the
 //                  factorization is reused, two triangular solves per request
@@ -24,19 +24,18 @@
 
 #include <benchmark/benchmark.h>
 
+#include <Eigen/Dense>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <vector>
 
-#include <Eigen/Dense>
-
-#include "palpate/runtime/constraint_solver.hpp"
-#include "palpate/offline/dense.hpp"
-#include "palpate/runtime/surface_model.hpp"
-#include "palpate/core/system_info.hpp"
 #include "common.hpp"
+#include "palpate/core/system_info.hpp"
+#include "palpate/offline/dense.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/surface_model.hpp"
 #include "patch.hpp"
 
 namespace {
@@ -55,11 +54,14 @@ struct Fixture {
 
   explicit Fixture(const std::filesystem::path& path)
       : model(palpate::load_surface_model("bench", path)), surface(model.surface) {}
-  Patch patch(int k) const { return palpate::bench::nearest_patch(surface, palpate::bench::main_seed(surface), k); }
+  Patch patch(int k) const {
+    return palpate::bench::nearest_patch(surface, palpate::bench::main_seed(surface), k);
+  }
   /// More patches than @p cache_slots, so that cycling through them never hits the cache.
   std::vector<Patch> rotating_patches(int k, int cache_slots) const {
     std::vector<Patch> patches;
-    for (int seed : palpate::bench::spread_seeds(surface, 2 * cache_slots + 1)) patches.push_back(palpate::bench::nearest_patch(surface, seed, k));
+    for (int seed : palpate::bench::spread_seeds(surface, 2 * cache_slots + 1))
+      patches.push_back(palpate::bench::nearest_patch(surface, seed, k));
     return patches;
   }
 };
@@ -74,20 +76,23 @@ RequestStatus press(ConstraintSolver& solver, const Patch& patch, double depth_m
   const double no_normal[3] = {0, 0, 0};
   for (std::uint32_t id : patch.vertex_ids) {
     if (status != RequestStatus::kOk) break;
-    status = solver.add(id, static_cast<std::int32_t>(ConstraintKind::kDisplacement), value, no_normal);
+    status =
+        solver.add(id, static_cast<std::int32_t>(ConstraintKind::kDisplacement), value, no_normal);
   }
   return status == RequestStatus::kOk ? solver.solve() : status;
 }
 
 bool check(benchmark::State& state, const ConstraintSolver& solver, RequestStatus status) {
   if (status == RequestStatus::kOk) return true;
-  state.SkipWithError((std::string(palpate::status_name(status)) + ": " + solver.message()).c_str());
+  state.SkipWithError(
+      (std::string(palpate::status_name(status)) + ": " + solver.message()).c_str());
   return false;
 }
 
 void set_rate(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations());
-  state.counters["Hz"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["Hz"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
 void BM_force_reused(benchmark::State& state) {
@@ -104,7 +109,8 @@ void BM_force_reused(benchmark::State& state) {
 
 void BM_force_new_set(benchmark::State& state) {
   const palpate::SolverLimits limits;
-  const auto patches = fixture->rotating_patches(static_cast<int>(state.range(0)), limits.cache_slots);
+  const auto patches =
+      fixture->rotating_patches(static_cast<int>(state.range(0)), limits.cache_slots);
   ConstraintSolver solver(fixture->model, limits);
   std::uint64_t i = 0, reused = 0;
   for (auto _ : state) {
@@ -116,7 +122,8 @@ void BM_force_new_set(benchmark::State& state) {
   }
   set_rate(state);
   // Must be 0: every request pays its factorization.
-  state.counters["reused"] = static_cast<double>(reused) / static_cast<double>(std::max<std::uint64_t>(i, 1));
+  state.counters["reused"] =
+      static_cast<double>(reused) / static_cast<double>(std::max<std::uint64_t>(i, 1));
 }
 
 /// range(0) = k, range(1) = threads for the surface product (1 or 2: palpated's
@@ -124,7 +131,8 @@ void BM_force_new_set(benchmark::State& state) {
 void BM_full_field(benchmark::State& state) {
   const auto k = static_cast<int>(state.range(0));
   const Patch patch = fixture->patch(k);
-  ConstraintSolver solver(fixture->model, palpate::SolverLimits{.surface_threads = static_cast<int>(state.range(1))});
+  ConstraintSolver solver(
+      fixture->model, palpate::SolverLimits{.surface_threads = static_cast<int>(state.range(1))});
   Eigen::VectorXd u(fixture->model.G.rows());
   std::uint64_t i = 0;
   for (auto _ : state) {
@@ -135,8 +143,9 @@ void BM_full_field(benchmark::State& state) {
   }
   set_rate(state);
   // G_SC is 3N_S × 3k doubles; this is the rate the product reads it at.
-  state.counters["G_SC_GB/s"] = benchmark::Counter(static_cast<double>(u.size()) * 3.0 * k * 8.0 * 1e-9,
-                                                    benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["G_SC_GB/s"] =
+      benchmark::Counter(static_cast<double>(u.size()) * 3.0 * k * 8.0 * 1e-9,
+                         benchmark::Counter::kIsIterationInvariantRate);
 }
 
 /// Plain read (a sum) of the k panels of 3 columns of G the full field of
@@ -145,15 +154,16 @@ void BM_read_G_SC(benchmark::State& state) {
   const Patch patch = fixture->patch(static_cast<int>(state.range(0)));
   const Eigen::MatrixXd& G = fixture->model.G;
   std::vector<int> columns;
-  for (std::uint32_t id : patch.vertex_ids) columns.push_back(3 * fixture->model.compliance_index_of_vertex[id]);
+  for (std::uint32_t id : patch.vertex_ids)
+    columns.push_back(3 * fixture->model.compliance_index_of_vertex[id]);
   for (auto _ : state) {
     double sum = 0;
     for (int c : columns) sum += G.middleCols<3>(c).sum();
     benchmark::DoNotOptimize(sum);
   }
-  state.counters["GB/s"] = benchmark::Counter(static_cast<double>(G.rows()) * 3.0 * static_cast<double>(columns.size()) *
-                                                  8.0 * 1e-9,
-                                              benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["GB/s"] = benchmark::Counter(
+      static_cast<double>(G.rows()) * 3.0 * static_cast<double>(columns.size()) * 8.0 * 1e-9,
+      benchmark::Counter::kIsIterationInvariantRate);
 }
 
 /// Plain read of all of G: the memory rate when data does not stay in cache.
@@ -173,11 +183,13 @@ int main(int argc, char** argv) {
   palpate::ensure_optimized_blas(argv);
   const std::string path = palpate::bench::take_model_path(argc, argv);
   if (path.empty() || !std::filesystem::exists(path)) {
-    std::fprintf(stderr,
-                 "palpate_solve_bench: skipped: no compliance file%s%s; give MODEL.h5 or PALPATE_BENCH_MODEL "
-                 "(e.g. build/precompute/palpate-precompute --job config/openhelp-liver-h8.toml -q writes "
-                 "out/openhelp-liver-h8.h5)\n",
-                 path.empty() ? "" : " at ", path.c_str());
+    std::fprintf(
+        stderr,
+        "palpate_solve_bench: skipped: no compliance file%s%s; give MODEL.h5 or "
+        "PALPATE_BENCH_MODEL "
+        "(e.g. build/precompute/palpate-precompute --job config/openhelp-liver-h8.toml -q writes "
+        "out/openhelp-liver-h8.h5)\n",
+        path.empty() ? "" : " at ", path.c_str());
     return 0;
   }
   const Fixture loaded(path);
@@ -185,11 +197,20 @@ int main(int argc, char** argv) {
 
   benchmark::AddCustomContext("blas", palpate::blas_description());
   benchmark::AddCustomContext("model", path);
-  benchmark::AddCustomContext("compliance_vertices", std::to_string(loaded.model.compliance_vertex_count()));
+  benchmark::AddCustomContext("compliance_vertices",
+                              std::to_string(loaded.model.compliance_vertex_count()));
   benchmark::Initialize(&argc, argv);
-  benchmark::RegisterBenchmark("BM_dgemm", palpate::bench::BM_dgemm)->Arg(1000)->Unit(benchmark::kMillisecond)->UseRealTime();
-  benchmark::RegisterBenchmark("BM_read_G_SC", BM_read_G_SC)->Arg(20)->Unit(benchmark::kMicrosecond)->UseRealTime();
-  benchmark::RegisterBenchmark("BM_read_G_all", BM_read_G_all)->Unit(benchmark::kMillisecond)->UseRealTime();
+  benchmark::RegisterBenchmark("BM_dgemm", palpate::bench::BM_dgemm)
+      ->Arg(1000)
+      ->Unit(benchmark::kMillisecond)
+      ->UseRealTime();
+  benchmark::RegisterBenchmark("BM_read_G_SC", BM_read_G_SC)
+      ->Arg(20)
+      ->Unit(benchmark::kMicrosecond)
+      ->UseRealTime();
+  benchmark::RegisterBenchmark("BM_read_G_all", BM_read_G_all)
+      ->Unit(benchmark::kMillisecond)
+      ->UseRealTime();
   for (auto* b : {benchmark::RegisterBenchmark("BM_force_reused", BM_force_reused),
                   benchmark::RegisterBenchmark("BM_force_new_set", BM_force_new_set)})
     for (int k : kPatchSizes) b->Arg(k)->Unit(benchmark::kMicrosecond)->UseRealTime();

@@ -35,7 +35,10 @@
 //        (or PALPATE_BENCH_MODEL=MODEL.h5); without a model it says so and exits 0.
 
 #include <benchmark/benchmark.h>
+#include <immintrin.h>
+#include <sys/mman.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
@@ -46,20 +49,15 @@
 #include <thread>
 #include <vector>
 
-#include <immintrin.h>
-#include <sys/mman.h>
-
-#include <Eigen/Dense>
-
+#include "common.hpp"
+#include "palpate/core/system_info.hpp"
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/surface_model.hpp"
-#include "palpate/core/system_info.hpp"
-#include "common.hpp"
 #include "patch.hpp"
 
-extern "C" void dgemv_(const char* trans, const int* m, const int* n, const double* alpha, const double* a,
-                       const int* lda, const double* x, const int* incx, const double* beta, double* y,
-                       const int* incy);
+extern "C" void dgemv_(const char* trans, const int* m, const int* n, const double* alpha,
+                       const double* a, const int* lda, const double* x, const int* incx,
+                       const double* beta, double* y, const int* incy);
 
 namespace {
 
@@ -70,19 +68,21 @@ constexpr Index kRowBlock = 2048;  // 16 KB of double accumulators: stays in L1
 /// The product's inputs: the model, the 3k columns of G_SC and F_C from a real solve.
 struct Problem {
   palpate::SurfaceModel model;
-  std::vector<float> G_float;  // column-major copy of G, built on first use
-  std::vector<int> indices;    // compliance index per constrained vertex
-  std::vector<Index> columns;  // 3k column indices into G
-  std::vector<double> forces;  // 3k, N
-  Eigen::VectorXd reference;   // lib's u_S
+  std::vector<float> G_float;           // column-major copy of G, built on first use
+  std::vector<int> indices;             // compliance index per constrained vertex
+  std::vector<Index> columns;           // 3k column indices into G
+  std::vector<double> forces;           // 3k, N
+  Eigen::VectorXd reference;            // lib's u_S
   std::vector<double> gathered;         // G_SC as one contiguous 3N_S × 3k column-major matrix
   std::vector<float> gathered_float;    // the same in float
   std::vector<Index> gathered_columns;  // 0 .. 3k-1
   double* huge_G = nullptr;             // a copy of G on transparent huge pages (2 MB)
 
-  Problem(const std::filesystem::path& path, int k) : model(palpate::load_surface_model("bench", path)) {
+  Problem(const std::filesystem::path& path, int k)
+      : model(palpate::load_surface_model("bench", path)) {
     const palpate::DrawnSurface& surface = model.surface;
-    const auto patch = palpate::bench::nearest_patch(surface, palpate::bench::main_seed(surface), k);
+    const auto patch =
+        palpate::bench::nearest_patch(surface, palpate::bench::main_seed(surface), k);
     palpate::ConstraintSolver solver(model, palpate::SolverLimits{});
     solver.begin(patch.vertex_ids.size());
     const double depth = palpate::bench::press_depth_m(0);
@@ -104,7 +104,8 @@ struct Problem {
       gathered_columns.push_back(static_cast<Index>(c));
       const double* column = model.G.data() + columns[c] * model.G.rows();
       gathered.insert(gathered.end(), column, column + model.G.rows());
-      for (Index r = 0; r < model.G.rows(); ++r) gathered_float.push_back(static_cast<float>(column[r]));
+      for (Index r = 0; r < model.G.rows(); ++r)
+        gathered_float.push_back(static_cast<float>(column[r]));
     }
   }
   ~Problem() { std::free(huge_G); }
@@ -115,7 +116,8 @@ struct Problem {
   const double* huge_page_G() {
     if (huge_G == nullptr) {
       constexpr std::size_t kHuge = std::size_t{2} << 20;
-      const std::size_t bytes = (static_cast<std::size_t>(model.G.size()) * sizeof(double) + kHuge - 1) / kHuge * kHuge;
+      const std::size_t bytes =
+          (static_cast<std::size_t>(model.G.size()) * sizeof(double) + kHuge - 1) / kHuge * kHuge;
       huge_G = static_cast<double*>(std::aligned_alloc(kHuge, bytes));
       madvise(huge_G, bytes, MADV_HUGEPAGE);
       std::copy_n(model.G.data(), model.G.size(), huge_G);
@@ -139,8 +141,9 @@ Problem* problem = nullptr;
 /// of G, accumulators loaded and stored once per panel). Acc is the
 /// accumulation type (double, or float for a float G: no conversions).
 template <typename Acc, typename Scalar>
-[[gnu::always_inline]] inline void row_blocked_body(const Scalar* G, Index ld, const Index* columns, int ncols,
-                                                    const double* f, Index r0, Index r1, double* u) {
+[[gnu::always_inline]] inline void row_blocked_body(const Scalar* G, Index ld, const Index* columns,
+                                                    int ncols, const double* f, Index r0, Index r1,
+                                                    double* u) {
   alignas(64) Acc acc[kRowBlock];
   for (Index b = r0; b < r1; b += kRowBlock) {
     const Index n = std::min(kRowBlock, r1 - b);
@@ -150,25 +153,28 @@ template <typename Acc, typename Scalar>
       const Scalar* __restrict c1 = G + columns[c + 1] * ld + b;
       const Scalar* __restrict c2 = G + columns[c + 2] * ld + b;
       Acc* __restrict a = acc;
-      const Acc f0 = static_cast<Acc>(f[c]), f1 = static_cast<Acc>(f[c + 1]), f2 = static_cast<Acc>(f[c + 2]);
+      const Acc f0 = static_cast<Acc>(f[c]), f1 = static_cast<Acc>(f[c + 1]),
+                f2 = static_cast<Acc>(f[c + 2]);
       // Independent rows: lets GCC vectorize without run-time alias checks.
 #pragma GCC ivdep
       for (Index r = 0; r < n; ++r)
-        a[r] += f0 * static_cast<Acc>(c0[r]) + f1 * static_cast<Acc>(c1[r]) + f2 * static_cast<Acc>(c2[r]);
+        a[r] += f0 * static_cast<Acc>(c0[r]) + f1 * static_cast<Acc>(c1[r]) +
+                f2 * static_cast<Acc>(c2[r]);
     }
     for (Index r = 0; r < n; ++r) u[b + r] = static_cast<double>(acc[r]);
   }
 }
 
-void row_blocked(const double* G, Index ld, const Index* columns, int ncols, const double* f, Index r0, Index r1,
-                 double* u) {
+void row_blocked(const double* G, Index ld, const Index* columns, int ncols, const double* f,
+                 Index r0, Index r1, double* u) {
   row_blocked_body<double>(G, ld, columns, ncols, f, r0, r1, u);
 }
 
 template <typename Acc = double, typename Scalar>
-__attribute__((target("avx2,fma"), noinline)) void row_blocked_avx2(const Scalar* G, Index ld, const Index* columns,
-                                                                    int ncols, const double* f, Index r0, Index r1,
-                                                                    double* u) {
+__attribute__((target("avx2,fma"), noinline)) void row_blocked_avx2(const Scalar* G, Index ld,
+                                                                    const Index* columns, int ncols,
+                                                                    const double* f, Index r0,
+                                                                    Index r1, double* u) {
   row_blocked_body<Acc>(G, ld, columns, ncols, f, r0, r1, u);
 }
 
@@ -186,7 +192,8 @@ class RowSplitter {
   RowSplitter& operator=(const RowSplitter&) = delete;
 
   template <typename Scalar>
-  void run(const Scalar* G, Index ld, const Index* columns, int ncols, const double* f, Index rows, double* u) {
+  void run(const Scalar* G, Index ld, const Index* columns, int ncols, const double* f, Index rows,
+           double* u) {
     const Index half = (rows / 2 / 8) * 8;
     task_ = [=] { row_blocked_avx2(G, ld, columns, ncols, f, half, rows, u); };
     const auto generation = go_.load(std::memory_order_relaxed) + 1;
@@ -230,10 +237,11 @@ void time_product(benchmark::State& state, Product product) {
     benchmark::ClobberMemory();
   }
   state.SetItemsProcessed(state.iterations());
-  state.counters["Hz"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
-  state.counters["G_SC_GB/s"] =
-      benchmark::Counter(static_cast<double>(problem->rows()) * static_cast<double>(problem->columns.size()) * 8e-9,
-                         benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["Hz"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["G_SC_GB/s"] = benchmark::Counter(
+      static_cast<double>(problem->rows()) * static_cast<double>(problem->columns.size()) * 8e-9,
+      benchmark::Counter::kIsIterationInvariantRate);
   state.counters["rel_diff"] = relative_difference(u);
 }
 
@@ -247,8 +255,8 @@ void BM_lib(benchmark::State& state) {
 void BM_row_blocked(benchmark::State& state) {
   const int ncols = static_cast<int>(problem->columns.size());
   time_product(state, [&](double* u) {
-    row_blocked(problem->model.G.data(), problem->rows(), problem->columns.data(), ncols, problem->forces.data(), 0,
-                problem->rows(), u);
+    row_blocked(problem->model.G.data(), problem->rows(), problem->columns.data(), ncols,
+                problem->forces.data(), 0, problem->rows(), u);
   });
 }
 
@@ -265,9 +273,10 @@ void BM_blas_dgemv(benchmark::State& state) {
   const double alpha = 1, zero = 0;
   time_product(state, [&](double* u) {
     for (std::size_t j = 0; j < problem->indices.size(); ++j) {
-      const double* panel = problem->model.G.data() + 3 * static_cast<Index>(problem->indices[j]) * m;
-      dgemv_("N", &m, &three, &alpha, panel, &m, problem->forces.data() + 3 * j, &one, j == 0 ? &zero : &alpha, u,
-             &one);
+      const double* panel =
+          problem->model.G.data() + 3 * static_cast<Index>(problem->indices[j]) * m;
+      dgemv_("N", &m, &three, &alpha, panel, &m, problem->forces.data() + 3 * j, &one,
+             j == 0 ? &zero : &alpha, u, &one);
     }
   });
 }
@@ -276,8 +285,8 @@ void BM_float_G(benchmark::State& state) {
   const float* G = problem->float_G();
   const int ncols = static_cast<int>(problem->columns.size());
   time_product(state, [&](double* u) {
-    row_blocked_avx2(G, problem->rows(), problem->columns.data(), ncols, problem->forces.data(), 0, problem->rows(),
-                     u);
+    row_blocked_avx2(G, problem->rows(), problem->columns.data(), ncols, problem->forces.data(), 0,
+                     problem->rows(), u);
   });
 }
 
@@ -285,8 +294,8 @@ void BM_two_threads(benchmark::State& state) {
   RowSplitter splitter;
   const int ncols = static_cast<int>(problem->columns.size());
   time_product(state, [&](double* u) {
-    splitter.run(problem->model.G.data(), problem->rows(), problem->columns.data(), ncols, problem->forces.data(),
-                 problem->rows(), u);
+    splitter.run(problem->model.G.data(), problem->rows(), problem->columns.data(), ncols,
+                 problem->forces.data(), problem->rows(), u);
   });
 }
 
@@ -295,31 +304,34 @@ void BM_float_two_threads(benchmark::State& state) {
   RowSplitter splitter;
   const int ncols = static_cast<int>(problem->columns.size());
   time_product(state, [&](double* u) {
-    splitter.run(G, problem->rows(), problem->columns.data(), ncols, problem->forces.data(), problem->rows(), u);
+    splitter.run(G, problem->rows(), problem->columns.data(), ncols, problem->forces.data(),
+                 problem->rows(), u);
   });
 }
 
 void BM_gathered(benchmark::State& state) {
   const int ncols = static_cast<int>(problem->columns.size());
   time_product(state, [&](double* u) {
-    row_blocked_avx2(problem->gathered.data(), problem->rows(), problem->gathered_columns.data(), ncols,
-                     problem->forces.data(), 0, problem->rows(), u);
+    row_blocked_avx2(problem->gathered.data(), problem->rows(), problem->gathered_columns.data(),
+                     ncols, problem->forces.data(), 0, problem->rows(), u);
   });
 }
 
 void BM_gathered_float(benchmark::State& state) {
   const int ncols = static_cast<int>(problem->columns.size());
   time_product(state, [&](double* u) {
-    row_blocked_avx2(problem->gathered_float.data(), problem->rows(), problem->gathered_columns.data(), ncols,
-                     problem->forces.data(), 0, problem->rows(), u);
+    row_blocked_avx2(problem->gathered_float.data(), problem->rows(),
+                     problem->gathered_columns.data(), ncols, problem->forces.data(), 0,
+                     problem->rows(), u);
   });
 }
 
 void BM_gathered_float_acc(benchmark::State& state) {
   const int ncols = static_cast<int>(problem->columns.size());
   time_product(state, [&](double* u) {
-    row_blocked_avx2<float>(problem->gathered_float.data(), problem->rows(), problem->gathered_columns.data(), ncols,
-                            problem->forces.data(), 0, problem->rows(), u);
+    row_blocked_avx2<float>(problem->gathered_float.data(), problem->rows(),
+                            problem->gathered_columns.data(), ncols, problem->forces.data(), 0,
+                            problem->rows(), u);
   });
 }
 
@@ -327,8 +339,8 @@ void BM_huge_pages(benchmark::State& state) {
   const double* G = problem->huge_page_G();
   const int ncols = static_cast<int>(problem->columns.size());
   time_product(state, [&](double* u) {
-    row_blocked_avx2(G, problem->rows(), problem->columns.data(), ncols, problem->forces.data(), 0, problem->rows(),
-                     u);
+    row_blocked_avx2(G, problem->rows(), problem->columns.data(), ncols, problem->forces.data(), 0,
+                     problem->rows(), u);
   });
 }
 
@@ -338,8 +350,10 @@ int main(int argc, char** argv) {
   palpate::ensure_optimized_blas(argv);
   const std::string path = palpate::bench::take_model_path(argc, argv);
   if (path.empty() || !std::filesystem::exists(path)) {
-    std::fprintf(stderr, "palpate_surface_field_bench: skipped: no compliance file%s%s; give MODEL.h5 or "
-                 "PALPATE_BENCH_MODEL\n", path.empty() ? "" : " at ", path.c_str());
+    std::fprintf(stderr,
+                 "palpate_surface_field_bench: skipped: no compliance file%s%s; give MODEL.h5 or "
+                 "PALPATE_BENCH_MODEL\n",
+                 path.empty() ? "" : " at ", path.c_str());
     return 0;
   }
   const int k = 20;  // the target's patch size
@@ -351,7 +365,8 @@ int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
   std::vector<benchmark::internal::Benchmark*> all = {
-      benchmark::RegisterBenchmark("BM_lib", BM_lib), benchmark::RegisterBenchmark("BM_row_blocked", BM_row_blocked),
+      benchmark::RegisterBenchmark("BM_lib", BM_lib),
+      benchmark::RegisterBenchmark("BM_row_blocked", BM_row_blocked),
       benchmark::RegisterBenchmark("BM_blas_dgemv", BM_blas_dgemv)};
   if (avx2)
     for (auto* b : {benchmark::RegisterBenchmark("BM_row_blocked_avx2", BM_row_blocked_avx2),
@@ -364,7 +379,9 @@ int main(int argc, char** argv) {
                     benchmark::RegisterBenchmark("BM_float_two_threads", BM_float_two_threads)})
       all.push_back(b);
   else
-    std::fprintf(stderr, "palpate_surface_field_bench: no AVX2+FMA on this CPU: the AVX2 variants are skipped\n");
+    std::fprintf(
+        stderr,
+        "palpate_surface_field_bench: no AVX2+FMA on this CPU: the AVX2 variants are skipped\n");
   for (auto* b : all) b->Unit(benchmark::kMicrosecond)->UseRealTime();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

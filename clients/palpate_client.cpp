@@ -18,9 +18,9 @@
 #include <thread>
 #include <vector>
 
-#include "palpate/transport/client.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/core/statistics.hpp"
+#include "palpate/transport/client.hpp"
 
 namespace {
 
@@ -121,7 +121,8 @@ double percentile(std::vector<double> values, double q) {
 int demo(palpate::Client& client, const std::string& model_id, double rate_hz, int repeat) {
   const palpate::ModelInfo m = connect(client, model_id);
   std::printf("model %s: %d compliance vertices, %zu triangles; %s\n", m.model_id.c_str(),
-              m.surface.compliance_vertex_count, m.surface.triangles.size() / 3, m.material_summary.c_str());
+              m.surface.compliance_vertex_count, m.surface.triangles.size() / 3,
+              m.material_summary.c_str());
   const int n = m.surface.compliance_vertex_count;
   const auto& p = m.surface.rest_positions_m;
   int top = 0;
@@ -186,7 +187,8 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz, i
                     norm(reply.total_force_n));
     }
 
-    std::printf("\npinch: vertices %u %u %u pulled out 5 mm together\n", m.surface.vertex_ids[triangle[0]],
+    std::printf("\npinch: vertices %u %u %u pulled out 5 mm together\n",
+                m.surface.vertex_ids[triangle[0]],
                 m.surface.vertex_ids[triangle[std::min<std::size_t>(1, triangle.size() - 1)]],
                 m.surface.vertex_ids[triangle.back()]);
     for (int s = 1; s <= steps; ++s) {
@@ -227,7 +229,8 @@ int demo(palpate::Client& client, const std::string& model_id, double rate_hz, i
         }
       }
       const std::array<double, 3> nn{normals(at, 0), normals(at, 1), normals(at, 2)};
-      const auto reply = step({ConstraintSpec::normal_displacement(m.surface.vertex_ids[at], nn, -0.004)});
+      const auto reply =
+          step({ConstraintSpec::normal_displacement(m.surface.vertex_ids[at], nn, -0.004)});
       if (s % (steps / 5) == 0)
         std::printf("  at vertex %5u   normal force %7.3f N\n", m.surface.vertex_ids[at],
                     norm(reply.total_force_n));
@@ -313,7 +316,8 @@ int run(int argc, char** argv) {
         "model %s\n  units %s\n  material %s\n  input %s\n  %d compliance vertices, %zu drawn, %zu "
         "triangles\n",
         m->model_id.c_str(), m->units.c_str(), m->material_summary.c_str(), m->input_hash.c_str(),
-        m->surface.compliance_vertex_count, m->surface.vertex_ids.size(), m->surface.triangles.size() / 3);
+        m->surface.compliance_vertex_count, m->surface.vertex_ids.size(),
+        m->surface.triangles.size() / 3);
     return 0;
   }
   if (*request) {

@@ -29,8 +29,8 @@
 #include <vector>
 
 #include "palpate/core/error.hpp"
-#include "palpate/runtime/gesture.hpp"
 #include "palpate/core/statistics.hpp"
+#include "palpate/runtime/gesture.hpp"
 #include "palpate/transport/tool_client.hpp"
 
 namespace {

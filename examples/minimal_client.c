@@ -11,12 +11,11 @@
  * loopback-only configuration, so it reaches a daemon on the same host only.
  * Exit code 0 when the reply's status is STATUS_OK, 1 otherwise. */
 
+#include <dds/dds.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-#include <dds/dds.h>
 
 #include "palpate.h"
 
@@ -54,7 +53,8 @@ static bool take_until(dds_entity_t participant, dds_entity_t reader, dds_durati
                        bool (*accept)(const void* sample, void* context), void* context) {
   const dds_time_t deadline = dds_time() + timeout;
   dds_entity_t waitset = check(dds_create_waitset(participant), "waitset");
-  check(dds_waitset_attach(waitset, check(dds_create_readcondition(reader, DDS_ANY_STATE), "readcondition"), 0),
+  check(dds_waitset_attach(
+            waitset, check(dds_create_readcondition(reader, DDS_ANY_STATE), "readcondition"), 0),
         "waitset attach");
   bool done = false;
   while (!done && dds_time() < deadline) {
@@ -75,7 +75,7 @@ struct ModelWanted {
   const char* model_id;
   bool found;
   uint32_t compliance_vertex_count;
-  uint32_t first_vertex;  /* mesh vertex id of the first compliance vertex */
+  uint32_t first_vertex; /* mesh vertex id of the first compliance vertex */
   double rest_position[3];
 };
 
@@ -101,40 +101,49 @@ static bool accept_reply(const void* sample, void* context) {
   struct ReplyWanted* want = context;
   if (r->request_id != want->request_id) return false;
   want->status = r->status;
-  printf("reply to request %llu on model %s: status %d%s%s\n", (unsigned long long)r->request_id, r->model_id,
-         (int)r->status, r->message[0] ? ": " : "", r->message);
-  printf("  condition estimate %.3g, solved in %.1f us\n", r->condition_estimate, (double)r->solve_ns * 1e-3);
+  printf("reply to request %llu on model %s: status %d%s%s\n", (unsigned long long)r->request_id,
+         r->model_id, (int)r->status, r->message[0] ? ": " : "", r->message);
+  printf("  condition estimate %.3g, solved in %.1f us\n", r->condition_estimate,
+         (double)r->solve_ns * 1e-3);
   for (uint32_t j = 0; j < r->results._length; ++j) {
     const palpate_ConstraintResult* c = &r->results._buffer[j];
-    printf("  vertex %u: force (%.4g, %.4g, %.4g) N on the organ, displacement (%.4g, %.4g, %.4g) m\n", c->vertex,
-           c->force[0], c->force[1], c->force[2], c->displacement[0], c->displacement[1], c->displacement[2]);
+    printf(
+        "  vertex %u: force (%.4g, %.4g, %.4g) N on the organ, displacement (%.4g, %.4g, %.4g) m\n",
+        c->vertex, c->force[0], c->force[1], c->force[2], c->displacement[0], c->displacement[1],
+        c->displacement[2]);
   }
-  printf("  force to render on the haptic device: (%.4g, %.4g, %.4g) N\n", -r->total_force[0], -r->total_force[1],
-         -r->total_force[2]);
+  printf("  force to render on the haptic device: (%.4g, %.4g, %.4g) N\n", -r->total_force[0],
+         -r->total_force[1], -r->total_force[2]);
   return true;
 }
 
 int main(int argc, char** argv) {
   const char* model_id = argc > 1 ? argv[1] : "sample-organ";
-  const char* client_id = "minimal-client";  /* unique per client: it names the reply partition */
+  const char* client_id = "minimal-client"; /* unique per client: it names the reply partition */
 
   /* 1. Join domain 0 with the loopback configuration (not the default one,
    *    which would use the machine's network interface). */
-  const dds_entity_t domain = check(dds_create_domain(kDomain, kLoopbackConfig), "creating the domain");
-  const dds_entity_t participant = check(dds_create_participant(kDomain, NULL, NULL), "creating the participant");
+  const dds_entity_t domain =
+      check(dds_create_domain(kDomain, kLoopbackConfig), "creating the domain");
+  const dds_entity_t participant =
+      check(dds_create_participant(kDomain, NULL, NULL), "creating the participant");
 
   /* 2. Topics, and readers and writers with palpated's QoS. */
-  const dds_entity_t model_topic =
-      check(dds_create_topic(participant, &palpate_ModelDescription_desc, "palpate_model", NULL, NULL), "topic");
-  const dds_entity_t request_topic =
-      check(dds_create_topic(participant, &palpate_ConstraintRequest_desc, "palpate_request", NULL, NULL), "topic");
-  const dds_entity_t reply_topic =
-      check(dds_create_topic(participant, &palpate_ConstraintReply_desc, "palpate_reply", NULL, NULL), "topic");
+  const dds_entity_t model_topic = check(
+      dds_create_topic(participant, &palpate_ModelDescription_desc, "palpate_model", NULL, NULL),
+      "topic");
+  const dds_entity_t request_topic = check(
+      dds_create_topic(participant, &palpate_ConstraintRequest_desc, "palpate_request", NULL, NULL),
+      "topic");
+  const dds_entity_t reply_topic = check(
+      dds_create_topic(participant, &palpate_ConstraintReply_desc, "palpate_reply", NULL, NULL),
+      "topic");
 
   dds_qos_t* model_qos = make_qos(DDS_DURABILITY_TRANSIENT_LOCAL, 1);
   dds_qos_t* request_qos = make_qos(DDS_DURABILITY_VOLATILE, 16);
   dds_qset_latency_budget(request_qos, 0);
-  const dds_entity_t model_reader = check(dds_create_reader(participant, model_topic, model_qos, NULL), "model reader");
+  const dds_entity_t model_reader =
+      check(dds_create_reader(participant, model_topic, model_qos, NULL), "model reader");
   const dds_entity_t request_writer =
       check(dds_create_writer(participant, request_topic, request_qos, NULL), "request writer");
 
@@ -145,19 +154,23 @@ int main(int argc, char** argv) {
   const char* partitions[] = {partition};
   dds_qos_t* subscriber_qos = dds_create_qos();
   dds_qset_partition(subscriber_qos, 1, partitions);
-  const dds_entity_t subscriber = check(dds_create_subscriber(participant, subscriber_qos, NULL), "subscriber");
-  const dds_entity_t reply_reader = check(dds_create_reader(subscriber, reply_topic, request_qos, NULL), "reply reader");
+  const dds_entity_t subscriber =
+      check(dds_create_subscriber(participant, subscriber_qos, NULL), "subscriber");
+  const dds_entity_t reply_reader =
+      check(dds_create_reader(subscriber, reply_topic, request_qos, NULL), "reply reader");
 
   /* 4. The model description (transient-local: it is there even if the
    *    daemon published it long ago). */
   struct ModelWanted model = {model_id, false, 0, 0, {0, 0, 0}};
   if (!take_until(participant, model_reader, DDS_SECS(10), accept_model, &model)) {
-    fprintf(stderr, "minimal_client: no description of model '%s' within 10 s (is palpated running?)\n", model_id);
+    fprintf(stderr,
+            "minimal_client: no description of model '%s' within 10 s (is palpated running?)\n",
+            model_id);
     return 1;
   }
-  printf("model %s: %u compliance vertices; first one is mesh vertex %u at (%.4f, %.4f, %.4f) m\n", model_id,
-         model.compliance_vertex_count, model.first_vertex, model.rest_position[0], model.rest_position[1],
-         model.rest_position[2]);
+  printf("model %s: %u compliance vertices; first one is mesh vertex %u at (%.4f, %.4f, %.4f) m\n",
+         model_id, model.compliance_vertex_count, model.first_vertex, model.rest_position[0],
+         model.rest_position[1], model.rest_position[2]);
 
   /* 5. Wait until palpated reads our requests AND has a reply writer matched
    *    with our reply reader; a request sent earlier may get no reply. */
@@ -178,16 +191,17 @@ int main(int argc, char** argv) {
   palpate_Constraint constraint = {
       .vertex = model.first_vertex,
       .kind = palpate_CONSTRAINT_DISPLACEMENT,
-      .value = {0.0, 0.0, -0.002},  /* m */
-      .normal = {0.0, 0.0, 0.0},    /* only for palpate_CONSTRAINT_NORMAL_DISPLACEMENT */
+      .value = {0.0, 0.0, -0.002}, /* m */
+      .normal = {0.0, 0.0, 0.0},   /* only for palpate_CONSTRAINT_NORMAL_DISPLACEMENT */
   };
   palpate_ConstraintRequest request;
   memset(&request, 0, sizeof request);
   snprintf(request.client_id, sizeof request.client_id, "%s", client_id);
   snprintf(request.model_id, sizeof request.model_id, "%s", model_id);
   request.request_id = 1;
-  request.want_surface = false;  /* true: the reply also carries every compliance vertex's displacement */
-  request.update_state = false;  /* true: the result becomes what the surface stream shows */
+  request.want_surface =
+      false; /* true: the reply also carries every compliance vertex's displacement */
+  request.update_state = false; /* true: the result becomes what the surface stream shows */
   request.constraints._buffer = &constraint;
   request.constraints._length = request.constraints._maximum = 1;
   request.constraints._release = false;
@@ -203,6 +217,6 @@ int main(int argc, char** argv) {
   dds_delete_qos(model_qos);
   dds_delete_qos(request_qos);
   dds_delete_qos(subscriber_qos);
-  dds_delete(domain);  /* deletes the participant and everything in it */
+  dds_delete(domain); /* deletes the participant and everything in it */
   return reply.status == palpate_STATUS_OK ? 0 : 1;
 }

@@ -9,7 +9,6 @@
 // daemon can serve (palpate::fuzz::serve).
 
 #include <fuzzer/FuzzedDataProvider.h>
-
 #include <hdf5.h>
 
 #include <cmath>
@@ -143,7 +142,9 @@ double odd_number(FuzzedDataProvider& in, const Array& a) {
     case 5:
       return -2147483648.0;
     case 6:
-      return a.numbers.empty() ? 0 : a.numbers[in.ConsumeIntegralInRange<std::size_t>(0, a.numbers.size() - 1)];
+      return a.numbers.empty()
+                 ? 0
+                 : a.numbers[in.ConsumeIntegralInRange<std::size_t>(0, a.numbers.size() - 1)];
     case 7:
       return in.ConsumeFloatingPoint<double>();
     default:
@@ -227,7 +228,8 @@ std::vector<hsize_t> changed_dims(FuzzedDataProvider& in, const std::vector<hsiz
     std::size_t rank = in.ConsumeIntegralInRange<std::size_t>(0, 3);
     if (rank == dims.size()) rank = (rank + 1) % 4;
     d.assign(rank, 1);
-    if (!d.empty()) d[0] = in.ConsumeBool() ? count(dims) : in.ConsumeIntegralInRange<hsize_t>(0, 4);
+    if (!d.empty())
+      d[0] = in.ConsumeBool() ? count(dims) : in.ConsumeIntegralInRange<hsize_t>(0, 4);
   } else if (change == Change::kHuge) {
     for (hsize_t& x : d) x = in.ConsumeIntegralInRange<hsize_t>(1, hsize_t{1} << 40);
   }
@@ -254,8 +256,9 @@ void write_attribute(FuzzedDataProvider& in, hid_t object, const Array& a) {
   }
   const auto dims = changed_dims(in, a.dims, change == Change::kHuge ? Change::kShape : change);
   const Owned type{change == Change::kType ? pick_type(in) : H5Tcopy(a.type), H5Tclose};
-  const Owned space{dims.empty() ? H5Screate(H5S_SCALAR)
-                                 : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr),
+  const Owned space{dims.empty()
+                        ? H5Screate(H5S_SCALAR)
+                        : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr),
                     H5Sclose};
   const Owned attr{H5Acreate2(object, a.name.c_str(), type.id, space.id, H5P_DEFAULT, H5P_DEFAULT),
                    H5Aclose};
@@ -271,7 +274,8 @@ void write_dataset(FuzzedDataProvider& in, hid_t file, hid_t link_plist, const A
       Owned g{H5Gcreate2(file, a.name.c_str(), link_plist, H5P_DEFAULT, H5P_DEFAULT), H5Gclose};
     } else {
       // Dangling, or pointing at another dataset (written later or not).
-      const auto& other = t.datasets[in.ConsumeIntegralInRange<std::size_t>(0, t.datasets.size() - 1)];
+      const auto& other =
+          t.datasets[in.ConsumeIntegralInRange<std::size_t>(0, t.datasets.size() - 1)];
       H5Lcreate_soft(in.ConsumeBool() ? "/nowhere" : other.name.c_str(), file, a.name.c_str(),
                      link_plist, H5P_DEFAULT);
     }
@@ -279,8 +283,9 @@ void write_dataset(FuzzedDataProvider& in, hid_t file, hid_t link_plist, const A
   }
   const auto dims = changed_dims(in, a.dims, change);
   const Owned type{change == Change::kType ? pick_type(in) : H5Tcopy(a.type), H5Tclose};
-  const Owned space{dims.empty() ? H5Screate(H5S_SCALAR)
-                                 : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr),
+  const Owned space{dims.empty()
+                        ? H5Screate(H5S_SCALAR)
+                        : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr),
                     H5Sclose};
   const Owned create{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
   if (change == Change::kHuge && !dims.empty()) {
@@ -289,9 +294,9 @@ void write_dataset(FuzzedDataProvider& in, hid_t file, hid_t link_plist, const A
     for (std::size_t i = 0; i < dims.size(); ++i) chunk[i] = std::min<hsize_t>(dims[i], 64);
     H5Pset_chunk(create.id, static_cast<int>(chunk.size()), chunk.data());
   }
-  const Owned set{H5Dcreate2(file, a.name.c_str(), type.id, space.id, link_plist, create.id,
-                             H5P_DEFAULT),
-                  H5Dclose};
+  const Owned set{
+      H5Dcreate2(file, a.name.c_str(), type.id, space.id, link_plist, create.id, H5P_DEFAULT),
+      H5Dclose};
   if (set.id < 0) return;
   if (change != Change::kHuge)
     write_data(set.id, false, type.id, dims, a,

@@ -33,7 +33,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (engine.check(t, pose) != palpate::PoseProblem::kNone) continue;
     engine.update(t, pose, 0.001 * t);
     PALPATE_FUZZ_CHECK(engine.output(t).force_n.allFinite());
-    PALPATE_FUZZ_CHECK(engine.output(t).force_n.norm() <= engine.tool(t).force_limit_n * (1 + 1e-9));
+    PALPATE_FUZZ_CHECK(engine.output(t).force_n.norm() <=
+                       engine.tool(t).force_limit_n * (1 + 1e-9));
   }
   return 0;
 }

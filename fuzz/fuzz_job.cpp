@@ -35,15 +35,18 @@ void check_same(const palpate::PrecomputeJob& a, const palpate::PrecomputeJob& b
   PALPATE_FUZZ_CHECK(a.group_materials.size() == b.group_materials.size());
   for (std::size_t i = 0; i < a.group_materials.size(); ++i) {
     PALPATE_FUZZ_CHECK(a.group_materials[i].group == b.group_materials[i].group);
-    PALPATE_FUZZ_CHECK(same(a.group_materials[i].young_modulus_pa, b.group_materials[i].young_modulus_pa));
-    PALPATE_FUZZ_CHECK(same(a.group_materials[i].poisson_ratio, b.group_materials[i].poisson_ratio));
+    PALPATE_FUZZ_CHECK(
+        same(a.group_materials[i].young_modulus_pa, b.group_materials[i].young_modulus_pa));
+    PALPATE_FUZZ_CHECK(
+        same(a.group_materials[i].poisson_ratio, b.group_materials[i].poisson_ratio));
   }
   const auto &x = a.attachment, &y = b.attachment;
   PALPATE_FUZZ_CHECK(x.groups == y.groups);
   PALPATE_FUZZ_CHECK(x.ids_file == y.ids_file);
   PALPATE_FUZZ_CHECK(x.boxes.size() == y.boxes.size());
   for (std::size_t i = 0; i < x.boxes.size(); ++i)
-    PALPATE_FUZZ_CHECK(same(x.boxes[i].min, y.boxes[i].min) && same(x.boxes[i].max, y.boxes[i].max));
+    PALPATE_FUZZ_CHECK(same(x.boxes[i].min, y.boxes[i].min) &&
+                       same(x.boxes[i].max, y.boxes[i].max));
   PALPATE_FUZZ_CHECK(x.spheres.size() == y.spheres.size());
   for (std::size_t i = 0; i < x.spheres.size(); ++i)
     PALPATE_FUZZ_CHECK(same(x.spheres[i].center, y.spheres[i].center) &&

@@ -21,10 +21,15 @@ using palpate::RequestStatus;
 using palpate::ToolContactEngine;
 
 double special(FuzzedDataProvider& in) {
-  static constexpr double kSpecial[] = {
-      0.0, -0.0, 1e-300, 4.9e-324, 1e300, std::numeric_limits<double>::max(),
-      std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
-      std::numeric_limits<double>::quiet_NaN()};
+  static constexpr double kSpecial[] = {0.0,
+                                        -0.0,
+                                        1e-300,
+                                        4.9e-324,
+                                        1e300,
+                                        std::numeric_limits<double>::max(),
+                                        std::numeric_limits<double>::infinity(),
+                                        -std::numeric_limits<double>::infinity(),
+                                        std::numeric_limits<double>::quiet_NaN()};
   return in.PickValueInArray(kSpecial);
 }
 
@@ -44,7 +49,8 @@ double coordinate(FuzzedDataProvider& in, double lo, double hi) {
 palpate::ToolPoseInput pose(FuzzedDataProvider& in, std::uint64_t* sequence) {
   palpate::ToolPoseInput p;
   *sequence += in.ConsumeIntegralInRange(0, 3) == 0 ? in.ConsumeIntegral<std::uint8_t>() : 1;
-  p.sequence = in.ConsumeIntegralInRange(0, 31) == 0 ? in.ConsumeIntegral<std::uint64_t>() : *sequence;
+  p.sequence =
+      in.ConsumeIntegralInRange(0, 31) == 0 ? in.ConsumeIntegral<std::uint64_t>() : *sequence;
   p.send_time_ns = in.ConsumeIntegral<std::int64_t>();
   p.position_m = {coordinate(in, -0.02, 0.12), coordinate(in, -0.02, 0.07),
                   coordinate(in, -0.01, 0.06)};
@@ -82,8 +88,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   for (int tick = 0; tick < 64 && in.remaining_bytes() > 0; ++tick) {
     // The loop's clock is monotonic: ticks of about 1 ms, sometimes a gap
     // long enough for the watchdog.
-    now_s += in.ConsumeIntegralInRange(0, 15) == 0 ? in.ConsumeFloatingPointInRange(0.0, 0.5)
-                                                   : 0.001;
+    now_s +=
+        in.ConsumeIntegralInRange(0, 15) == 0 ? in.ConsumeFloatingPointInRange(0.0, 0.5) : 0.001;
     if (in.ConsumeIntegralInRange(0, 7) == 0) {
       const std::uint64_t changed = engine.watchdog(now_s);
       PALPATE_FUZZ_CHECK(changed < 4);
@@ -109,8 +115,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     PALPATE_FUZZ_CHECK(engine.contact_positions().size() == 3 * indices.size());
     for (const double f : engine.contact_forces()) PALPATE_FUZZ_CHECK(std::isfinite(f));
     for (const double x : engine.contact_positions()) PALPATE_FUZZ_CHECK(std::isfinite(x));
-    for (const int j : indices)
-      PALPATE_FUZZ_CHECK(j >= 0 && j < model.compliance_vertex_count());
+    for (const int j : indices) PALPATE_FUZZ_CHECK(j >= 0 && j < model.compliance_vertex_count());
   }
   return 0;
 }

@@ -22,10 +22,21 @@ using palpate::RequestStatus;
 
 // Numbers a client could send: ordinary ones, the edges of double, and raw bits.
 double number(FuzzedDataProvider& in) {
-  static constexpr double kSpecial[] = {
-      0.0, -0.0, 1e-3, -1e-3, 0.01, 1.0, -5.0, 1e-300, 4.9e-324, 1e300, -1e308,
-      std::numeric_limits<double>::max(), std::numeric_limits<double>::infinity(),
-      -std::numeric_limits<double>::infinity(), std::numeric_limits<double>::quiet_NaN()};
+  static constexpr double kSpecial[] = {0.0,
+                                        -0.0,
+                                        1e-3,
+                                        -1e-3,
+                                        0.01,
+                                        1.0,
+                                        -5.0,
+                                        1e-300,
+                                        4.9e-324,
+                                        1e300,
+                                        -1e308,
+                                        std::numeric_limits<double>::max(),
+                                        std::numeric_limits<double>::infinity(),
+                                        -std::numeric_limits<double>::infinity(),
+                                        std::numeric_limits<double>::quiet_NaN()};
   switch (in.ConsumeIntegralInRange(0, 3)) {
     case 0:
       return in.PickValueInArray(kSpecial);

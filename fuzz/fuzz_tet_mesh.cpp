@@ -23,10 +23,13 @@
 namespace {
 
 double coordinate(FuzzedDataProvider& in) {
-  static constexpr double kSpecial[] = {
-      1e-300, 1e300, -1e300, std::numeric_limits<double>::max(),
-      std::numeric_limits<double>::denorm_min(), std::numeric_limits<double>::infinity(),
-      std::numeric_limits<double>::quiet_NaN()};
+  static constexpr double kSpecial[] = {1e-300,
+                                        1e300,
+                                        -1e300,
+                                        std::numeric_limits<double>::max(),
+                                        std::numeric_limits<double>::denorm_min(),
+                                        std::numeric_limits<double>::infinity(),
+                                        std::numeric_limits<double>::quiet_NaN()};
   switch (in.ConsumeIntegralInRange(0, 15)) {
     case 0:
       return in.PickValueInArray(kSpecial);
@@ -117,10 +120,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // vertex id file of fuzzed text.
   palpate::AttachmentSpec spec;
   for (int k = in.ConsumeIntegralInRange(0, 2); k > 0; --k)
-    spec.groups.push_back(in.ConsumeBool() ? "group" + std::to_string(in.ConsumeIntegralInRange(1, 3))
-                                           : in.ConsumeRandomLengthString(8));
+    spec.groups.push_back(in.ConsumeBool()
+                              ? "group" + std::to_string(in.ConsumeIntegralInRange(1, 3))
+                              : in.ConsumeRandomLengthString(8));
   auto point = [&] { return Eigen::Vector3d(coordinate(in), coordinate(in), coordinate(in)); };
-  for (int k = in.ConsumeIntegralInRange(0, 2); k > 0; --k) spec.boxes.push_back({point(), point()});
+  for (int k = in.ConsumeIntegralInRange(0, 2); k > 0; --k)
+    spec.boxes.push_back({point(), point()});
   for (int k = in.ConsumeIntegralInRange(0, 1); k > 0; --k)
     spec.spheres.push_back({point(), coordinate(in)});
   for (int k = in.ConsumeIntegralInRange(0, 2); k > 0; --k)

@@ -14,13 +14,13 @@
 #include <iostream>
 #include <memory>
 
+#include "palpate/core/error.hpp"
+#include "palpate/core/system_info.hpp"
 #include "palpate/core/version.hpp"
 #include "palpate/file/atomic_file.hpp"
-#include "palpate/core/error.hpp"
+#include "palpate/file/xdmf.hpp"
 #include "palpate/offline/mesh_io.hpp"
 #include "palpate/offline/precompute.hpp"
-#include "palpate/core/system_info.hpp"
-#include "palpate/file/xdmf.hpp"
 #include "progress_bar.hpp"
 
 namespace {
@@ -69,12 +69,14 @@ class StopPoint {
 };
 
 int run(int argc, char** argv) {
-  CLI::App app{"palpate-precompute: surface compliance of an elastic organ (Cotin, Delingette & "
-               "Ayache 1999), computed with CHOLMOD by 3N_S solves and by condensation, "
-               "cross-checked, written to one HDF5 file"};
+  CLI::App app{
+      "palpate-precompute: surface compliance of an elastic organ (Cotin, Delingette & "
+      "Ayache 1999), computed with CHOLMOD by 3N_S solves and by condensation, "
+      "cross-checked, written to one HDF5 file"};
   app.set_version_flag("--version", "palpate-precompute " PALPATE_VERSION);
 
-  std::string job_file, mesh, mesh_unit, fix_ids, method, precision, output, save_job, shard, columns;
+  std::string job_file, mesh, mesh_unit, fix_ids, method, precision, output, save_job, shard,
+      columns;
   std::vector<std::string> fix_groups, materials;
   std::vector<double> box, sphere, half_space;
   double young = 0, poisson = 0, fill_size = 0, tolerance = 0, memory_gb = 0;
@@ -82,26 +84,42 @@ int run(int argc, char** argv) {
   bool json_out = false, quiet = false, xdmf = true, phases = false;
 
   app.add_option("-j,--job", job_file, "TOML job file (config/*.toml); flags override it");
-  app.add_option("--mesh", mesh, "tetrahedral mesh (.msh v2/v4, .mesh, .vtk) or closed surface (.stl)");
+  app.add_option("--mesh", mesh,
+                 "tetrahedral mesh (.msh v2/v4, .mesh, .vtk) or closed surface (.stl)");
   app.add_option("--mesh-unit", mesh_unit, "unit of the mesh coordinates: m, cm or mm (default m)");
-  app.add_option("--fill-size", fill_size, "STL only: target tetrahedron size, in the mesh unit (default: 1/20 of the diagonal)");
+  app.add_option(
+      "--fill-size", fill_size,
+      "STL only: target tetrahedron size, in the mesh unit (default: 1/20 of the diagonal)");
   app.add_option("-E,--young-modulus", young, "Young's modulus of the organ, Pa");
   app.add_option("--poisson-ratio,--nu", poisson, "Poisson ratio of the organ, in (-1, 0.5)");
-  app.add_option("--group-material", materials, "material of a physical volume: NAME:E_PA:NU (repeatable)");
-  app.add_option("--fix-ids", fix_ids, "file of 0-based vertex indices to fix, one per line (mesh file node order)");
-  app.add_option("--fix-group", fix_groups, "fix the vertices of a Gmsh physical group (repeatable)");
-  app.add_option("--fix-box", box, "fix vertices in a box: XMIN YMIN ZMIN XMAX YMAX ZMAX (mesh unit)")->expected(6);
-  app.add_option("--fix-sphere", sphere, "fix vertices in a ball: CX CY CZ R (mesh unit)")->expected(4);
-  app.add_option("--fix-half-space", half_space, "fix vertices with (x-p).n >= 0: PX PY PZ NX NY NZ (mesh unit)")->expected(6);
-  app.add_option("--method", method, "solves, condensation or both (default both: computes both and cross-checks)");
+  app.add_option("--group-material", materials,
+                 "material of a physical volume: NAME:E_PA:NU (repeatable)");
+  app.add_option("--fix-ids", fix_ids,
+                 "file of 0-based vertex indices to fix, one per line (mesh file node order)");
+  app.add_option("--fix-group", fix_groups,
+                 "fix the vertices of a Gmsh physical group (repeatable)");
+  app.add_option("--fix-box", box,
+                 "fix vertices in a box: XMIN YMIN ZMIN XMAX YMAX ZMAX (mesh unit)")
+      ->expected(6);
+  app.add_option("--fix-sphere", sphere, "fix vertices in a ball: CX CY CZ R (mesh unit)")
+      ->expected(4);
+  app.add_option("--fix-half-space", half_space,
+                 "fix vertices with (x-p).n >= 0: PX PY PZ NX NY NZ (mesh unit)")
+      ->expected(6);
+  app.add_option("--method", method,
+                 "solves, condensation or both (default both: computes both and cross-checks)");
   app.add_option("--precision", precision, "storage of G: float64 (default) or float32");
-  app.add_option("--block-columns", block_columns, "right-hand sides per blocked solve (default 64)");
-  app.add_option("--tolerance", tolerance, "largest accepted relative difference between the methods (default 1e-8)");
-  app.add_option("--memory-limit-gb", memory_gb, "refuse jobs needing more than this (default: available memory)");
+  app.add_option("--block-columns", block_columns,
+                 "right-hand sides per blocked solve (default 64)");
+  app.add_option("--tolerance", tolerance,
+                 "largest accepted relative difference between the methods (default 1e-8)");
+  app.add_option("--memory-limit-gb", memory_gb,
+                 "refuse jobs needing more than this (default: available memory)");
   app.add_option("-o,--output", output, "compliance file to write (HDF5, written atomically)");
-  app.add_option("--shard", shard,
-                 "compute only shard INDEX/COUNT of G's columns (0-based, whole blocks) into "
-                 "OUTPUT-stem.part-BEGIN-END.h5, for merge (docs/precompute.md, \"Batch precomputation\")");
+  app.add_option(
+      "--shard", shard,
+      "compute only shard INDEX/COUNT of G's columns (0-based, whole blocks) into "
+      "OUTPUT-stem.part-BEGIN-END.h5, for merge (docs/precompute.md, \"Batch precomputation\")");
   app.add_option("--columns", columns,
                  "compute only columns BEGIN:END of G (BEGIN a multiple of --block-columns) into "
                  "a shard file, for merge");
@@ -115,15 +133,20 @@ int run(int argc, char** argv) {
       "print a line on stderr as each phase starts (for logs; a terminal shows progress bars)");
 
   app.fallthrough();  // -q and friends also after the subcommand
-  auto* sample = app.add_subcommand("make-sample", "write palpate's sample organ (Gmsh .msh, metres)");
+  auto* sample =
+      app.add_subcommand("make-sample", "write palpate's sample organ (Gmsh .msh, metres)");
   std::string sample_out;
   double sample_size = 0.012;
-  sample->add_option("-o,--output", sample_out, "mesh file to write (format from the extension: .msh, .mesh, .vtk...)")->required();
+  sample
+      ->add_option("-o,--output", sample_out,
+                   "mesh file to write (format from the extension: .msh, .mesh, .vtk...)")
+      ->required();
   sample->add_option("--size", sample_size, "target tetrahedron size, m (default 0.012)");
 
   auto* merge = app.add_subcommand(
-      "merge", "assemble the shards of one job (--shard/--columns) into the compliance file, "
-               "identical to a single run");
+      "merge",
+      "assemble the shards of one job (--shard/--columns) into the compliance file, "
+      "identical to a single run");
   std::string merge_out;
   std::vector<std::string> merge_shards;
   merge->add_option("-o,--output", merge_out, "compliance file to write")->required();
@@ -201,14 +224,16 @@ int run(int argc, char** argv) {
       job.group_materials.push_back({spec.substr(0, a), std::stod(spec.substr(a + 1, b - a - 1)),
                                      std::stod(spec.substr(b + 1))});
     } catch (const std::logic_error&) {
-      throw palpate::InputError(fmt::format("--group-material '{}': expected NAME:E_PA:NU with numbers", spec));
+      throw palpate::InputError(
+          fmt::format("--group-material '{}': expected NAME:E_PA:NU with numbers", spec));
     }
   }
   if (!fix_ids.empty()) job.attachment.ids_file = fix_ids;
   for (const auto& g : fix_groups) job.attachment.groups.push_back(g);
   if (!box.empty()) job.attachment.boxes.push_back({unit * vec3(box, 0), unit * vec3(box, 3)});
   if (!sphere.empty()) job.attachment.spheres.push_back({unit * vec3(sphere, 0), unit * sphere[3]});
-  if (!half_space.empty()) job.attachment.half_spaces.push_back({unit * vec3(half_space, 0), vec3(half_space, 3)});
+  if (!half_space.empty())
+    job.attachment.half_spaces.push_back({unit * vec3(half_space, 0), vec3(half_space, 3)});
   if (!method.empty()) job.method = palpate::parse_method(method);
   if (!precision.empty()) job.precision = palpate::parse_precision(precision);
   if (app.count("--block-columns")) job.block_columns = block_columns;
@@ -223,7 +248,8 @@ int run(int argc, char** argv) {
   if (!shard.empty() && job.shard.count == 0)
     throw palpate::InputError(fmt::format("--shard '{}': expected INDEX/COUNT, e.g. 0/4", shard));
   if (!columns.empty() && job.shard.begin < 0)
-    throw palpate::InputError(fmt::format("--columns '{}': expected BEGIN:END, e.g. 0:1024", columns));
+    throw palpate::InputError(
+        fmt::format("--columns '{}': expected BEGIN:END, e.g. 0:1024", columns));
 
   if (!save_job.empty()) {
     palpate::AtomicOutput out(save_job);

@@ -24,8 +24,8 @@ class ProgressBar {
     std::string bar(static_cast<size_t>(filled), '#');
     bar.resize(width, '.');
     const double eta = frac > 0 ? elapsed * (1 - frac) / frac : 0;
-    std::fprintf(stderr, "\r  %-18s [%s] %3.0f%%  %.1f s, %.1f s left ", label_.c_str(), bar.c_str(),
-                 100 * frac, elapsed, eta);
+    std::fprintf(stderr, "\r  %-18s [%s] %3.0f%%  %.1f s, %.1f s left ", label_.c_str(),
+                 bar.c_str(), 100 * frac, elapsed, eta);
     if (done >= total) std::fprintf(stderr, "\n");
     std::fflush(stderr);
   }

@@ -8,8 +8,8 @@
 set -euo pipefail
 
 packages=(
-  # toolchain
-  build-essential cmake ninja-build pkg-config git
+  # toolchain; clang-format 14 checks the code's layout (scripts/format.sh)
+  build-essential cmake ninja-build pkg-config git clang-format
   # clang 14 and its run-time libraries: the sanitizer builds and libFuzzer
   # (scripts/sanitize.sh, docs/sanitizers.md, docs/fuzzing.md)
   clang libclang-rt-14-dev

@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
 # Runs palpate's whole test suite from a clean checkout: installs the Debian
-# packages it needs (scripts/install-deps.sh), configures, builds, and runs
-# CTest; then the same suite under the sanitizers (scripts/sanitize.sh:
-# ASan+UBSan on the whole suite, TSan on the concurrent tests;
-# docs/sanitizers.md). PALPATE_SANITIZERS=0 skips them.
+# packages it needs (scripts/install-deps.sh), checks that the C++ is as
+# clang-format writes it (scripts/format.sh --check), configures, builds,
+# and runs CTest; then the same suite under the sanitizers
+# (scripts/sanitize.sh: ASan+UBSan on the whole suite, TSan on the
+# concurrent tests; docs/sanitizers.md). PALPATE_SANITIZERS=0 skips them.
 # Usage: scripts/test.sh [extra ctest arguments]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
+scripts/format.sh --check
 build=${PALPATE_BUILD_DIR:-build}
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build "$build" -j2

@@ -6,10 +6,10 @@
 #include <semaphore.h>
 #include <signal.h>
 #include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
 #include <spdlog/sinks/stdout_sinks.h>
 #include <spdlog/spdlog.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <atomic>
@@ -21,13 +21,13 @@
 #include <thread>
 #include <vector>
 
+#include "palpate/core/error.hpp"
+#include "palpate/core/system_info.hpp"
 #include "palpate/core/version.hpp"
 #include "palpate/daemon/daemon_config.hpp"
-#include "palpate/transport/dds.hpp"
-#include "palpate/core/error.hpp"
 #include "palpate/daemon/service.hpp"
 #include "palpate/runtime/surface_model.hpp"
-#include "palpate/core/system_info.hpp"
+#include "palpate/transport/dds.hpp"
 
 namespace {
 
@@ -57,8 +57,8 @@ void probe_compliance_file(const palpate::ModelEntry& entry) {
   const int rc = posix_spawn(&child, self.c_str(), &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   if (rc != 0)
-    throw palpate::SystemError("model " + entry.id + ": cannot start the reader process: " +
-                               std::strerror(rc));
+    throw palpate::SystemError("model " + entry.id +
+                               ": cannot start the reader process: " + std::strerror(rc));
   // Generous: the child hashes every byte (docs/compliance-file.md); a slow
   // disk reads 20 MB/s.
   std::error_code ec;
@@ -116,9 +116,10 @@ int run(int argc, char** argv) {
   app.add_flag("--check-config", check_only,
                "check the configuration and the compliance files, then exit");
   bool print_dds_config = false;
-  app.add_flag("--print-dds-config", print_dds_config,
-               "print the Cyclone DDS configuration palpated would use (the built-in loopback one "
-               "unless --dds-config or CYCLONEDDS_URI gives another), for CYCLONEDDS_URI, then exit");
+  app.add_flag(
+      "--print-dds-config", print_dds_config,
+      "print the Cyclone DDS configuration palpated would use (the built-in loopback one "
+      "unless --dds-config or CYCLONEDDS_URI gives another), for CYCLONEDDS_URI, then exit");
   std::string probe_file;
   app.add_option("--probe-model", probe_file)->group("");  // internal: see probe_compliance_file
   try {

@@ -17,9 +17,9 @@
 #include <unordered_map>
 
 #include "palpate.h"
+#include "palpate/core/error.hpp"
 #include "palpate/transport/dds.hpp"
 #include "palpate/transport/wire.hpp"
-#include "palpate/core/error.hpp"
 
 namespace palpate::viewer {
 namespace {
@@ -29,7 +29,6 @@ static_assert(std::endian::native == std::endian::little,
 
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
-
 
 /// Appends little-endian 32-bit words to a binary frame; every field starts
 /// on a 4-byte boundary so the page can view arrays in place.
@@ -128,15 +127,15 @@ struct Feed::Impl {
     waitset = dds::Entity(dds::check(dds_create_waitset(p), "creating the viewer's waitset"));
     for (int r = 0; r < kReaderCount; ++r) {
       const std::string what = std::string("creating the reader of ") + specs[r].name;
-      readers[r] = dds::check(
-          dds_create_reader(p, dds::topic(p, specs[r].type, specs[r].name), specs[r].qos.get(),
-                            nullptr),
-          what);
+      readers[r] = dds::check(dds_create_reader(p, dds::topic(p, specs[r].type, specs[r].name),
+                                                specs[r].qos.get(), nullptr),
+                              what);
       const dds_entity_t condition =
           dds::check(dds_create_readcondition(readers[r], DDS_ANY_STATE), what);
       dds::check(dds_waitset_attach(waitset.get(), condition, r), what);
     }
-    stop_condition = dds::check(dds_create_guardcondition(p), "creating the viewer's stop condition");
+    stop_condition =
+        dds::check(dds_create_guardcondition(p), "creating the viewer's stop condition");
     dds::check(dds_waitset_attach(waitset.get(), stop_condition, kReaderCount),
                "attaching the stop condition");
     thread = std::thread([this] { run(); });
@@ -206,13 +205,15 @@ struct Feed::Impl {
     const auto compliance = static_cast<std::uint32_t>(surface.compliance_vertex_count);
     if (surface.rest_positions_m.size() != 3 * std::size_t{nv} || compliance > nv) {
       // A daemon of another version: say so once per description, draw nothing.
-      sink({Message::Kind::kEvent, m.model_id,
-            json{{"type", "warning"},
-                 {"message", "model " + m.model_id + ": inconsistent description (" +
-                                 std::to_string(surface.rest_positions_m.size()) +
-                                 " coordinates for " + std::to_string(nv) + " vertices); not drawn"}}
-                .dump(),
-            {}});
+      sink(
+          {Message::Kind::kEvent,
+           m.model_id,
+           json{{"type", "warning"},
+                {"message", "model " + m.model_id + ": inconsistent description (" +
+                                std::to_string(surface.rest_positions_m.size()) +
+                                " coordinates for " + std::to_string(nv) + " vertices); not drawn"}}
+               .dump(),
+           {}});
       return;
     }
     auto& index = drawn_index[m.model_id];
@@ -338,7 +339,8 @@ struct Feed::Impl {
 
   void on_event(const palpate_ToolEvent& e) {
     const ToolEventSample event = wire::from_idl(e, 0);
-    sink({Message::Kind::kEvent, event.tool_id,
+    sink({Message::Kind::kEvent,
+          event.tool_id,
           json{{"type", "event"},
                {"tool_id", event.tool_id},
                {"model_id", event.model_id},
@@ -390,8 +392,10 @@ struct Feed::Impl {
                          {"pose_hz", static_cast<double>(poses) / interval_s},
                          {"feedback_hz", static_cast<double>(feedbacks) / interval_s}};
     surfaces = poses = feedbacks = 0;
-    sink({Message::Kind::kStatus, "status",
-          json{{"type", "status"}, {"daemon", daemon_status}, {"bridge", bridge}}.dump(), {}});
+    sink({Message::Kind::kStatus,
+          "status",
+          json{{"type", "status"}, {"daemon", daemon_status}, {"bridge", bridge}}.dump(),
+          {}});
   }
 };
 

@@ -26,16 +26,17 @@ struct Message {
     kEvent,    ///< a tool event: every one is delivered, in order
   };
   Kind kind;
-  std::string key;  ///< what a newer message of the same kind replaces (the model id for kModel/kSurface)
+  std::string
+      key;  ///< what a newer message of the same kind replaces (the model id for kModel/kSurface)
   std::string text;    ///< JSON text frame (may be empty)
   std::string binary;  ///< binary frame sent after the text (may be empty)
 };
 
 struct FeedOptions {
   std::uint32_t domain_id = 0;
-  std::string dds_config;          ///< as --dds-config: empty means CYCLONEDDS_URI, then loopback
-  std::vector<ToolGeometry> tools; ///< how to draw the tools, by id (unknown ids get the defaults)
-  double tools_rate_hz = 60;       ///< at most this many tool messages per second
+  std::string dds_config;           ///< as --dds-config: empty means CYCLONEDDS_URI, then loopback
+  std::vector<ToolGeometry> tools;  ///< how to draw the tools, by id (unknown ids get the defaults)
+  double tools_rate_hz = 60;        ///< at most this many tool messages per second
 };
 
 /// Reads palpated's topics in a thread of its own until destroyed.

@@ -26,9 +26,9 @@
 #include <string>
 
 #include "feed.hpp"
+#include "palpate/core/error.hpp"
 #include "palpate/core/version.hpp"
 #include "palpate/daemon/daemon_config.hpp"
-#include "palpate/core/error.hpp"
 
 namespace beast = boost::beast;
 namespace http = beast::http;
@@ -66,11 +66,15 @@ class Hub {
 /// to be sent; empty for messages that must all be delivered in order.
 std::string coalescing_key(const Message& m) {
   switch (m.kind) {
-    case Message::Kind::kSurface: return "surface:" + m.key;
-    case Message::Kind::kTools: return "tools";
-    case Message::Kind::kStatus: return "status";
+    case Message::Kind::kSurface:
+      return "surface:" + m.key;
+    case Message::Kind::kTools:
+      return "tools";
+    case Message::Kind::kStatus:
+      return "status";
     case Message::Kind::kModel:
-    case Message::Kind::kEvent: return {};
+    case Message::Kind::kEvent:
+      return {};
   }
   return {};
 }
@@ -135,16 +139,16 @@ class WebSocketSession : public std::enable_shared_from_this<WebSocketSession> {
     writing_ = true;
     const std::string& frame = binary_stage_ ? current_->binary : current_->text;
     ws_.binary(binary_stage_);
-    ws_.async_write(net::buffer(frame), [self = shared_from_this()](beast::error_code ec,
-                                                                     std::size_t) {
-      self->writing_ = false;
-      if (ec) return self->close();
-      if (!self->binary_stage_ && !self->current_->binary.empty())
-        self->binary_stage_ = true;
-      else
-        self->current_.reset();
-      self->write_next();
-    });
+    ws_.async_write(net::buffer(frame),
+                    [self = shared_from_this()](beast::error_code ec, std::size_t) {
+                      self->writing_ = false;
+                      if (ec) return self->close();
+                      if (!self->binary_stage_ && !self->current_->binary.empty())
+                        self->binary_stage_ = true;
+                      else
+                        self->current_.reset();
+                      self->write_next();
+                    });
   }
 
   void close() {
@@ -253,7 +257,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   void handle(http::request<http::string_body> request) {
     if (websocket::is_upgrade(request)) {
       if (request.target() != "/ws" || !local_origin(std_view(request[http::field::origin])))
-        return reply_error(request, http::status::forbidden, "WebSocket: only /ws, from this host\n");
+        return reply_error(request, http::status::forbidden,
+                           "WebSocket: only /ws, from this host\n");
       stream_.expires_never();
       std::make_shared<WebSocketSession>(stream_.release_socket(), hub_)->start(std::move(request));
       return;
@@ -263,7 +268,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     const fs::path file = resolve_target(files_, std_view(request.target()));
     beast::error_code ec;
     http::file_body::value_type body;
-    if (!file.empty() && fs::is_regular_file(file)) body.open(file.c_str(), beast::file_mode::scan, ec);
+    if (!file.empty() && fs::is_regular_file(file))
+      body.open(file.c_str(), beast::file_mode::scan, ec);
     if (file.empty() || !fs::is_regular_file(file) || ec)
       return reply_error(request, http::status::not_found, "not found\n");
     const auto size = body.size();
@@ -275,8 +281,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return write(std::move(response));
     }
     http::response<http::file_body> response{std::piecewise_construct,
-                                              std::make_tuple(std::move(body)),
-                                              std::make_tuple(http::status::ok, request.version())};
+                                             std::make_tuple(std::move(body)),
+                                             std::make_tuple(http::status::ok, request.version())};
     decorate(response, type, request.keep_alive());
     response.content_length(size);
     write(std::move(response));
@@ -335,7 +341,8 @@ tcp::endpoint parse_listen(const std::string& text) {
     throw InputError("--listen " + text + ": expected ADDRESS:PORT, e.g. 127.0.0.1:8080");
   beast::error_code ec;
   std::string host = text.substr(0, colon);
-  if (host.size() > 1 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  if (host.size() > 1 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
   const auto address = net::ip::make_address(host, ec);
   int port = -1;
   try {
@@ -375,20 +382,23 @@ int run(int argc, char** argv) {
   std::string web_root = files.root.string(), node_modules = files.node_modules.string();
   FeedOptions feed_options;
   app.add_option("--listen", listen, "HTTP address and port (default 127.0.0.1:8080)");
-  app.add_option("--web-root", web_root, "the page's files (default: viewer/web of the source tree)");
+  app.add_option("--web-root", web_root,
+                 "the page's files (default: viewer/web of the source tree)");
   app.add_option("--node-modules", node_modules,
                  "where npm installed three.js (default: viewer/node_modules of the source tree)");
   app.add_option("--domain", feed_options.domain_id, "DDS domain id");
   app.add_option(
       "--dds-config", feed_options.dds_config,
       "Cyclone DDS configuration: XML file, file:// URI or XML fragment (default: loopback only)");
-  app.add_option("-c,--config", config_file,
-                 "palpated's configuration, for the tools' geometry ([[tools]]); other keys ignored");
+  app.add_option(
+      "-c,--config", config_file,
+      "palpated's configuration, for the tools' geometry ([[tools]]); other keys ignored");
   app.add_option("--tools-hz", feed_options.tools_rate_hz, "tool updates sent to pages, per second")
       ->check(CLI::Range(1.0, 1000.0));
-  app.add_option("--dds-netns", netns,
-                 "open the HTTP port here, then join this network namespace (e.g. /proc/PID/ns/net) "
-                 "for DDS");
+  app.add_option(
+      "--dds-netns", netns,
+      "open the HTTP port here, then join this network namespace (e.g. /proc/PID/ns/net) "
+      "for DDS");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -348,8 +348,8 @@ int requester_child(const Settings& s, const std::string& role, double seconds,
         const int j = order[static_cast<std::size_t>(c)];
         const Eigen::Vector3d normal = palpate::outward_normal(surface, j);
         patch.push_back(palpate::ConstraintSpec::normal_displacement(
-            model->surface.vertex_ids[static_cast<std::size_t>(j)], {normal.x(), normal.y(), normal.z()},
-            -0.0015));
+            model->surface.vertex_ids[static_cast<std::size_t>(j)],
+            {normal.x(), normal.y(), normal.z()}, -0.0015));
       }
     }
   }

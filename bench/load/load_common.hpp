@@ -139,7 +139,6 @@ inline json to_json(const Distribution& d) {
           {"over_1ms_share", d.over_budget}};
 }
 
-
 // ---- the children (load_children.cpp) ---------------------------------------------
 
 /// A station: the gesture's tools on its model, at the haptic rate, from

@@ -114,7 +114,6 @@ Child spawn(const std::string& role, const std::function<int(const Rendezvous&)>
   return {role, pid, ready[0], start[1]};
 }
 
-
 /// Waits for every child's "ready" (false if one exits first or the time runs out).
 bool wait_ready(std::vector<Child>& children, double timeout_s) {
   const auto give_up = Clock::now() + std::chrono::duration_cast<Clock::duration>(

@@ -12,7 +12,6 @@
 
 namespace palpate::load {
 
-
 std::optional<ProcSample> sample_process(pid_t pid) {
   ProcSample s;
   std::ifstream status("/proc/" + std::to_string(pid) + "/status");
@@ -63,8 +62,6 @@ std::string machine_model() {
   return "unknown";
 }
 
-
-
 ToolSummary summarize(const std::string& id, const std::vector<TickRecord>& ticks,
                       double budget_us) {
   ToolSummary s;
@@ -114,7 +111,6 @@ json to_json(const ToolSummary& s, double seconds) {
             {"touching", share(s.states[1], answered)},
             {"grasping", share(s.states[2], answered)}}}};
 }
-
 
 StationData read_station(const fs::path& work, const std::string& role) {
   StationData d;

@@ -9,8 +9,8 @@
 #include <memory>
 
 #include "box_job.hpp"
-#include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/offline/precompute.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/tool_contact.hpp"
 
 namespace palpate::fuzz {
@@ -20,8 +20,7 @@ namespace {
 struct ScratchDir {
   std::filesystem::path path;
   ScratchDir() {
-    std::string pattern =
-        (std::filesystem::temp_directory_path() / "palpate-fuzz-XXXXXX").string();
+    std::string pattern = (std::filesystem::temp_directory_path() / "palpate-fuzz-XXXXXX").string();
     if (!::mkdtemp(pattern.data())) fail("cannot create a scratch directory under $TMPDIR");
     path = pattern;
   }
@@ -59,7 +58,8 @@ std::filesystem::path write_scratch_file(const std::string& name,
                                          std::span<const std::uint8_t> bytes) {
   const auto path = scratch_dir() / name;
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
   if (!out.flush()) fail("cannot write " + path.string());
   return path;
 }
@@ -73,7 +73,8 @@ void serve(const SurfaceModel& model) {
   const std::size_t drawn = model.surface.vertex_ids.size();
   PALPATE_FUZZ_CHECK(model.G.rows() == 3 * n && model.G.cols() == 3 * n && model.G.allFinite());
   PALPATE_FUZZ_CHECK(model.surface.rest_positions_m.size() == 3 * drawn);
-  PALPATE_FUZZ_CHECK(drawn >= static_cast<std::size_t>(n) && model.surface.triangles.size() % 3 == 0);
+  PALPATE_FUZZ_CHECK(drawn >= static_cast<std::size_t>(n) &&
+                     model.surface.triangles.size() % 3 == 0);
   for (const std::uint32_t id : model.surface.vertex_ids) PALPATE_FUZZ_CHECK(id < vertices);
   for (const std::uint32_t t : model.surface.triangles) PALPATE_FUZZ_CHECK(t < drawn);
   for (int a = 0; a < n; ++a)
@@ -86,8 +87,7 @@ void serve(const SurfaceModel& model) {
   ConstraintSolver solver(model, limits);
   const double up[3] = {0, 0, 1e-3}, normal[3] = {0, 0, 1};
   RequestStatus status = solver.begin(1);
-  if (status == RequestStatus::kOk)
-    status = solver.add(model.surface.vertex_ids[0], 1, up, normal);
+  if (status == RequestStatus::kOk) status = solver.add(model.surface.vertex_ids[0], 1, up, normal);
   if (status == RequestStatus::kOk) status = solver.solve();
   if (status == RequestStatus::kOk) {
     Eigen::VectorXd u(3 * n);

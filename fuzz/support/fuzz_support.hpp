@@ -39,7 +39,7 @@ void serve(const SurfaceModel& model);
 /// Prints @p what and aborts: libFuzzer records the input as a crash.
 [[noreturn]] void fail(std::string_view what);
 
-#define PALPATE_FUZZ_CHECK(condition)                                          \
+#define PALPATE_FUZZ_CHECK(condition)                                         \
   do {                                                                        \
     if (!(condition)) ::palpate::fuzz::fail("invariant failed: " #condition); \
   } while (false)

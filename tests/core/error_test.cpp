@@ -1,11 +1,11 @@
 // One exit code per error class (core/error.hpp, docs/errors.md), and the
 // one line a program prints.
+#include "palpate/core/error.hpp"
+
 #include <gtest/gtest.h>
 
 #include <new>
 #include <stdexcept>
-
-#include "palpate/core/error.hpp"
 
 namespace palpate {
 namespace {

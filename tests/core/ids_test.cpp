@@ -1,11 +1,12 @@
 // The id rule every name on palpate's topics follows (core/ids.hpp), and
 // the unit conversions at the edges (core/units.hpp).
+#include "palpate/core/ids.hpp"
+
 #include <gtest/gtest.h>
 
 #include <numbers>
 #include <string>
 
-#include "palpate/core/ids.hpp"
 #include "palpate/core/units.hpp"
 
 namespace palpate {

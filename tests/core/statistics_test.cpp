@@ -1,10 +1,10 @@
 // Nearest-rank percentiles (core/statistics.hpp): what the heartbeat and the
 // clients report.
+#include "palpate/core/statistics.hpp"
+
 #include <gtest/gtest.h>
 
 #include <vector>
-
-#include "palpate/core/statistics.hpp"
 
 namespace palpate {
 namespace {

@@ -1,10 +1,10 @@
 // Facts about the process and the machine (core/system_info.hpp).
+#include "palpate/core/system_info.hpp"
+
 #include <gtest/gtest.h>
 
 #include <regex>
 #include <vector>
-
-#include "palpate/core/system_info.hpp"
 
 namespace palpate {
 namespace {
@@ -25,8 +25,7 @@ TEST(SystemInfo, BytesAndTimestampsForReports) {
   EXPECT_EQ(format_bytes(1500), "1.5 kB");
   EXPECT_EQ(format_bytes(39.5e6), "39.5 MB");
   EXPECT_EQ(format_bytes(17.04e9), "17.04 GB");
-  EXPECT_TRUE(std::regex_match(utc_timestamp(),
-                               std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)")))
+  EXPECT_TRUE(std::regex_match(utc_timestamp(), std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)")))
       << utc_timestamp();
 }
 

@@ -1,11 +1,12 @@
 // The TOML reader every configuration goes through (core/detail/toml_reader.hpp):
 // each failure names the file, the line, the key and what is accepted.
+#include "palpate/core/detail/toml_reader.hpp"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 
-#include "palpate/core/detail/toml_reader.hpp"
 #include "palpate/core/error.hpp"
 #include "support/expect_error.hpp"
 
@@ -21,7 +22,8 @@ std::filesystem::path write(const std::string& name, const std::string& text) {
 }
 
 TEST(TomlReader, ReadsTypedValues) {
-  const auto file = write("toml_reader_ok.toml", "[a]\nx = 1.5\nn = 2\nflag = true\nv = [1, 2, 3]\n");
+  const auto file =
+      write("toml_reader_ok.toml", "[a]\nx = 1.5\nn = 2\nflag = true\nv = [1, 2, 3]\n");
   const toml::table root = detail::parse_toml_file(file);
   const detail::TomlReader r(file.string());
   const auto& a = r.table(*root.get("a"), "a");
@@ -39,8 +41,11 @@ TEST(TomlReader, FailuresNameFileLineKeyAndWhatIsAccepted) {
   const auto& a = r.table(*root.get("a"), "a");
   expect_error<InputError>([&] { r.number(*a.get("x"), "a.x"); },
                            {file.string() + ":2:", "a.x", "expected a number"});
-  expect_error<InputError>([&] { r.only_keys(a, "a", {"x", "v"}); },
-                           {":3:", "a.unknown", "unknown key", "accepted here: x, v"});
+  expect_error<InputError>(
+      [&] {
+        r.only_keys(a, "a", {"x", "v"});
+      },
+      {":3:", "a.unknown", "unknown key", "accepted here: x, v"});
   expect_error<InputError>([&] { r.vec3(*a.get("v"), "a.v"); },
                            {":4:", "a.v", "array of 3 numbers"});
 }

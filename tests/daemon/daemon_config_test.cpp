@@ -170,7 +170,8 @@ TEST(DaemonConfig, ToolErrorsSayWhatIsAccepted) {
       {"palpated.toml:3", "tools.a.tip", "sphere", "capsule"});
   expect_error<InputError>(
       [&] {
-        read_daemon_config(write(dir, "[[tools]]\nid = \"a\"\ntip = \"sphere\"\ntip_length_mm = 3\n"));
+        read_daemon_config(
+            write(dir, "[[tools]]\nid = \"a\"\ntip = \"sphere\"\ntip_length_mm = 3\n"));
       },
       {"tools.a.tip_length_mm", "a sphere tip has no length"});
   expect_error<InputError>(
@@ -188,11 +189,11 @@ TEST(DaemonConfig, ToolErrorsSayWhatIsAccepted) {
   expect_error<InputError>([&] { validate(config); }, {"tool id 'left' is given twice"});
   config.tools = DaemonConfig::default_tools();
   config.tools[0].release_angle_rad = config.tools[0].grasp_angle_rad;
-  expect_error<InputError>([&] { validate(config); },
-                           {"tool 'left'", "grasp < release ≤ max"});
+  expect_error<InputError>([&] { validate(config); }, {"tool 'left'", "grasp < release ≤ max"});
   config.tools = DaemonConfig::default_tools();
   config.record_directory = dir / "nowhere";
-  expect_error<InputError>([&] { validate(config); }, {"recording.directory", "nowhere", "not a directory"});
+  expect_error<InputError>([&] { validate(config); },
+                           {"recording.directory", "nowhere", "not a directory"});
 }
 
 }  // namespace

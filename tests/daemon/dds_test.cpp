@@ -18,8 +18,8 @@
 #include <sstream>
 #include <thread>
 
-#include "palpate/transport/client.hpp"
 #include "palpate/file/compliance_file.hpp"
+#include "palpate/transport/client.hpp"
 #include "support/box_job.hpp"
 #include "support/daemon_process.hpp"
 #include "support/test_meshes.hpp"
@@ -127,8 +127,8 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
   auto client = connect("kinds");
   const ModelInfo m = box_info(*client);
   const Reference& ref = *reference_;
-  const std::uint32_t a = m.surface.vertex_ids[2], b = m.surface.vertex_ids[9], c = m.surface.vertex_ids[14],
-                      d = m.surface.vertex_ids[30];
+  const std::uint32_t a = m.surface.vertex_ids[2], b = m.surface.vertex_ids[9],
+                      c = m.surface.vertex_ids[14], d = m.surface.vertex_ids[30];
 
   // Forces: the surface field is G f.
   {
@@ -276,8 +276,8 @@ TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMove
   const Reply refused =
       toucher->request("box", std::vector{ConstraintSpec::force(1u << 30, {0, 0, 1})});
   ASSERT_EQ(refused.status, RequestStatus::kVertexOutOfRange);
-  const Reply next =
-      toucher->request("box", std::vector{ConstraintSpec::force(m.surface.vertex_ids[4], {0, 0, -0.5})});
+  const Reply next = toucher->request(
+      "box", std::vector{ConstraintSpec::force(m.surface.vertex_ids[4], {0, 0, -0.5})});
   ASSERT_EQ(next.status, RequestStatus::kOk);
   const auto after = viewer.wait_surface("box", sample->sequence_number + 1, 0, kTimeout);
   ASSERT_TRUE(after);
@@ -292,7 +292,8 @@ TEST_F(PalpatedTest, EveryBadRequestGetsItsErrorAndTheDaemonKeepsServing) {
   const std::uint32_t v = m.surface.vertex_ids[1];
   const std::uint32_t fixed = m.surface.vertex_ids.back();  // drawn after the compliance vertices
   std::uint32_t interior = 0;
-  while (std::find(m.surface.vertex_ids.begin(), m.surface.vertex_ids.end(), interior) != m.surface.vertex_ids.end())
+  while (std::find(m.surface.vertex_ids.begin(), m.surface.vertex_ids.end(), interior) !=
+         m.surface.vertex_ids.end())
     ++interior;
   struct Case {
     std::string model;

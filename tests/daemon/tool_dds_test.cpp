@@ -73,11 +73,12 @@ class ToolsOverDdsTest : public ::testing::Test {
   }
 
   static int top_vertex(double x_mm, double y_mm) {
-    return testing::box_top_vertex(info_->surface.rest_positions_m, info_->surface.compliance_vertex_count, x_mm,
-                                   y_mm);
+    return testing::box_top_vertex(info_->surface.rest_positions_m,
+                                   info_->surface.compliance_vertex_count, x_mm, y_mm);
   }
   static Vector3d rest(int j) {
-    return Eigen::Map<const Vector3d>(&info_->surface.rest_positions_m[3 * static_cast<std::size_t>(j)]);
+    return Eigen::Map<const Vector3d>(
+        &info_->surface.rest_positions_m[3 * static_cast<std::size_t>(j)]);
   }
 
   /// One tool driven at the haptic rate: a pose, then its feedback.
@@ -112,9 +113,9 @@ class ToolsOverDdsTest : public ::testing::Test {
     void move(const Vector3d& to, double jaw_to, Hand* other = nullptr) {
       const Vector3d from = at;
       const double jaw_from = jaw;
-      const int n = std::max(1, static_cast<int>(std::ceil(
-                                    std::max((to - from).norm() / 5e-5,
-                                             std::abs(jaw_to - jaw_from) / degrees(1)))));
+      const int n =
+          std::max(1, static_cast<int>(std::ceil(std::max(
+                          (to - from).norm() / 5e-5, std::abs(jaw_to - jaw_from) / degrees(1)))));
       for (int i = 1; i <= n; ++i) {
         at = from + (to - from) * (static_cast<double>(i) / n);
         jaw = jaw_from + (jaw_to - jaw_from) * (static_cast<double>(i) / n);
@@ -272,12 +273,14 @@ TEST_F(ToolsOverDdsTest, BadPosesAreIgnoredWithAWarningAndServingGoesOn) {
   EXPECT_TRUE(no_feedback("probe", s + 6));
 
   client_->send_pose("probe", "box", s + 7, {above.x(), above.y(), above.z()}, kPointingDown, 0);
-  const auto good = client_->wait_feedback("probe", s + 7, std::chrono::steady_clock::now() + kTimeout);
+  const auto good =
+      client_->wait_feedback("probe", s + 7, std::chrono::steady_clock::now() + kTimeout);
   ASSERT_TRUE(good) << daemon_->log();
   EXPECT_EQ(good->sequence, s + 7);
   const std::string log = daemon_->log();
-  for (const char* reason : {"reason=non_finite", "reason=bad_quaternion", "reason=out_of_workspace",
-                             "reason=bad_jaw_angle", "reason=unknown_tool", "reason=unknown_model"})
+  for (const char* reason :
+       {"reason=non_finite", "reason=bad_quaternion", "reason=out_of_workspace",
+        "reason=bad_jaw_angle", "reason=unknown_tool", "reason=unknown_model"})
     EXPECT_NE(log.find(reason), std::string::npos) << reason << "\n" << log;
 }
 
@@ -287,10 +290,10 @@ TEST_F(ToolsOverDdsTest, WhenPosesStopTheWatchdogRampsTheForceToZero) {
   // press would be a silence the watchdog acts on (50 ms).
   const auto domain = dds::acquire_domain(0, dds::resolve_domain_config(""));
   dds::Entity participant(dds::check(dds_create_participant(0, nullptr, nullptr), "participant"));
-  const dds_entity_t topic = dds::check(
-      dds_create_topic(participant.get(), &palpate_ToolFeedback_desc, dds::kToolFeedbackTopic,
-                       nullptr, nullptr),
-      "topic");
+  const dds_entity_t topic =
+      dds::check(dds_create_topic(participant.get(), &palpate_ToolFeedback_desc,
+                                  dds::kToolFeedbackTopic, nullptr, nullptr),
+                 "topic");
   const dds_entity_t reader = dds::check(
       dds_create_reader(participant.get(), topic, dds::tool_stream_qos().get(), nullptr), "reader");
   std::this_thread::sleep_for(200ms);  // discovery
@@ -318,7 +321,8 @@ TEST_F(ToolsOverDdsTest, WhenPosesStopTheWatchdogRampsTheForceToZero) {
     void* pointer = &sample;
     dds_sample_info_t info;
     if (dds_take(reader, &pointer, &info, 1, 1) == 1 && info.valid_data &&
-        std::string(sample.tool_id) == "right" && (sample.watchdog || sample.state == palpate_TOOL_FREE))
+        std::string(sample.tool_id) == "right" &&
+        (sample.watchdog || sample.state == palpate_TOOL_FREE))
       magnitudes.push_back(Vector3d(sample.force[0], sample.force[1], sample.force[2]).norm());
     std::this_thread::sleep_for(1ms);
   }

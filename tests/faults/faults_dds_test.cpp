@@ -19,8 +19,8 @@
 #include <sstream>
 #include <thread>
 
-#include "palpate/transport/client.hpp"
 #include "palpate/file/compliance_file.hpp"
+#include "palpate/transport/client.hpp"
 #include "palpate/transport/tool_client.hpp"
 #include "support/box_job.hpp"
 #include "support/child_process.hpp"
@@ -48,7 +48,8 @@ struct Box {
   ModelInfo info;
   std::map<std::uint32_t, Vector3d> rest;  // by mesh vertex id
   int drawn(double x_mm, double y_mm) const {
-    return testing::box_top_vertex(info.surface.rest_positions_m, info.surface.compliance_vertex_count, x_mm, y_mm);
+    return testing::box_top_vertex(info.surface.rest_positions_m,
+                                   info.surface.compliance_vertex_count, x_mm, y_mm);
   }
   std::uint32_t id(int drawn_index) const {
     return info.surface.vertex_ids[static_cast<std::size_t>(drawn_index)];

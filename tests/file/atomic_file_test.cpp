@@ -129,9 +129,9 @@ TEST(AtomicFile, AMissingOutputDirectoryIsRefusedByName) {
   TempDir dir;
   EXPECT_NO_THROW(require_output_directory(dir / "out.h5"));
   const auto missing = dir / "no" / "such";
-  expect_error<InputError>([&] { require_output_directory(missing / "out.h5"); },
-                           {(missing / "out.h5").string(), "directory '" + missing.string() + "'",
-                            "does not exist"});
+  expect_error<InputError>(
+      [&] { require_output_directory(missing / "out.h5"); },
+      {(missing / "out.h5").string(), "directory '" + missing.string() + "'", "does not exist"});
   // A file where the directory should be.
   spit(dir / "plain", "x");
   expect_error<InputError>([&] { require_output_directory(dir / "plain" / "out.h5"); },

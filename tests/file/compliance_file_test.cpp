@@ -237,9 +237,8 @@ TEST(ComplianceFileUnit, RoundTripsEveryFieldAndGBitForBit) {
   G(6, 5) = std::numeric_limits<double>::lowest();
   const auto path = dir / "model.h5";
   std::vector<std::pair<long, long>> progress;
-  write_compliance_file(path, model, G, [&](long done, long total) {
-    progress.emplace_back(done, total);
-  });
+  write_compliance_file(path, model, G,
+                        [&](long done, long total) { progress.emplace_back(done, total); });
   ASSERT_FALSE(progress.empty());
   EXPECT_EQ(progress.back(), std::make_pair(12L, 12L));
 

@@ -1,9 +1,9 @@
 // SHA-256 (file/hash.hpp) against the published test vectors (FIPS 180-2).
+#include "palpate/file/hash.hpp"
+
 #include <gtest/gtest.h>
 
 #include <string>
-
-#include "palpate/file/hash.hpp"
 
 namespace palpate {
 namespace {

@@ -15,9 +15,9 @@
 #include <random>
 #include <sstream>
 
-#include "palpate/offline/compliance.hpp"
-#include "palpate/file/compliance_file.hpp"
 #include "palpate/core/error.hpp"
+#include "palpate/file/compliance_file.hpp"
+#include "palpate/offline/compliance.hpp"
 #include "palpate/offline/precompute.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "support/box_job.hpp"

@@ -59,9 +59,11 @@ TetMesh combine(const TetMesh& a, TetMesh b, const Eigen::Vector3d& shift) {
   std::vector<Eigen::RowVector3d> added;
   for (Eigen::Index v = 0; v < b.vertices.rows(); ++v) {
     for (Eigen::Index w = 0; w < a.vertices.rows(); ++w)
-      if (a.vertices.row(w) == b.vertices.row(v)) index_of_b[static_cast<std::size_t>(v)] = static_cast<int>(w);
+      if (a.vertices.row(w) == b.vertices.row(v))
+        index_of_b[static_cast<std::size_t>(v)] = static_cast<int>(w);
     if (index_of_b[static_cast<std::size_t>(v)] < 0) {
-      index_of_b[static_cast<std::size_t>(v)] = static_cast<int>(a.vertices.rows() + static_cast<Eigen::Index>(added.size()));
+      index_of_b[static_cast<std::size_t>(v)] =
+          static_cast<int>(a.vertices.rows() + static_cast<Eigen::Index>(added.size()));
       added.push_back(b.vertices.row(v));
     }
   }
@@ -71,9 +73,11 @@ TetMesh combine(const TetMesh& a, TetMesh b, const Eigen::Vector3d& shift) {
   mesh.tetrahedra.conservativeResize(a.tetrahedra.rows() + b.tetrahedra.rows(), 4);
   for (Eigen::Index t = 0; t < b.tetrahedra.rows(); ++t)
     for (int c = 0; c < 4; ++c)
-      mesh.tetrahedra(a.tetrahedra.rows() + t, c) = index_of_b[static_cast<std::size_t>(b.tetrahedra(t, c))];
+      mesh.tetrahedra(a.tetrahedra.rows() + t, c) =
+          index_of_b[static_cast<std::size_t>(b.tetrahedra(t, c))];
   mesh.tet_group = Eigen::VectorXi::Zero(mesh.tetrahedra.rows());
-  mesh.source_ids = Eigen::VectorXi::LinSpaced(mesh.vertices.rows(), 0, static_cast<int>(mesh.vertices.rows()) - 1);
+  mesh.source_ids = Eigen::VectorXi::LinSpaced(mesh.vertices.rows(), 0,
+                                               static_cast<int>(mesh.vertices.rows()) - 1);
   mesh.source = "two boxes";
   return mesh;
 }
@@ -83,7 +87,8 @@ TEST(Attachment, EachRegionSelectsExactlyItsVertices) {
   {
     AttachmentSpec spec;  // the face x = 0, with a margin far below the spacing
     spec.boxes.push_back({{-1e-6, -1, -1}, {1e-6, 1, 1}});
-    EXPECT_EQ(select_fixed_vertices(mesh, spec), grid_vertices([](int i, int, int) { return i == 0; }));
+    EXPECT_EQ(select_fixed_vertices(mesh, spec),
+              grid_vertices([](int i, int, int) { return i == 0; }));
   }
   {
     AttachmentSpec spec;  // a box around the cells' middle layer, bounds between grid lines
@@ -98,7 +103,8 @@ TEST(Attachment, EachRegionSelectsExactlyItsVertices) {
     // √(0.025² + 0.02²) ≈ 0.032 m away.
     AttachmentSpec spec;
     spec.spheres.push_back({{0.1, 0.05, 0.04}, 0.026});
-    const std::vector<int> expected{vertex(3, 2, 2), vertex(4, 1, 2), vertex(4, 2, 1), vertex(4, 2, 2)};
+    const std::vector<int> expected{vertex(3, 2, 2), vertex(4, 1, 2), vertex(4, 2, 1),
+                                    vertex(4, 2, 2)};
     std::vector<int> sorted = expected;
     std::sort(sorted.begin(), sorted.end());
     EXPECT_EQ(select_fixed_vertices(mesh, spec), sorted);
@@ -107,22 +113,24 @@ TEST(Attachment, EachRegionSelectsExactlyItsVertices) {
     // (x − p)·n ≥ 0: x ≥ 0.09 m whatever the normal's length.
     AttachmentSpec spec;
     spec.half_spaces.push_back({{0.09, 0, 0}, {2.5, 0, 0}});
-    EXPECT_EQ(select_fixed_vertices(mesh, spec), grid_vertices([](int i, int, int) { return i == kNx; }));
+    EXPECT_EQ(select_fixed_vertices(mesh, spec),
+              grid_vertices([](int i, int, int) { return i == kNx; }));
   }
   {
     // z ≤ 0.01 m: the normal points down.
     AttachmentSpec spec;
     spec.half_spaces.push_back({{0, 0, 0.01}, {0, 0, -1}});
-    EXPECT_EQ(select_fixed_vertices(mesh, spec), grid_vertices([](int, int, int k) { return k == 0; }));
+    EXPECT_EQ(select_fixed_vertices(mesh, spec),
+              grid_vertices([](int, int, int k) { return k == 0; }));
   }
 }
 
 TEST(Attachment, ThePartsOfASpecAreUnited) {
   const TetMesh mesh = box();
   AttachmentSpec spec;
-  spec.boxes.push_back({{-1e-6, -1, -1}, {1e-6, 1, 1}});     // x = 0
-  spec.half_spaces.push_back({{0, 0, 0.01}, {0, 0, -1}});    // z = 0, overlapping x = 0
-  spec.spheres.push_back({{0.1, 0.05, 0.04}, 1e-6});         // one corner
+  spec.boxes.push_back({{-1e-6, -1, -1}, {1e-6, 1, 1}});   // x = 0
+  spec.half_spaces.push_back({{0, 0, 0.01}, {0, 0, -1}});  // z = 0, overlapping x = 0
+  spec.spheres.push_back({{0.1, 0.05, 0.04}, 1e-6});       // one corner
   EXPECT_EQ(select_fixed_vertices(mesh, spec), grid_vertices([](int i, int j, int k) {
               return i == 0 || k == 0 || (i == kNx && j == kNy && k == kNz);
             }));
@@ -143,7 +151,8 @@ TEST(Attachment, GroupsSelectTheirVertices) {
   expect_error<InputError>([&] { select_fixed_vertices(mesh, spec); },
                            {"box.msh", "'vessel'", "#7, empty, ligament"});
   spec.groups = {"empty"};
-  expect_error<InputError>([&] { select_fixed_vertices(mesh, spec); }, {"box.msh", "'empty'", "no vertex"});
+  expect_error<InputError>([&] { select_fixed_vertices(mesh, spec); },
+                           {"box.msh", "'empty'", "no vertex"});
 }
 
 TEST(Attachment, IdFilesAreReadInTheFilesNodeNumbering) {
@@ -167,9 +176,9 @@ TEST(Attachment, IdFilesAreReadInTheFilesNodeNumbering) {
   EXPECT_EQ(select_fixed_vertices(mesh, spec), (std::vector<int>{2}));
   // Beyond the file's last node: refused with the range.
   spit(ids, "4\n" + std::to_string(nv + 3) + "\n");
-  expect_error<InputError>([&] { select_fixed_vertices(mesh, spec); },
-                           {ids.string(), "vertex index " + std::to_string(nv + 3),
-                            "0.." + std::to_string(nv + 2)});
+  expect_error<InputError>(
+      [&] { select_fixed_vertices(mesh, spec); },
+      {ids.string(), "vertex index " + std::to_string(nv + 3), "0.." + std::to_string(nv + 2)});
 }
 
 TEST(Attachment, BadIdFilesAreRefusedNamingTheFileAndLine) {
@@ -216,35 +225,46 @@ TEST(Attachment, ARegionSelectingNothingIsRefusedWithTheMeshsExtent) {
     AttachmentSpec spec;
     spec.boxes.push_back({{-1e-6, -1, -1}, {1e-6, 1, 1}});
     spec.boxes.push_back({{1, 1, 1}, {2, 2, 2}});
-    expect_error<InputError>([&] { select_fixed_vertices(mesh, spec); }, {"attachment box", "(1, 1, 1)"});
+    expect_error<InputError>([&] { select_fixed_vertices(mesh, spec); },
+                             {"attachment box", "(1, 1, 1)"});
   }
 }
 
 TEST(Attachment, ThreeVerticesNotOnOneLineAreNeeded) {
   const TetMesh mesh = box();
   // The face x = 0: nine vertices spread over a plane.
-  EXPECT_NO_THROW(check_attachment_stops_rigid_motion(mesh, grid_vertices([](int i, int, int) { return i == 0; })));
+  EXPECT_NO_THROW(check_attachment_stops_rigid_motion(
+      mesh, grid_vertices([](int i, int, int) { return i == 0; })));
   // A triangle is the least.
-  EXPECT_NO_THROW(check_attachment_stops_rigid_motion(mesh, {vertex(0, 0, 0), vertex(1, 0, 0), vertex(0, 1, 0)}));
+  EXPECT_NO_THROW(check_attachment_stops_rigid_motion(
+      mesh, {vertex(0, 0, 0), vertex(1, 0, 0), vertex(0, 1, 0)}));
 
   expect_error<InputError>([&] { check_attachment_stops_rigid_motion(mesh, {}); },
                            {"box.msh", "fixes 0 vertices", "at least 3"});
   expect_error<InputError>(
-      [&] { check_attachment_stops_rigid_motion(mesh, {vertex(0, 0, 0), vertex(4, 2, 2)}); },
+      [&] {
+        check_attachment_stops_rigid_motion(mesh, {vertex(0, 0, 0), vertex(4, 2, 2)});
+      },
       {"box.msh", "fixes 2 vertices"});
   // An edge of the box: five vertices on the line y = z = 0.
   expect_error<InputError>(
-      [&] { check_attachment_stops_rigid_motion(mesh, grid_vertices([](int, int j, int k) { return j == 0 && k == 0; })); },
+      [&] {
+        check_attachment_stops_rigid_motion(
+            mesh, grid_vertices([](int, int j, int k) { return j == 0 && k == 0; }));
+      },
       {"box.msh", "fixes 5 vertices all on one line"});
   // A diagonal line through the box.
   expect_error<InputError>(
-      [&] { check_attachment_stops_rigid_motion(mesh, {vertex(0, 0, 0), vertex(2, 1, 1), vertex(4, 2, 2)}); },
+      [&] {
+        check_attachment_stops_rigid_motion(mesh,
+                                            {vertex(0, 0, 0), vertex(2, 1, 1), vertex(4, 2, 2)});
+      },
       {"fixes 3 vertices all on one line"});
 }
 
 TEST(Attachment, EachDisconnectedPartNeedsItsOwnAttachment) {
   const TetMesh one = box_mesh(0.1, 0.05, 0.04, 2, 2, 2);  // 48 tetrahedra, 27 vertices
-  const TetMesh two = combine(one, one, {0.3, 0, 0});       // apart
+  const TetMesh two = combine(one, one, {0.3, 0, 0});      // apart
   ASSERT_EQ(two.vertices.rows(), 54);
   std::vector<int> first_face, second_face;
   for (int k = 0; k <= 2; ++k)

@@ -5,15 +5,16 @@
 // a float32 file is served from float32 memory within float32 tolerance.
 
 #include <gtest/gtest.h>
+
 #include <cstring>
 #include <string>
 #include <vector>
 
-#include "palpate/file/compliance_file.hpp"
-#include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/core/error.hpp"
+#include "palpate/file/compliance_file.hpp"
 #include "palpate/offline/partial_file.hpp"
 #include "palpate/offline/precompute.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "support/box_job.hpp"
 #include "support/expect_error.hpp"
@@ -51,7 +52,7 @@ bool same_bits(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
 
 // Runs shards `count` of @p job, then merges them into @p output.
 PrecomputeReport shard_and_merge(PrecomputeJob job, int count, const std::filesystem::path& output,
-                               std::vector<std::filesystem::path>* parts = nullptr) {
+                                 std::vector<std::filesystem::path>* parts = nullptr) {
   MergeJob merge;
   merge.output = output;
   merge.write_xdmf = false;
@@ -106,7 +107,8 @@ TEST(BatchPrecompute, ThreeShardsMergedEqualASingleRunBitForBit) {
   PrecomputeJob sharded32 = single32;
   sharded32.output = dir / "sharded32.h5";
   shard_and_merge(sharded32, 3, sharded32.output);
-  EXPECT_EQ(read(sharded32.output).model.content_sha256, read(single32.output).model.content_sha256);
+  EXPECT_EQ(read(sharded32.output).model.content_sha256,
+            read(single32.output).model.content_sha256);
   // G is 416 kB in float64 and the rest of the file about 40 kB.
   EXPECT_LT(std::filesystem::file_size(single32.output),
             0.6 * static_cast<double>(std::filesystem::file_size(job.output)));
@@ -143,31 +145,53 @@ TEST(BatchPrecompute, MergeRefusesMismatchedShardsClearly) {
     merge.shards = std::move(files);
     merge_shards(merge, {});
   };
-  expect_error<InputError>([&] { merge_of({thirds[0], other[1], thirds[2]}); },
-                           {"different inputs", "input hash", "box.part-0-80.h5"});
+  expect_error<InputError>(
+      [&] {
+        merge_of({thirds[0], other[1], thirds[2]});
+      },
+      {"different inputs", "input hash", "box.part-0-80.h5"});
   // Halves are 0:112 and 112:228.
-  expect_error<InputError>([&] { merge_of({halves[0], thirds[1], thirds[2]}); },
-                           {"both hold columns 80:112", "overlapping"});
-  expect_error<InputError>([&] { merge_of({thirds[0], thirds[2]}); },
-                           {"columns 80:160 of 228 are in no shard", "--columns 80:160"});
-  expect_error<InputError>([&] { merge_of({thirds[1], thirds[2]}); },
-                           {"columns 0:80 of 228 are in no shard"});
-  expect_error<InputError>([&] { merge_of({thirds[0], thirds[1]}); },
-                           {"columns 160:228 of 228 are in no shard"});
-  expect_error<InputError>([&] { merge_of({thirds[0], thirds[0], thirds[1], thirds[2]}); },
-                           {"both hold columns 0:80"});
+  expect_error<InputError>(
+      [&] {
+        merge_of({halves[0], thirds[1], thirds[2]});
+      },
+      {"both hold columns 80:112", "overlapping"});
+  expect_error<InputError>(
+      [&] {
+        merge_of({thirds[0], thirds[2]});
+      },
+      {"columns 80:160 of 228 are in no shard", "--columns 80:160"});
+  expect_error<InputError>(
+      [&] {
+        merge_of({thirds[1], thirds[2]});
+      },
+      {"columns 0:80 of 228 are in no shard"});
+  expect_error<InputError>(
+      [&] {
+        merge_of({thirds[0], thirds[1]});
+      },
+      {"columns 160:228 of 228 are in no shard"});
+  expect_error<InputError>(
+      [&] {
+        merge_of({thirds[0], thirds[0], thirds[1], thirds[2]});
+      },
+      {"both hold columns 0:80"});
   PrecomputeJob single32 = job;
   single32.precision = Precision::kFloat32;
   single32.output = dir / "f32" / "box.h5";
   std::filesystem::create_directory(dir / "f32");
   const auto f32 = shards(single32, 3);
-  expect_error<InputError>([&] { merge_of({thirds[0], f32[1], thirds[2]}); },
-                           {"float64 and float32", "--precision"});
+  expect_error<InputError>(
+      [&] {
+        merge_of({thirds[0], f32[1], thirds[2]});
+      },
+      {"float64 and float32", "--precision"});
   EXPECT_FALSE(std::filesystem::exists(merge.output));
 
   // Not shards: a compliance file, a missing file.
   run_precompute(job, {});
-  expect_error<InputError>([&] { merge_of({job.output}); }, {"a complete compliance file, not a shard"});
+  expect_error<InputError>([&] { merge_of({job.output}); },
+                           {"a complete compliance file, not a shard"});
   expect_error<InputError>([&] { merge_of({dir / "none.h5"}); }, {"none.h5", "no such file"});
   // A shard is not a compliance file either.
   expect_error<InputError>([&] { read_compliance_file(thirds[0], nullptr); },
@@ -225,8 +249,8 @@ TEST(BatchPrecompute, AnInterruptedRunResumesFromItsCheckpointAndGivesTheSameFil
   const auto ckpt = checkpoint_path(job.output);
   ComplianceModel other = read(job.output).model;
   other.input_hash = "sha256:other";
-  PartialFile::create(ckpt, other, ShardIdentity{other.input_hash, 0, 228, 228, 16, Precision::kFloat64},
-                      {}, "x");
+  PartialFile::create(
+      ckpt, other, ShardIdentity{other.input_hash, 0, 228, 228, 16, Precision::kFloat64}, {}, "x");
   lines.clear();
   run_precompute(job, hooks);
   said = false;
@@ -290,8 +314,10 @@ TEST(BatchPrecompute, AFloat32FileIsServedFromFloat32MemoryWithinItsTolerance) {
   EXPECT_LE((m32.G32.cast<double>() - m64.G).cwiseAbs().maxCoeff(),
             6.0e-8 * m64.G.cwiseAbs().maxCoeff());
 
-  const int top = testing::box_top_vertex(m64.surface.rest_positions_m, m64.compliance_vertex_count(), 90, 25);
-  const int side = testing::box_top_vertex(m64.surface.rest_positions_m, m64.compliance_vertex_count(), 50, 10);
+  const int top =
+      testing::box_top_vertex(m64.surface.rest_positions_m, m64.compliance_vertex_count(), 90, 25);
+  const int side =
+      testing::box_top_vertex(m64.surface.rest_positions_m, m64.compliance_vertex_count(), 50, 10);
   ASSERT_GE(top, 0);
   ASSERT_GE(side, 0);
   for (int threads : {1, 2}) {
@@ -301,8 +327,10 @@ TEST(BatchPrecompute, AFloat32FileIsServedFromFloat32MemoryWithinItsTolerance) {
     for (ConstraintSolver* s : {&s64, &s32}) {
       const double press[3] = {0, 0, -0.004}, push[3] = {0.2, 0, -0.5}, none[3] = {0, 0, 0};
       ASSERT_EQ(s->begin(2), RequestStatus::kOk);
-      ASSERT_EQ(s->add(m64.surface.vertex_ids[static_cast<size_t>(top)], 1, press, none), RequestStatus::kOk);
-      ASSERT_EQ(s->add(m64.surface.vertex_ids[static_cast<size_t>(side)], 0, push, none), RequestStatus::kOk);
+      ASSERT_EQ(s->add(m64.surface.vertex_ids[static_cast<size_t>(top)], 1, press, none),
+                RequestStatus::kOk);
+      ASSERT_EQ(s->add(m64.surface.vertex_ids[static_cast<size_t>(side)], 0, push, none),
+                RequestStatus::kOk);
       ASSERT_EQ(s->solve(), RequestStatus::kOk) << s->message();
     }
     // Forces come from a 3 × 3 solve on G_CC (condition ~10 here): within

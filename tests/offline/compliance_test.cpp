@@ -1,11 +1,12 @@
 // The surface compliance: both methods against a dense reference and each
 // other, on a box and on a liver-sized organ; symmetry and SPD blocks.
 
+#include "palpate/offline/compliance.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
 
-#include "palpate/offline/compliance.hpp"
 #include "palpate/offline/fem.hpp"
 #include "palpate/offline/mesh_io.hpp"
 #include "support/test_meshes.hpp"
@@ -26,7 +27,8 @@ Problem clamped_box(int nx, int ny, int nz, double nu) {
   for (Eigen::Index v = 0; v < mesh.vertices.rows(); ++v)
     if (mesh.vertices(v, 0) == 0) fixed.push_back(static_cast<int>(v));
   const DofMap dofs = make_dof_map(b.on_surface, fixed);
-  return {assemble_stiffness(mesh.vertices, mesh.tetrahedra, Eigen::VectorXi::Zero(mesh.tetrahedra.rows()),
+  return {assemble_stiffness(mesh.vertices, mesh.tetrahedra,
+                             Eigen::VectorXi::Zero(mesh.tetrahedra.rows()),
                              {lame_parameters(85e3, nu)}, dofs),
           dofs.surface_dofs()};
 }
@@ -38,8 +40,10 @@ TEST(Compliance, BothMethodsEqualTheDenseInverseOfK) {
   const Eigen::MatrixXd ref = Kd.inverse().topLeftCorner(p.m, p.m);
   // Explicit Schur complement on the dense matrix, the textbook way.
   const int n = static_cast<int>(Kd.rows()), m = p.m;
-  const Eigen::MatrixXd S = Kd.topLeftCorner(m, m) -
-                            Kd.topRightCorner(m, n - m) * Kd.bottomRightCorner(n - m, n - m).llt().solve(Kd.bottomLeftCorner(n - m, m));
+  const Eigen::MatrixXd S =
+      Kd.topLeftCorner(m, m) -
+      Kd.topRightCorner(m, n - m) *
+          Kd.bottomRightCorner(n - m, n - m).llt().solve(Kd.bottomLeftCorner(n - m, m));
   ComplianceOptions options;
   options.block_columns = 50;  // several blocks, the last one partial
   ComplianceStats solves_stats, cond_stats;
@@ -76,11 +80,13 @@ TEST(Compliance, MethodsAgreeOnALiverSizedOrgan) {
   const Boundary b = extract_boundary(mesh);
   std::vector<int> fixed;
   for (Eigen::Index v = 0; v < mesh.vertices.rows(); ++v)
-    if ((mesh.vertices.row(v) - Eigen::RowVector3d(-0.03, 0, 0.04)).norm() < 0.025) fixed.push_back(static_cast<int>(v));
+    if ((mesh.vertices.row(v) - Eigen::RowVector3d(-0.03, 0, 0.04)).norm() < 0.025)
+      fixed.push_back(static_cast<int>(v));
   Eigen::VectorXi material = (mesh.tet_group.array() == 2).cast<int>();
   const DofMap dofs = make_dof_map(b.on_surface, fixed);
-  const SparseMatrixd K = assemble_stiffness(mesh.vertices, mesh.tetrahedra, material,
-                                             {lame_parameters(85e3, 0.45), lame_parameters(340e3, 0.45)}, dofs);
+  const SparseMatrixd K =
+      assemble_stiffness(mesh.vertices, mesh.tetrahedra, material,
+                         {lame_parameters(85e3, 0.45), lame_parameters(340e3, 0.45)}, dofs);
   const int m = dofs.surface_dofs();
   const Eigen::MatrixXd G1 = compliance_by_solves(K, m, {}, nullptr);
   const Eigen::MatrixXd G2 = compliance_by_condensation(K, m, {}, nullptr);
@@ -94,7 +100,8 @@ TEST(Compliance, ReportsTheColumnWhereKIsNotPositiveDefinite) {
   const TetMesh mesh = testing::box_mesh(0.1, 0.1, 0.1, 2, 2, 2);
   const Boundary b = extract_boundary(mesh);
   const DofMap dofs = make_dof_map(b.on_surface, {});
-  const SparseMatrixd K = assemble_stiffness(mesh.vertices, mesh.tetrahedra, Eigen::VectorXi::Zero(mesh.tetrahedra.rows()),
+  const SparseMatrixd K = assemble_stiffness(mesh.vertices, mesh.tetrahedra,
+                                             Eigen::VectorXi::Zero(mesh.tetrahedra.rows()),
                                              {lame_parameters(1e5, 0.3)}, dofs);
   try {
     compliance_by_solves(K, dofs.surface_dofs(), {}, nullptr);

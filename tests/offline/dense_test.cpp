@@ -1,11 +1,12 @@
 // The dense LAPACK/BLAS kernels palpate calls directly (offline/dense.hpp).
+#include "palpate/offline/dense.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Dense>
 
 #include "palpate/core/error.hpp"
-#include "palpate/offline/dense.hpp"
 
 namespace palpate {
 namespace {

@@ -2,13 +2,14 @@
 // textbook Bᵀ D B element, the patch test, rigid motions, a uniaxial stretch
 // and a cantilever against Euler–Bernoulli.
 
+#include "palpate/offline/fem.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
 #include <random>
 
 #include "palpate/core/error.hpp"
-#include "palpate/offline/fem.hpp"
 #include "palpate/offline/sparse_cholesky.hpp"
 #include "support/test_meshes.hpp"
 
@@ -64,7 +65,8 @@ TEST(ElementStiffness, EqualsTextbookBtDB) {
   std::mt19937 rng(42);
   std::uniform_real_distribution<double> coord(-0.05, 0.05);
   // λ ≠ μ is what catches the lecture's transposed blocks.
-  for (const auto& material : {lame_parameters(85e3, 0.45), lame_parameters(1e6, 0.1), lame_parameters(3e4, -0.3)}) {
+  for (const auto& material :
+       {lame_parameters(85e3, 0.45), lame_parameters(1e6, 0.1), lame_parameters(3e4, -0.3)}) {
     for (int trial = 0; trial < 20; ++trial) {
       Matrix43d P;
       for (int i = 0; i < 4; ++i)
@@ -75,7 +77,8 @@ TEST(ElementStiffness, EqualsTextbookBtDB) {
       const Matrix12d ref = textbook_element(P, material);
       // Both are O(E h); round-off is ~1e-15 relative, conditioning of the
       // random tetrahedron adds a few digits.
-      EXPECT_LE((K - ref).cwiseAbs().maxCoeff(), 1e-10 * ref.cwiseAbs().maxCoeff()) << "trial " << trial;
+      EXPECT_LE((K - ref).cwiseAbs().maxCoeff(), 1e-10 * ref.cwiseAbs().maxCoeff())
+          << "trial " << trial;
       EXPECT_LE((K - K.transpose()).cwiseAbs().maxCoeff(), 1e-12 * K.cwiseAbs().maxCoeff());
     }
   }
@@ -90,8 +93,10 @@ TEST(ElementStiffness, LectureFormulaWithSwappedIndicesIsTheTransposeAndWrong) {
   const Matrix12d K = element_stiffness(P, m);
   Matrix12d swapped = K;
   for (int j = 0; j < 4; ++j)
-    for (int k = 0; k < 4; ++k) swapped.block<3, 3>(3 * j, 3 * k) = K.block<3, 3>(3 * j, 3 * k).transpose();
-  EXPECT_GT((swapped - textbook_element(P, m)).cwiseAbs().maxCoeff(), 0.1 * K.cwiseAbs().maxCoeff());
+    for (int k = 0; k < 4; ++k)
+      swapped.block<3, 3>(3 * j, 3 * k) = K.block<3, 3>(3 * j, 3 * k).transpose();
+  EXPECT_GT((swapped - textbook_element(P, m)).cwiseAbs().maxCoeff(),
+            0.1 * K.cwiseAbs().maxCoeff());
 }
 
 // Vertices of a jittered box: interior vertices moved randomly so the patch
@@ -146,12 +151,15 @@ TEST(GlobalStiffness, RigidMotionsAreInTheNullSpace) {
     Eigen::VectorXd r(3 * mesh.vertices.rows());
     for (Eigen::Index v = 0; v < mesh.vertices.rows(); ++v) {
       const Eigen::Vector3d x = mesh.vertices.row(v).transpose();
-      r.segment<3>(3 * v) = mode < 3 ? Eigen::Vector3d::Unit(mode) : Eigen::Vector3d::Unit(mode - 3).cross(x);
+      r.segment<3>(3 * v) =
+          mode < 3 ? Eigen::Vector3d::Unit(mode) : Eigen::Vector3d::Unit(mode - 3).cross(x);
     }
-    EXPECT_LE((K * r).cwiseAbs().maxCoeff(), 1e-13 * scale * r.cwiseAbs().maxCoeff()) << "mode " << mode;
+    EXPECT_LE((K * r).cwiseAbs().maxCoeff(), 1e-13 * scale * r.cwiseAbs().maxCoeff())
+        << "mode " << mode;
   }
   // And no other: exactly six eigenvalues vanish.
-  const Eigen::VectorXd eig = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Eigen::MatrixXd(K)).eigenvalues();
+  const Eigen::VectorXd eig =
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Eigen::MatrixXd(K)).eigenvalues();
   EXPECT_LE(std::abs(eig[5]), 1e-12 * eig.maxCoeff());
   EXPECT_GE(eig[6], 1e-6 * eig.maxCoeff());
 }
@@ -181,7 +189,8 @@ Eigen::VectorXd traction_load(const TetMesh& mesh, const Eigen::Vector3d& t, OnF
   for (Eigen::Index i = 0; i < boundary.triangles.rows(); ++i) {
     const auto tri = boundary.triangles.row(i);
     if (!on_face(tri(0)) || !on_face(tri(1)) || !on_face(tri(2))) continue;
-    const Eigen::Vector3d a = mesh.vertices.row(tri(0)), b = mesh.vertices.row(tri(1)), c = mesh.vertices.row(tri(2));
+    const Eigen::Vector3d a = mesh.vertices.row(tri(0)), b = mesh.vertices.row(tri(1)),
+                          c = mesh.vertices.row(tri(2));
     const double area = 0.5 * (b - a).cross(c - a).norm();
     for (int k = 0; k < 3; ++k) f.segment<3>(3 * tri(k)) += t * area / 3;
   }
@@ -197,7 +206,8 @@ TEST(GlobalStiffness, UniaxialStretchRecoversYoungModulusAndPoissonRatio) {
   for (Eigen::Index v = 0; v < block.vertices.rows(); ++v)
     for (int a = 0; a < 3; ++a)
       if (block.vertices(v, a) == 0) constrained[3 * v + a] = true;
-  const Eigen::VectorXd f = traction_load(block, {sigma, 0, 0}, [&](int v) { return block.vertices(v, 0) == L; });
+  const Eigen::VectorXd f =
+      traction_load(block, {sigma, 0, 0}, [&](int v) { return block.vertices(v, 0) == L; });
   const Eigen::VectorXd u = solve_constrained(K, f, constrained);
   // The exact solution is linear, which P1 elements represent exactly:
   // ε_xx = σ/E, ε_yy = ε_zz = −ν σ/E at every vertex.
@@ -220,7 +230,8 @@ double cantilever_tip_deflection(int r, double L, double h, double E, double P) 
   std::vector<bool> clamped(3 * beam.vertices.rows(), false);
   for (Eigen::Index v = 0; v < beam.vertices.rows(); ++v)
     if (beam.vertices(v, 0) == 0) clamped[3 * v] = clamped[3 * v + 1] = clamped[3 * v + 2] = true;
-  const Eigen::VectorXd f = traction_load(beam, {0, 0, -P / (h * h)}, [&](int v) { return beam.vertices(v, 0) == L; });
+  const Eigen::VectorXd f =
+      traction_load(beam, {0, 0, -P / (h * h)}, [&](int v) { return beam.vertices(v, 0) == L; });
   const Eigen::VectorXd u = solve_constrained(K, f, clamped);
   double sum = 0;
   int count = 0;

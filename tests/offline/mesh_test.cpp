@@ -1,6 +1,8 @@
 // Mesh reading (every format through Gmsh), validation errors, boundary
 // extraction, STL filling and the sample organ.
 
+#include "palpate/offline/mesh.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -11,7 +13,6 @@
 
 #include "palpate/core/error.hpp"
 #include "palpate/offline/fem.hpp"
-#include "palpate/offline/mesh.hpp"
 #include "palpate/offline/mesh_io.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
@@ -35,14 +36,18 @@ double total_volume(const TetMesh& mesh) {
 
 Eigen::MatrixX3d sorted_rows(const Eigen::MatrixX3d& X) {
   std::vector<std::array<double, 3>> rows(static_cast<size_t>(X.rows()));
-  for (Eigen::Index i = 0; i < X.rows(); ++i) rows[static_cast<size_t>(i)] = {X(i, 0), X(i, 1), X(i, 2)};
+  for (Eigen::Index i = 0; i < X.rows(); ++i)
+    rows[static_cast<size_t>(i)] = {X(i, 0), X(i, 1), X(i, 2)};
   std::sort(rows.begin(), rows.end());
   Eigen::MatrixX3d S(X.rows(), 3);
-  for (Eigen::Index i = 0; i < X.rows(); ++i) S.row(i) << rows[static_cast<size_t>(i)][0], rows[static_cast<size_t>(i)][1], rows[static_cast<size_t>(i)][2];
+  for (Eigen::Index i = 0; i < X.rows(); ++i)
+    S.row(i) << rows[static_cast<size_t>(i)][0], rows[static_cast<size_t>(i)][1],
+        rows[static_cast<size_t>(i)][2];
   return S;
 }
 
-void expect_input_error(const std::function<void()>& f, std::initializer_list<std::string> fragments) {
+void expect_input_error(const std::function<void()>& f,
+                        std::initializer_list<std::string> fragments) {
   testing::expect_error<InputError>(f, fragments);
 }
 
@@ -53,7 +58,8 @@ TEST(Boundary, OfABoxIsClosedOutwardAndComplete) {
   // Divergence theorem: ∮ x·n dA = 3 V for outward normals.
   double flux = 0;
   for (Eigen::Index i = 0; i < b.triangles.rows(); ++i) {
-    const Eigen::Vector3d a = mesh.vertices.row(b.triangles(i, 0)), c = mesh.vertices.row(b.triangles(i, 1)),
+    const Eigen::Vector3d a = mesh.vertices.row(b.triangles(i, 0)),
+                          c = mesh.vertices.row(b.triangles(i, 1)),
                           d = mesh.vertices.row(b.triangles(i, 2));
     flux += ((a + c + d) / 3).dot(0.5 * (c - a).cross(d - a));
   }
@@ -101,7 +107,8 @@ TEST(Validation, RejectsEachKindOfBadMeshWithItsLocation) {
   {
     TetMesh m = good;
     m.tetrahedra(4, 2) = 99;
-    expect_input_error([&] { validate_and_compact(m); }, {"tetrahedron 4", "vertex 99", "out of range", "0..7"});
+    expect_input_error([&] { validate_and_compact(m); },
+                       {"tetrahedron 4", "vertex 99", "out of range", "0..7"});
   }
   {
     TetMesh m = good;
@@ -118,7 +125,8 @@ TEST(Validation, RejectsEachKindOfBadMeshWithItsLocation) {
     // Flatten one tetrahedron onto a plane: move its apex into its base.
     m.vertices.conservativeResize(9, 3);
     m.vertices.row(8) = (m.vertices.row(m.tetrahedra(0, 0)) + m.vertices.row(m.tetrahedra(0, 1)) +
-                         m.vertices.row(m.tetrahedra(0, 2))) / 3;
+                         m.vertices.row(m.tetrahedra(0, 2))) /
+                        3;
     m.tetrahedra(0, 3) = 8;
     m.source_ids.resize(0);
     expect_input_error([&] { validate_and_compact(m); }, {"tetrahedron 0", "zero volume"});
@@ -168,8 +176,10 @@ TEST(Boundary, RejectsNonManifoldMeshes) {
   m.vertices.row(8) << 2, -1, 0;
   m.tetrahedra.conservativeResize(7, 4);
   m.tetrahedra.row(6) << m.tetrahedra(0, 0), m.tetrahedra(0, 1), m.tetrahedra(0, 3), 8;
-  if (signed_volume((Matrix43d() << m.vertices.row(m.tetrahedra(6, 0)), m.vertices.row(m.tetrahedra(6, 1)),
-                     m.vertices.row(m.tetrahedra(6, 2)), m.vertices.row(8)).finished()) < 0)
+  if (signed_volume((Matrix43d() << m.vertices.row(m.tetrahedra(6, 0)),
+                     m.vertices.row(m.tetrahedra(6, 1)), m.vertices.row(m.tetrahedra(6, 2)),
+                     m.vertices.row(8))
+                        .finished()) < 0)
     std::swap(m.tetrahedra(6, 0), m.tetrahedra(6, 1));
   m.source_ids.resize(0);
   m.source = "three";

@@ -105,10 +105,10 @@ TEST(PartialFile, BlocksWrittenLeaveThePendingOnesAndAreResumedByTheSameShard) {
   // Another shard's run does not resume it: null, and the reason says both.
   std::string why;
   ShardIdentity others[4] = {id, id, id, id};
-  others[0].columns_begin = 0;                 // another range
-  others[1].precision = Precision::kFloat32;   // another precision
+  others[0].columns_begin = 0;                              // another range
+  others[1].precision = Precision::kFloat32;                // another precision
   others[2].input_hash = "sha256:" + std::string(64, 'c');  // another problem
-  others[3].block_columns = 7;                 // another block size (7 ∤ 5: range moves too)
+  others[3].block_columns = 7;  // another block size (7 ∤ 5: range moves too)
   others[3].columns_begin = 7;
   for (const auto& other : others) {
     why.clear();
@@ -160,7 +160,8 @@ TEST(PartialFile, AFinishedShardReadsBackWhatWasWritten) {
     // All rows: the band's columns [5, 12) are the shard's, the others untouched.
     RowMajor band = RowMajor::Constant(kColumns, kColumns, -1.0);
     done->read_rows(0, kColumns, band.data());
-    EXPECT_EQ(band.rightCols(7), stored.rightCols(7)) << "precision " << static_cast<int>(precision);
+    EXPECT_EQ(band.rightCols(7), stored.rightCols(7))
+        << "precision " << static_cast<int>(precision);
     EXPECT_TRUE((band.leftCols(5).array() == -1.0).all());
     // A band of rows in the middle.
     RowMajor rows = RowMajor::Constant(4, kColumns, -1.0);
@@ -257,7 +258,8 @@ TEST(PartialFile, AFileOpenForWritingIsNotResumedByAnotherOpening) {
 TEST(PartialFile, TheCheckpointIsAHiddenFileBesideTheOutput) {
   EXPECT_EQ(checkpoint_path("/data/run/liver.h5"),
             std::filesystem::path("/data/run/.liver.h5.checkpoint"));
-  EXPECT_EQ(checkpoint_path("shards/part-3.h5"), std::filesystem::path("shards/.part-3.h5.checkpoint"));
+  EXPECT_EQ(checkpoint_path("shards/part-3.h5"),
+            std::filesystem::path("shards/.part-3.h5.checkpoint"));
   const auto bare = checkpoint_path("liver.h5");
   EXPECT_EQ(bare.filename(), ".liver.h5.checkpoint");
   EXPECT_TRUE(std::filesystem::equivalent(bare.parent_path(), "."));

@@ -1,11 +1,11 @@
 // The typed precompute report (offline/precompute_report.hpp): its JSON is
 // the contract of docs/compliance-file.md ("The report"), and merge reads a
 // shard's report back from it.
+#include "palpate/offline/precompute_report.hpp"
+
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
-
-#include "palpate/offline/precompute_report.hpp"
 
 namespace palpate {
 namespace {
@@ -94,12 +94,11 @@ TEST(PrecomputeReport, ForeignOrDamagedJsonGivesWhatCanBeRead) {
 
 TEST(PrecomputeReport, TextForATerminal) {
   const std::string text = format_report(full_report());
-  for (const char* line : {"mesh       organ.msh: 802 vertices, 3929 tetrahedra",
-                           "material   tumour: E = 3.4e+05 Pa, nu = 0.45",
-                           "solves       factor: amd ordering",
-                           "symmetry error 1.00e-15",
-                           "shard      organ.part-0-384.h5: columns 0:384",
-                           "output     organ.h5 (float64, 4.3 MB)"})
+  for (const char* line :
+       {"mesh       organ.msh: 802 vertices, 3929 tetrahedra",
+        "material   tumour: E = 3.4e+05 Pa, nu = 0.45", "solves       factor: amd ordering",
+        "symmetry error 1.00e-15", "shard      organ.part-0-384.h5: columns 0:384",
+        "output     organ.h5 (float64, 4.3 MB)"})
     EXPECT_NE(text.find(line), std::string::npos) << line << "\nin\n" << text;
 }
 

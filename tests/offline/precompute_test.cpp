@@ -1,6 +1,8 @@
 // The precompute pipeline: job files, attachment, every bad input's error,
 // the compliance file's round trip and atomic writing.
 
+#include "palpate/offline/precompute.hpp"
+
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -8,10 +10,9 @@
 #include <csignal>
 #include <fstream>
 
+#include "palpate/core/error.hpp"
 #include "palpate/file/atomic_file.hpp"
 #include "palpate/file/compliance_file.hpp"
-#include "palpate/core/error.hpp"
-#include "palpate/offline/precompute.hpp"
 #include "support/box_job.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
@@ -100,13 +101,18 @@ TEST(Precompute, JobFileRoundTripsThroughToml) {
 TEST(Precompute, JobFileErrorsNameFileLineAndKey) {
   TempDir dir;
   std::ofstream(dir / "typo.toml") << "[mesh]\nfile = \"a.msh\"\n\n[material]\nyoung_modulus = 5\n";
-  expect_error<InputError>([&] { read_job_file(dir / "typo.toml"); }, {"typo.toml:5", "material.young_modulus", "unknown key", "young_modulus_pa"});
+  expect_error<InputError>(
+      [&] { read_job_file(dir / "typo.toml"); },
+      {"typo.toml:5", "material.young_modulus", "unknown key", "young_modulus_pa"});
   std::ofstream(dir / "bad.toml") << "[mesh\n";
-  expect_error<InputError>([&] { read_job_file(dir / "bad.toml"); }, {"bad.toml:", "not valid TOML"});
+  expect_error<InputError>([&] { read_job_file(dir / "bad.toml"); },
+                           {"bad.toml:", "not valid TOML"});
   std::ofstream(dir / "unit.toml") << "[mesh]\nunit = \"inch\"\n";
-  expect_error<InputError>([&] { read_job_file(dir / "unit.toml"); }, {"unit.toml:2", "m, cm or mm"});
+  expect_error<InputError>([&] { read_job_file(dir / "unit.toml"); },
+                           {"unit.toml:2", "m, cm or mm"});
   std::ofstream(dir / "type.toml") << "[material]\npoisson_ratio = \"high\"\n";
-  expect_error<InputError>([&] { read_job_file(dir / "type.toml"); }, {"type.toml:2", "expected a number"});
+  expect_error<InputError>([&] { read_job_file(dir / "type.toml"); },
+                           {"type.toml:2", "expected a number"});
 }
 
 TEST(Precompute, EachBadInputGetsItsErrorAndNoFile) {
@@ -198,7 +204,8 @@ TEST(Precompute, RefusesPartsJoinedOnlyAtAVertex) {
   job.poisson_ratio = 0.3;
   job.attachment.boxes.push_back({{-0.1, -0.1, -0.1}, {1.1, 1.1, 1.1}});  // the first tetrahedron
   job.output = dir / "hinge.h5";
-  expect_error<InputError>([&] { run_precompute(job, {}); }, {"part 2 of 2", "turn about it", "at least 3"});
+  expect_error<InputError>([&] { run_precompute(job, {}); },
+                           {"part 2 of 2", "turn about it", "at least 3"});
   EXPECT_FALSE(std::filesystem::exists(job.output));
 }
 
@@ -214,7 +221,8 @@ TEST(Precompute, UsesTheIdsFileInTheMeshFilesNodeOrder) {
   const ComplianceModel model = read_compliance_file(job.output, nullptr);
   ASSERT_EQ(model.fixed_vertices.size(), 5);
   for (int i = 0; i < 5; ++i)
-    EXPECT_EQ(model.source_vertex_ids[model.fixed_vertices[i]], std::vector<int>({0, 5, 10, 15, 30})[static_cast<size_t>(i)]);
+    EXPECT_EQ(model.source_vertex_ids[model.fixed_vertices[i]],
+              std::vector<int>({0, 5, 10, 15, 30})[static_cast<size_t>(i)]);
 }
 
 TEST(ComplianceFile, RefusesForeignTruncatedAndWrongVersionFiles) {
@@ -222,14 +230,16 @@ TEST(ComplianceFile, RefusesForeignTruncatedAndWrongVersionFiles) {
   const PrecomputeJob job = box_job(dir);
   run_precompute(job, {});
   std::ofstream(dir / "text.h5") << "not hdf5";
-  expect_error<InputError>([&] { read_compliance_file(dir / "text.h5", nullptr); }, {"not an HDF5 file"});
+  expect_error<InputError>([&] { read_compliance_file(dir / "text.h5", nullptr); },
+                           {"not an HDF5 file"});
   // Truncate a copy to half its size.
   const auto size = std::filesystem::file_size(job.output);
   std::filesystem::copy_file(job.output, dir / "half.h5");
   std::filesystem::resize_file(dir / "half.h5", size / 2);
   Eigen::MatrixXd G;
   EXPECT_THROW(read_compliance_file(dir / "half.h5", &G), InputError);
-  expect_error<InputError>([&] { read_compliance_file(dir / "none.h5", nullptr); }, {"no such file"});
+  expect_error<InputError>([&] { read_compliance_file(dir / "none.h5", nullptr); },
+                           {"no such file"});
 }
 
 TEST(AtomicOutput, LeavesNothingWhenAbandonedOrInterrupted) {

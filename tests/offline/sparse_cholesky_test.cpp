@@ -193,7 +193,8 @@ TEST(SparseCholesky, TrailingBlockIsTheCholeskyFactorOfTheSchurComplement) {
   };
   const Eigen::MatrixXd S =
       pick(last, last) -
-      pick(last, others) * Eigen::LLT<Eigen::MatrixXd>(pick(others, others)).solve(pick(others, last));
+      pick(last, others) *
+          Eigen::LLT<Eigen::MatrixXd>(pick(others, others)).solve(pick(others, last));
   const Eigen::MatrixXd reference = Eigen::LLT<Eigen::MatrixXd>(S).matrixL();
 
   SparseCholesky chol(upper(A), order);
@@ -238,7 +239,8 @@ TEST(SparseCholesky, AnIndefiniteMatrixFailsWhereItsLeadingPivotTurnsNonPositive
   std::vector<double> pivot(static_cast<std::size_t>(n));
   int failing = -1;
   for (int k = 0; k < n; ++k) {
-    pivot[static_cast<std::size_t>(k)] = k == 0 ? d : d - 1.0 / pivot[static_cast<std::size_t>(k - 1)];
+    pivot[static_cast<std::size_t>(k)] =
+        k == 0 ? d : d - 1.0 / pivot[static_cast<std::size_t>(k - 1)];
     if (pivot[static_cast<std::size_t>(k)] <= 0) {
       failing = k;
       break;

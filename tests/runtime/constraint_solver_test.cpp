@@ -1,6 +1,6 @@
-// The run-time algebra (docs/model.md, "The reduced system of a request") against dense computations on
-// the full G of a real compliance file, every request error, and the reuse
-// of factorizations.
+// The run-time algebra (docs/model.md, "The reduced system of a request") against dense
+// computations on the full G of a real compliance file, every request error, and the reuse of
+// factorizations.
 
 #include "palpate/runtime/constraint_solver.hpp"
 

@@ -28,9 +28,9 @@ struct Builder {
     return static_cast<int>(surface.vertex_ids.size()) - 1;
   }
   void triangle(int a, int b, int c) {
-    surface.triangles.insert(surface.triangles.end(), {static_cast<std::uint32_t>(a),
-                                                       static_cast<std::uint32_t>(b),
-                                                       static_cast<std::uint32_t>(c)});
+    surface.triangles.insert(surface.triangles.end(),
+                             {static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b),
+                              static_cast<std::uint32_t>(c)});
   }
   /// Adds (a, b, c) or (a, c, b), whichever has its normal along @p outward.
   void outward(int a, int b, int c, const Eigen::Vector3d& outward) {
@@ -52,8 +52,7 @@ DrawnSurface octahedron(double r) {
   for (int sx = 0; sx < 2; ++sx)
     for (int sy = 0; sy < 2; ++sy)
       for (int sz = 0; sz < 2; ++sz)
-        b.outward(sx, 2 + sy, 4 + sz,
-                  Eigen::Vector3d(sx ? -1 : 1, sy ? -1 : 1, sz ? -1 : 1));
+        b.outward(sx, 2 + sy, 4 + sz, Eigen::Vector3d(sx ? -1 : 1, sy ? -1 : 1, sz ? -1 : 1));
   return b.surface;
 }
 
@@ -66,8 +65,7 @@ DrawnSurface box_surface(double a, double b, double c) {
   const Eigen::Vector3d half(a, b, c);
   for (int k = 0; k < 2; ++k)
     for (int j = 0; j < 2; ++j)
-      for (int i = 0; i < 2; ++i)
-        s.add(Eigen::Vector3d(i ? a : -a, j ? b : -b, k ? c : -c));
+      for (int i = 0; i < 2; ++i) s.add(Eigen::Vector3d(i ? a : -a, j ? b : -b, k ? c : -c));
   auto corner = [](int i, int j, int k) { return i + 2 * j + 4 * k; };
   for (int axis = 0; axis < 3; ++axis)
     for (const int side : {0, 1}) {
@@ -85,7 +83,8 @@ DrawnSurface box_surface(double a, double b, double c) {
         ring[static_cast<std::size_t>(q)] = corner(ijk[0], ijk[1], ijk[2]);
       }
       for (int q = 0; q < 4; ++q)
-        s.outward(centre, ring[static_cast<std::size_t>(q)], ring[static_cast<std::size_t>((q + 1) % 4)], normal);
+        s.outward(centre, ring[static_cast<std::size_t>(q)],
+                  ring[static_cast<std::size_t>((q + 1) % 4)], normal);
     }
   return s.surface;
 }
@@ -108,7 +107,8 @@ TEST(VertexNormals, OfAnOctahedronPointAlongTheVertices) {
 }
 
 TEST(VertexNormals, OfABoxAreTheFaceNormalsAndTheAreaWeightedCornerNormals) {
-  for (const Eigen::Vector3d& half : {Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(0.01, 0.02, 0.03)}) {
+  for (const Eigen::Vector3d& half :
+       {Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(0.01, 0.02, 0.03)}) {
     const DrawnSurface s = box_surface(half.x(), half.y(), half.z());
     ASSERT_EQ(s.vertex_count(), 14);
     ASSERT_EQ(s.triangle_count(), 24);
@@ -165,7 +165,8 @@ TEST(VertexNormals, AreZeroWhereNoTriangleOfNonZeroAreaMeetsAVertex) {
   const int s = b.add({7, 0, 0}), t = b.add({7, 0, 0}), w = b.add({7, 1, 0});
   b.triangle(s, t, w);
   const Eigen::MatrixX3d normals = vertex_normals(b.surface);
-  for (int v : {o, x, y}) EXPECT_LT((normals.row(v) - Eigen::RowVector3d(0, 0, 1)).norm(), kTolerance);
+  for (int v : {o, x, y})
+    EXPECT_LT((normals.row(v) - Eigen::RowVector3d(0, 0, 1)).norm(), kTolerance);
   for (int v : {lonely, p, q, r, s, t, w})
     EXPECT_EQ(normals.row(v), Eigen::RowVector3d::Zero()) << "vertex " << v;
 }

@@ -10,8 +10,8 @@
 #include <fstream>
 #include <numbers>
 
-#include "palpate/transport/client.hpp"
 #include "palpate/core/error.hpp"
+#include "palpate/transport/client.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
 
@@ -39,7 +39,8 @@ ModelInfo octahedron() {
   m.surface.vertex_ids = {100, 101, 102, 103, 104, 105};
   for (std::uint32_t i = 0; i < 4; ++i) {
     const std::uint32_t a = 1 + i, b = 1 + (i + 1) % 4;
-    m.surface.triangles.insert(m.surface.triangles.end(), {0, a, b});  // upper: counter-clockwise seen from outside
+    m.surface.triangles.insert(m.surface.triangles.end(),
+                               {0, a, b});  // upper: counter-clockwise seen from outside
     m.surface.triangles.insert(m.surface.triangles.end(), {5, b, a});  // lower
   }
   return m;
@@ -282,8 +283,7 @@ TEST(Gesture, SamplesInterpolateLinearlyAndSlerp) {
 }
 
 TEST(Gesture, TheShippedGesturesReadAndPlaceOnAnyOrgan) {
-  const auto dir =
-      std::filesystem::path(PALPATE_SOURCE_DIR) / "config" / "gestures";
+  const auto dir = std::filesystem::path(PALPATE_SOURCE_DIR) / "config" / "gestures";
   ASSERT_TRUE(std::filesystem::is_directory(dir)) << dir;
   const ModelInfo m = octahedron();
   int count = 0;

@@ -2,8 +2,10 @@
 // code shared with the writer); the summaries against hand-computed values;
 // full rings; errors; the .partial file's life, including a crash.
 
-#include <gtest/gtest.h>
+#include "palpate/runtime/session_recorder.hpp"
 
+#include <gtest/gtest.h>
+#include <hdf5.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -19,10 +21,7 @@
 #include <thread>
 #include <vector>
 
-#include <hdf5.h>
-
 #include "palpate/core/error.hpp"
-#include "palpate/runtime/session_recorder.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"

@@ -36,8 +36,8 @@ Eigen::MatrixXd random_G(int vertices, std::uint32_t seed) {
 }
 
 struct Constraints {
-  std::vector<int> indices;     // compliance vertices, distinct
-  std::vector<double> forces;   // 3 per index, N
+  std::vector<int> indices;    // compliance vertices, distinct
+  std::vector<double> forces;  // 3 per index, N
 };
 
 Constraints random_constraints(int vertices, int k, std::mt19937& rng) {

@@ -23,7 +23,7 @@ using Eigen::Vector3d;
 // Forces come from small SPD solves on G (entries ~1e-4 m/N): they agree
 // with the direct dense solves to ~1e-12 relative; 1e-9 leaves margin.
 constexpr double kRelativeTolerance = 1e-9;
-constexpr double kTick = 0.001;  // s, the haptic rate
+constexpr double kTick = 0.001;       // s, the haptic rate
 constexpr double kSticks = INFINITY;  // friction that never lets a contact slide
 
 class ToolContactTest : public ::testing::Test {
@@ -42,11 +42,12 @@ class ToolContactTest : public ::testing::Test {
 
   /// The compliance vertex of the top face (z = 40 mm) nearest (x, y) in mm.
   static int top_vertex(double x_mm, double y_mm) {
-    return testing::box_top_vertex(model().surface.rest_positions_m, model().compliance_vertex_count(),
-                                   x_mm, y_mm);
+    return testing::box_top_vertex(model().surface.rest_positions_m,
+                                   model().compliance_vertex_count(), x_mm, y_mm);
   }
   static Vector3d rest(int j) {
-    return Eigen::Map<const Vector3d>(&model().surface.rest_positions_m[3 * static_cast<std::size_t>(j)]);
+    return Eigen::Map<const Vector3d>(
+        &model().surface.rest_positions_m[3 * static_cast<std::size_t>(j)]);
   }
   static Eigen::Matrix3d G_block(int a, int b) { return model().G.block<3, 3>(3 * a, 3 * b); }
 
@@ -101,8 +102,9 @@ class ToolContactTest : public ::testing::Test {
       ToolPoseInput& p = poses[static_cast<std::size_t>(t)];
       const Vector3d from = p.position_m;
       const double jaw_from = p.jaw_angle_rad;
-      const int n = std::max(1, static_cast<int>(std::ceil(std::max(
-                                    (to - from).norm() / step_m, std::abs(jaw - jaw_from) / jaw_step))));
+      const int n =
+          std::max(1, static_cast<int>(std::ceil(std::max((to - from).norm() / step_m,
+                                                          std::abs(jaw - jaw_from) / jaw_step))));
       for (int i = 1; i <= n; ++i) {
         p.position_m = from + (to - from) * (static_cast<double>(i) / n);
         p.jaw_angle_rad = jaw_from + (jaw - jaw_from) * (static_cast<double>(i) / n);
@@ -170,7 +172,7 @@ TEST_F(ToolContactTest, PressingAFrictionlessProbeGivesTheDirectNormalDisplaceme
   ASSERT_EQ(engine.contact_indices().size(), 1u);
   const Vector3d f = Eigen::Map<const Vector3d>(engine.contact_forces().data());
   const Vector3d x = rest(v) + G_block(v, v) * f;  // where the organ put v
-  const Vector3d n = (x - c).normalized();           // the push: from the tip to v
+  const Vector3d n = (x - c).normalized();         // the push: from the tip to v
   EXPECT_NEAR((x - c).norm(), r, 1e-9) << "v rests on the tip's surface";
   EXPECT_GT(n.z(), -1.0);
   EXPECT_LT(n.z(), -0.9) << "below the tip, tilted by the sideways motion only";
@@ -251,8 +253,8 @@ TEST_F(ToolContactTest, GraspAndPullOpposesThePullAndReleaseReturnsTheOrganToRes
   const Vector3d above = surface + Vector3d(0, 0, reach + 0.002);
   start(driver, 0, above, degrees(40));
   const Vector3d in = surface + Vector3d(0, 0, reach - 0.003);
-  driver.move(0, in, degrees(40));         // jaws open around the tissue
-  driver.move(0, in, 0.0);                 // close
+  driver.move(0, in, degrees(40));  // jaws open around the tissue
+  driver.move(0, in, 0.0);          // close
   ASSERT_TRUE(driver.saw(0, ToolEventKind::kGrasp));
   ASSERT_EQ(driver.last(0).state, ToolState::kGrasping);
   EXPECT_GT(driver.last(0).held, 0);
@@ -277,8 +279,8 @@ TEST_F(ToolContactTest, TwoToolsAreSolvedTogether) {
   const int a = top_vertex(75, 12.5), b = top_vertex(75, 37.5);
   ASSERT_NE(a, b);
   const double d = 0.003, r = 0.002;
-  ToolContactEngine engine(
-      model(), {probe("left", kSticks, r), probe("right", kSticks, r)}, {}, {});
+  ToolContactEngine engine(model(), {probe("left", kSticks, r), probe("right", kSticks, r)}, {},
+                           {});
   Driver driver(engine, 2);
   start(driver, 0, rest(a) + Vector3d(0, 0, r + 0.001));
   start(driver, 1, rest(b) + Vector3d(0, 0, r + 0.001));
@@ -459,7 +461,7 @@ TEST_F(ToolContactTest, AGraspersContactsDoNotFlickerWhileItGlides) {
   ASSERT_EQ(driver.last(0).state, ToolState::kTouching);
   const std::size_t from = driver.log.size();
   std::set<int> previous(engine.contact_indices().begin(), engine.contact_indices().end());
-  std::map<int, int> switches;  // per vertex: times it entered the contact set
+  std::map<int, int> switches;      // per vertex: times it entered the contact set
   for (int i = 0; i < 1875; ++i) {  // 37.5 mm at 0.02 mm per tick
     driver.poses[0].position_m.x() += 2e-5;
     driver.tick_all();

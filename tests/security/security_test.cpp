@@ -25,9 +25,9 @@
 #include <thread>
 
 #include "palpate.h"
+#include "palpate/core/error.hpp"
 #include "palpate/transport/client.hpp"
 #include "palpate/transport/dds.hpp"
-#include "palpate/core/error.hpp"
 #include "palpate/transport/tool_client.hpp"
 #include "support/box_job.hpp"
 #include "support/daemon_process.hpp"
@@ -223,11 +223,12 @@ bool take_one(dds_entity_t reader, Clock::time_point deadline,
   // when the model came, the same point computed from the box's size otherwise.
   std::array<double, 3> top{0.050, 0.025, 0.040};
   if (model) {
-    const int v =
-        testing::box_top_vertex(model->surface.rest_positions_m, model->surface.compliance_vertex_count, 50, 25);
+    const int v = testing::box_top_vertex(model->surface.rest_positions_m,
+                                          model->surface.compliance_vertex_count, 50, 25);
     for (int i = 0; i < 3; ++i)
       top[static_cast<std::size_t>(i)] =
-          model->surface.rest_positions_m[3 * static_cast<std::size_t>(v) + static_cast<std::size_t>(i)];
+          model->surface
+              .rest_positions_m[3 * static_cast<std::size_t>(v) + static_cast<std::size_t>(i)];
   }
   constexpr double kTipRadius = 0.002, kDepth = 0.001;
   int feedback = 0, touching = 0;

@@ -42,7 +42,8 @@ TetMesh box_mesh(double lx, double ly, double lz, int nx, int ny, int nz) {
           mesh.tetrahedra.row(t++) << v[0], v[1], v[2], v[3];
         }
   mesh.tet_group = Eigen::VectorXi::Zero(mesh.tetrahedra.rows());
-  mesh.source_ids = Eigen::VectorXi::LinSpaced(mesh.vertices.rows(), 0, static_cast<int>(mesh.vertices.rows()) - 1);
+  mesh.source_ids = Eigen::VectorXi::LinSpaced(mesh.vertices.rows(), 0,
+                                               static_cast<int>(mesh.vertices.rows()) - 1);
   return mesh;
 }
 
@@ -56,11 +57,13 @@ void write_msh22(const TetMesh& mesh, const std::filesystem::path& file) {
   out << "$PhysicalNames\n" << groups.size() << "\n";
   for (int g : groups) {
     auto it = mesh.group_names.find(g);
-    out << "3 " << (g == 0 ? 99 : g) << " \"" << (it != mesh.group_names.end() ? it->second : "g" + std::to_string(g)) << "\"\n";
+    out << "3 " << (g == 0 ? 99 : g) << " \""
+        << (it != mesh.group_names.end() ? it->second : "g" + std::to_string(g)) << "\"\n";
   }
   out << "$EndPhysicalNames\n$Nodes\n" << mesh.vertices.rows() << "\n";
   for (Eigen::Index v = 0; v < mesh.vertices.rows(); ++v)
-    out << v + 1 << " " << mesh.vertices(v, 0) << " " << mesh.vertices(v, 1) << " " << mesh.vertices(v, 2) << "\n";
+    out << v + 1 << " " << mesh.vertices(v, 0) << " " << mesh.vertices(v, 1) << " "
+        << mesh.vertices(v, 2) << "\n";
   out << "$EndNodes\n$Elements\n" << mesh.tetrahedra.rows() << "\n";
   for (Eigen::Index t = 0; t < mesh.tetrahedra.rows(); ++t) {
     const int g = mesh.tet_group.size() ? mesh.tet_group[t] : 0;

@@ -41,9 +41,9 @@ TEST(DdsConfig, TheBuiltInOneIsTheLoopbackFile) {
     expected.pop_back();
   EXPECT_EQ(dds::loopback_config(), expected);
   // What keeps DDS off the real network.
-  for (const char* must : {"<NetworkInterface name=\"lo\" multicast=\"false\"/>",
-                           "<AllowMulticast>false</AllowMulticast>",
-                           "<Peer address=\"127.0.0.1\"/>"})
+  for (const char* must :
+       {"<NetworkInterface name=\"lo\" multicast=\"false\"/>",
+        "<AllowMulticast>false</AllowMulticast>", "<Peer address=\"127.0.0.1\"/>"})
     EXPECT_NE(dds::loopback_config().find(must), std::string::npos) << must;
 }
 

@@ -297,8 +297,7 @@ TEST(Wire, AToolPoseBecomesTheEnginesInput) {
   palpate_ToolPose pose;
   std::memset(&pose, 0x5a, sizeof pose);
   pose.send_time_ns = 987654321;  // stamped by the caller, left alone
-  wire::to_idl("grasper-left", "liver", 31, {0.01, -0.02, 0.03}, {0.5, 0.5, -0.5, 0.5},
-               0.25, pose);
+  wire::to_idl("grasper-left", "liver", 31, {0.01, -0.02, 0.03}, {0.5, 0.5, -0.5, 0.5}, 0.25, pose);
   EXPECT_EQ(bounded(pose.tool_id), "grasper-left");
   EXPECT_EQ(bounded(pose.model_id), "liver");
   EXPECT_TRUE(zero_padded(pose.tool_id));
@@ -397,8 +396,8 @@ class WireSolverTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new testing::TempDir;
-    model_ = new SurfaceModel(
-        load_surface_model("box", testing::write_box_compliance(dir_->path())));
+    model_ =
+        new SurfaceModel(load_surface_model("box", testing::write_box_compliance(dir_->path())));
   }
   static void TearDownTestSuite() {
     delete model_;
@@ -444,14 +443,17 @@ TEST_F(WireSolverTest, ALoadedRequestGivesTheSolversAndTheDenseForces) {
   ConstraintSolver direct(model(), {});
   ASSERT_EQ(direct.begin(3), RequestStatus::kOk);
   for (const auto& c : constraints)
-    ASSERT_EQ(direct.add(c.vertex, static_cast<std::int32_t>(c.kind), c.value.data(), c.normal.data()),
-              RequestStatus::kOk);
+    ASSERT_EQ(
+        direct.add(c.vertex, static_cast<std::int32_t>(c.kind), c.value.data(), c.normal.data()),
+        RequestStatus::kOk);
   ASSERT_EQ(direct.solve(), RequestStatus::kOk);
   for (int j = 0; j < 3; ++j) {
-    EXPECT_EQ(results[static_cast<std::size_t>(j)].vertex, constraints[static_cast<std::size_t>(j)].vertex);
+    EXPECT_EQ(results[static_cast<std::size_t>(j)].vertex,
+              constraints[static_cast<std::size_t>(j)].vertex);
     for (int d = 0; d < 3; ++d) {
       EXPECT_EQ(results[static_cast<std::size_t>(j)].force[d], direct.forces()(3 * j + d));
-      EXPECT_EQ(results[static_cast<std::size_t>(j)].displacement[d], direct.displacements()(3 * j + d));
+      EXPECT_EQ(results[static_cast<std::size_t>(j)].displacement[d],
+                direct.displacements()(3 * j + d));
     }
   }
   const Eigen::Vector3d total = direct.total_force();
@@ -488,10 +490,14 @@ TEST_F(WireSolverTest, ALoadedRequestGivesTheSolversAndTheDenseForces) {
   const Eigen::Vector3d u7 = model().G_block(7, 0) * f0 + model().G_block(7, 7) * f7;
   EXPECT_EQ(Eigen::Vector3d(results[0].force[0], results[0].force[1], results[0].force[2]), f0);
   EXPECT_LT((Eigen::Vector3d(results[0].displacement[0], results[0].displacement[1],
-                             results[0].displacement[2]) - u0).norm(),
+                             results[0].displacement[2]) -
+             u0)
+                .norm(),
             kRelativeTolerance * u0.norm());
   EXPECT_LT((Eigen::Vector3d(results[1].displacement[0], results[1].displacement[1],
-                             results[1].displacement[2]) - u7).norm(),
+                             results[1].displacement[2]) -
+             u7)
+                .norm(),
             kRelativeTolerance * u7.norm());
   // Sums of one non-zero term per axis: exact.
   EXPECT_EQ(reply.total_force[0], 0.5);
@@ -502,7 +508,7 @@ TEST_F(WireSolverTest, LoadingStopsAtTheFirstBadConstraint) {
   const std::vector<ConstraintSpec> constraints{
       ConstraintSpec::force(vertex(1), {0, 0, 1}),
       ConstraintSpec::force(model().mesh_vertex_count() + 5, {0, 0, 1}),  // no such vertex
-      ConstraintSpec::force(vertex(1), {0, 0, 1})};                      // a duplicate, not reached
+      ConstraintSpec::force(vertex(1), {0, 0, 1})};  // a duplicate, not reached
   std::vector<palpate_Constraint> storage;
   palpate_ConstraintRequest request{};
   wire::to_idl("c", "box", 1, constraints, false, false, storage, request);

@@ -210,8 +210,8 @@ void validate(const DaemonConfig& config) {
   if (config.max_clients < 1 || config.max_clients > 4096)
     throw InputError(fmt::format("limits.max_clients {}: expected 1 to 4096", config.max_clients));
   if (config.tools.empty() || config.tools.size() > 64)
-    throw InputError(fmt::format("{} tools configured: expected 1 to 64 [[tools]] tables",
-                                 config.tools.size()));
+    throw InputError(
+        fmt::format("{} tools configured: expected 1 to 64 [[tools]] tables", config.tools.size()));
   std::set<std::string> tool_ids;
   for (const auto& g : config.tools) {
     if (!is_valid_id(g.id))

@@ -86,8 +86,7 @@ class WarningLimiter {
     Slot& slot = slots_[static_cast<std::size_t>(reason) % slots_.size()];
     ++slot.count;
     if (slot.logged && now - slot.last < std::chrono::seconds(1)) return;
-    spdlog::warn("{} occurrences={}", fmt::format(format, std::forward<Args>(args)...),
-                 slot.count);
+    spdlog::warn("{} occurrences={}", fmt::format(format, std::forward<Args>(args)...), slot.count);
     slot.count = 0;
     slot.logged = true;
     slot.last = now;

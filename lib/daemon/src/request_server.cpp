@@ -76,9 +76,9 @@ RequestStatus RequestServer::solve(const palpate_ConstraintRequest& request) {
   for (const auto& candidate : models_)
     if (candidate->model.id == model_id) served = candidate.get();
   if (served == nullptr) {
-    const auto end = fmt::format_to_n(reply_.message, sizeof reply_.message - 1,
-                                      "model '{}' is not served here; served: {}", model_id,
-                                      served_ids_);
+    const auto end =
+        fmt::format_to_n(reply_.message, sizeof reply_.message - 1,
+                         "model '{}' is not served here; served: {}", model_id, served_ids_);
     *end.out = '\0';
     return RequestStatus::kUnknownModel;
   }

@@ -5,9 +5,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cstring>
-
+#include <ctime>
 
 namespace palpate::daemon {
 
@@ -24,7 +23,9 @@ ShownState::Snapshot make_snapshot_of(std::size_t capacity) {
 
 ShownState::ShownState(std::size_t capacity) : state_(make_snapshot_of(capacity)) {}
 
-ShownState::Snapshot ShownState::make_snapshot() const { return make_snapshot_of(state_.indices.size()); }
+ShownState::Snapshot ShownState::make_snapshot() const {
+  return make_snapshot_of(state_.indices.size());
+}
 
 void ShownState::show(std::span<const int> indices, std::span<const double> forces_n,
                       std::string_view source_prefix, std::string_view source_id,
@@ -59,11 +60,11 @@ bool ShownState::copy_if_newer(std::uint64_t& version, Snapshot& out) {
 
 ServedModel::ServedModel(SurfaceModel loaded, const DaemonConfig& config,
                          std::int64_t start_unix_ns)
-    : model(std::move(loaded)),
-      shown(static_cast<std::size_t>(config.limits.max_constraints)) {
+    : model(std::move(loaded)), shown(static_cast<std::size_t>(config.limits.max_constraints)) {
   solver = std::make_unique<ConstraintSolver>(model, config.limits);
   const auto k = static_cast<std::size_t>(config.limits.max_constraints);
-  tools.engine = std::make_unique<ToolContactEngine>(model, config.tools, config.contact, config.limits);
+  tools.engine =
+      std::make_unique<ToolContactEngine>(model, config.tools, config.contact, config.limits);
   tools.record_vertices.resize(k);
   tools.record_forces.resize(3 * k);
   if (config.record_directory.empty()) return;

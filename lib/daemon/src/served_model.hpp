@@ -72,7 +72,7 @@ struct ServedModel {
   struct Tools {
     std::mutex mutex;
     std::unique_ptr<ToolContactEngine> engine;
-    std::unique_ptr<SessionRecorder> recorder;  // when recording
+    std::unique_ptr<SessionRecorder> recorder;   // when recording
     std::vector<std::uint32_t> record_vertices;  // one tool's contacts, for the recorder
     std::vector<double> record_forces;
   } tools;

@@ -78,7 +78,8 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   dds::check(dds_waitset_attach(waitset.get(), stop_condition.get(), 0), "waitset");
   dds::check(dds_waitset_attach(waitset.get(), subscriptions_condition, 1), "waitset");
 
-  replies = std::make_unique<daemon::ReplyWriters>(participant.get(), reply_topic, config.max_clients);
+  replies =
+      std::make_unique<daemon::ReplyWriters>(participant.get(), reply_topic, config.max_clients);
   requests = std::make_unique<daemon::RequestServer>(models, served_ids, *replies,
                                                      config.limits.max_constraints);
   tools = std::make_unique<daemon::ToolServer>(models, served_ids, clock);
@@ -109,7 +110,8 @@ void Service::Impl::load_models() {
         loaded.mesh_vertex_count(), loaded.surface.triangle_count(), loaded.G_bytes() / 1e6,
         loaded.float32() ? "float32" : "float64", seconds);
     served_ids += (served_ids.empty() ? "" : ", ") + loaded.id;
-    models.push_back(std::make_unique<daemon::ServedModel>(std::move(loaded), config, start_unix_ns));
+    models.push_back(
+        std::make_unique<daemon::ServedModel>(std::move(loaded), config, start_unix_ns));
   }
 }
 

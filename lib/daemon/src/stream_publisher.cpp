@@ -17,12 +17,12 @@ StreamPublisher::StreamPublisher(Sources sources, const DaemonConfig& config,
       config_(config),
       first_us_(LatencyLog::kCapacity),
       second_us_(LatencyLog::kCapacity) {
-  surface_writer_ = dds::Entity(dds::check(
-      dds_create_writer(participant, surface_topic, dds::surface_qos().get(), nullptr),
-      "creating the surface writer"));
-  status_writer_ = dds::Entity(dds::check(
-      dds_create_writer(participant, status_topic, dds::status_qos().get(), nullptr),
-      "creating the status writer"));
+  surface_writer_ = dds::Entity(
+      dds::check(dds_create_writer(participant, surface_topic, dds::surface_qos().get(), nullptr),
+                 "creating the surface writer"));
+  status_writer_ = dds::Entity(
+      dds::check(dds_create_writer(participant, status_topic, dds::status_qos().get(), nullptr),
+                 "creating the status writer"));
   streams_.resize(sources.models.size());
   for (std::size_t i = 0; i < streams_.size(); ++i) {
     const ServedModel& served = *sources.models[i];
@@ -77,11 +77,15 @@ void StreamPublisher::publish_surfaces() {
     sample.source_request_id = s.shown.source_request;
     std::copy_n(s.shown.total_force, 3, sample.total_force);
     for (std::size_t c = 0; c < count; ++c)
-      s.vertex_ids[c] = served.model.surface.vertex_ids[static_cast<std::size_t>(s.shown.indices[c])];
-    wire::view(sample.displacement, std::span<const double>(s.displacement.data(),
-                                                            static_cast<std::size_t>(s.displacement.size())));
-    wire::view(sample.constrained_vertices, std::span<const std::uint32_t>(s.vertex_ids.data(), count));
-    wire::view(sample.constrained_forces, std::span<const double>(s.shown.forces.data(), 3 * count));
+      s.vertex_ids[c] =
+          served.model.surface.vertex_ids[static_cast<std::size_t>(s.shown.indices[c])];
+    wire::view(sample.displacement,
+               std::span<const double>(s.displacement.data(),
+                                       static_cast<std::size_t>(s.displacement.size())));
+    wire::view(sample.constrained_vertices,
+               std::span<const std::uint32_t>(s.vertex_ids.data(), count));
+    wire::view(sample.constrained_forces,
+               std::span<const double>(s.shown.forces.data(), 3 * count));
     if (const dds_return_t rc = dds_write(surface_writer_.get(), &sample); rc < 0)
       spdlog::error("event=dds_error what=\"writing the surface of {}\" error={}", served.model.id,
                     dds_strretcode(rc));

@@ -54,7 +54,7 @@ class StreamPublisher {
   struct ModelStream {
     ShownState::Snapshot shown;
     std::uint64_t published_version = 0;
-    palpate_SurfaceDisplacement sample{};  // its buffers are the vectors below
+    palpate_SurfaceDisplacement sample{};   // its buffers are the vectors below
     std::vector<std::uint32_t> vertex_ids;  // mesh vertex ids of shown.indices
     Eigen::VectorXd displacement;
   };

@@ -28,9 +28,9 @@ void ToolServer::listen(dds_entity_t participant, dds_entity_t pose_topic,
   feedback_writer_ = dds::Entity(dds::check(
       dds_create_writer(participant, feedback_topic, dds::tool_stream_qos().get(), nullptr),
       "creating the tool feedback writer"));
-  event_writer_ = dds::Entity(dds::check(
-      dds_create_writer(participant, event_topic, dds::tool_event_qos().get(), nullptr),
-      "creating the tool event writer"));
+  event_writer_ = dds::Entity(
+      dds::check(dds_create_writer(participant, event_topic, dds::tool_event_qos().get(), nullptr),
+                 "creating the tool event writer"));
   listening_.store(true, std::memory_order_release);
   dds_listener_t* listener = dds_create_listener(this);
   dds_lset_data_available(listener, &ToolServer::on_poses);

@@ -38,7 +38,8 @@ void fsync_path(const std::filesystem::path& p, int flags) {
 void require_output_directory(const std::filesystem::path& final_path) {
   if (final_path.filename().empty())
     throw InputError(fmt::format("output path '{}' names no file", final_path.string()));
-  const auto dir = final_path.has_parent_path() ? final_path.parent_path() : std::filesystem::path(".");
+  const auto dir =
+      final_path.has_parent_path() ? final_path.parent_path() : std::filesystem::path(".");
   std::error_code ec;
   if (!std::filesystem::is_directory(dir, ec))
     throw InputError(fmt::format("output path '{}': directory '{}' does not exist",
@@ -74,8 +75,8 @@ void durable_rename(const std::filesystem::path& from, const std::filesystem::pa
   std::error_code ec;
   std::filesystem::rename(from, to, ec);
   if (ec)
-    throw SystemError(fmt::format("cannot move '{}' to '{}': {}", from.string(), to.string(),
-                                  ec.message()));
+    throw SystemError(
+        fmt::format("cannot move '{}' to '{}': {}", from.string(), to.string(), ec.message()));
   fsync_path(to.has_parent_path() ? to.parent_path() : ".", O_RDONLY | O_DIRECTORY);
 }
 

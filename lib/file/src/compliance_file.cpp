@@ -12,10 +12,10 @@
 #include <optional>
 #include <thread>
 
-#include "palpate/file/detail/hdf5_support.hpp"
-#include "palpate/file/detail/compliance_file_internal.hpp"
-#include "palpate/file/atomic_file.hpp"
 #include "palpate/core/error.hpp"
+#include "palpate/file/atomic_file.hpp"
+#include "palpate/file/detail/compliance_file_internal.hpp"
+#include "palpate/file/detail/hdf5_support.hpp"
 #include "palpate/file/hash.hpp"
 
 namespace palpate {
@@ -93,7 +93,7 @@ void write_strings(hid_t file, const char* path, const std::vector<std::string>&
 struct Reader {
   std::string file;
   hid_t root;
-  Sha256 digest;  // of the datasets read, in file order (hash_header)
+  Sha256 digest;         // of the datasets read, in file order (hash_header)
   bool hashing = false;  // only for files that carry a digest (1.2 on)
 
   void hash(const void* data, std::size_t bytes) {
@@ -201,7 +201,8 @@ struct Reader {
     if (H5Aexists(root, name) <= 0) fail(fmt::format("attribute {}", name), "missing");
     Handle attr = single_value_attribute(name);
     int value = 0;
-    if (H5Aread(attr, H5T_NATIVE_INT, &value) < 0) fail(fmt::format("attribute {}", name), "not an integer");
+    if (H5Aread(attr, H5T_NATIVE_INT, &value) < 0)
+      fail(fmt::format("attribute {}", name), "not an integer");
     return value;
   }
 };
@@ -258,15 +259,14 @@ void write_root_attributes(hid_t file, const ComplianceModel& model, const char*
 
 void write_model_datasets(hid_t file, const ComplianceModel& model, Sha256& digest) {
   hdf5::group(file, "mesh");
-  write_matrix(file, "/mesh/vertices", model.vertices_m, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE,
-               digest);
+  write_matrix(file, "/mesh/vertices", model.vertices_m, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, digest);
   write_matrix(file, "/mesh/tetrahedra", model.tetrahedra, H5T_NATIVE_INT, H5T_STD_I32LE, digest);
   write_vector(file, "/mesh/tetrahedron_material", model.tet_material, H5T_NATIVE_INT,
                H5T_STD_I32LE, digest);
   write_matrix(file, "/mesh/surface_triangles", model.surface_triangles, H5T_NATIVE_INT,
                H5T_STD_I32LE, digest);
-  write_vector(file, "/mesh/fixed_vertex_ids", model.fixed_vertices, H5T_NATIVE_INT,
-               H5T_STD_I32LE, digest);
+  write_vector(file, "/mesh/fixed_vertex_ids", model.fixed_vertices, H5T_NATIVE_INT, H5T_STD_I32LE,
+               digest);
   write_vector(file, "/mesh/source_vertex_ids", model.source_vertex_ids, H5T_NATIVE_INT,
                H5T_STD_I32LE, digest);
 
@@ -389,15 +389,17 @@ ComplianceModel read_once(const std::filesystem::path& path, GTarget target,
   Eigen::MatrixXd* G = target.G;
   const bool partial = std::strcmp(format, kPartialFormatName) == 0;
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw InputError(fmt::format("{}: no such file", path.string()));
+  if (!std::filesystem::exists(path, ec))
+    throw InputError(fmt::format("{}: no such file", path.string()));
   if (std::FILE* f = std::fopen(path.c_str(), "rb"))
     std::fclose(f);
   else
     throw InputError(fmt::format("{}: cannot be read: {}", path.string(), std::strerror(errno)));
   if (H5Fis_hdf5(path.c_str()) <= 0)
-    throw InputError(fmt::format("{}: not an HDF5 file (truncated or of another kind); expected a "
-                                 "palpate compliance file written by palpate-precompute",
-                                 path.string()));
+    throw InputError(
+        fmt::format("{}: not an HDF5 file (truncated or of another kind); expected a "
+                    "palpate compliance file written by palpate-precompute",
+                    path.string()));
   const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (id < 0) {
     // HDF5 says "truncated file: eof = <size>, sblock->base_addr = 0, stored_eof = <expected>".
@@ -442,8 +444,9 @@ ComplianceModel read_once(const std::filesystem::path& path, GTarget target,
   m.job_toml = r.string_attribute("job_toml", false);
   m.report_json = r.string_attribute("report_json", false);
   // Since 1.2; verified once everything else is read and checked.
-  const std::string stored_digest =
-      m.format_version_minor >= 2 && !partial ? r.string_attribute("content_sha256") : std::string();
+  const std::string stored_digest = m.format_version_minor >= 2 && !partial
+                                        ? r.string_attribute("content_sha256")
+                                        : std::string();
   r.hashing = !stored_digest.empty() && G != nullptr;
   m.content_sha256 = stored_digest;
 
@@ -482,8 +485,8 @@ ComplianceModel read_once(const std::filesystem::path& path, GTarget target,
   if (partial) {
     // A shard's G is 3n × (its columns); partial_file.cpp checks it.
     if (gd[0] != n3)
-      r.fail("/compliance/G", fmt::format("has {} rows, expected {} (3 × /compliance/vertex_ids)",
-                                          gd[0], n3));
+      r.fail("/compliance/G",
+             fmt::format("has {} rows, expected {} (3 × /compliance/vertex_ids)", gd[0], n3));
   } else if (gd[0] != n3 || gd[1] != n3)
     r.fail("/compliance/G", fmt::format("is {} × {}, expected {} × {} (3 × /compliance/vertex_ids)",
                                         gd[0], gd[1], n3, n3));
@@ -569,12 +572,15 @@ ComplianceModel read_once(const std::filesystem::path& path, GTarget target,
   in_range(m.surface_triangles, "/mesh/surface_triangles", nv);
   in_range(m.fixed_vertices, "/mesh/fixed_vertex_ids", nv);
   in_range(m.compliance_vertices, "/compliance/vertex_ids", nv);
-  in_range(m.tet_material, "/mesh/tetrahedron_material", static_cast<Eigen::Index>(m.materials.size()));
+  in_range(m.tet_material, "/mesh/tetrahedron_material",
+           static_cast<Eigen::Index>(m.materials.size()));
   if (m.source_vertex_ids.size() != nv)
     r.fail("/mesh/source_vertex_ids", "does not have one entry per vertex");
   for (Eigen::Index i = 1; i < m.compliance_vertices.size(); ++i)
     if (m.compliance_vertices[i] <= m.compliance_vertices[i - 1])
-      r.fail("/compliance/vertex_ids", fmt::format("entry {} is not above entry {}: ids must be distinct and increasing", i, i - 1));
+      r.fail("/compliance/vertex_ids",
+             fmt::format("entry {} is not above entry {}: ids must be distinct and increasing", i,
+                         i - 1));
   if (m.tet_material.size() != m.tetrahedra.rows())
     r.fail("/mesh/tetrahedron_material", "does not have one entry per tetrahedron");
 
@@ -605,9 +611,8 @@ ComplianceModel read_compliance_file(const std::filesystem::path& path, Eigen::M
   return detail::read_compliance_file(path, G, G32, kComplianceFormatName);
 }
 
-ComplianceModel detail::read_compliance_file(const std::filesystem::path& path,
-                                             Eigen::MatrixXd* G, Eigen::MatrixXf* G32,
-                                             const char* format) {
+ComplianceModel detail::read_compliance_file(const std::filesystem::path& path, Eigen::MatrixXd* G,
+                                             Eigen::MatrixXf* G32, const char* format) {
   silence_hdf5();
   // A file replaced (renamed over) or written while it is read would give a
   // model made of two files: read again, until one read sees the same file

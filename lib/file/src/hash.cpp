@@ -1,8 +1,7 @@
 #include "palpate/file/hash.hpp"
 
-#include <openssl/evp.h>
-
 #include <fmt/format.h>
+#include <openssl/evp.h>
 
 #include "palpate/core/error.hpp"
 

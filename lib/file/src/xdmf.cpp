@@ -4,8 +4,8 @@
 
 #include <fstream>
 
-#include "palpate/file/atomic_file.hpp"
 #include "palpate/core/error.hpp"
+#include "palpate/file/atomic_file.hpp"
 
 namespace palpate {
 

@@ -1,9 +1,10 @@
 #include "palpate/offline/attachment.hpp"
 
+#include <fmt/format.h>
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <charconv>
-#include <fmt/format.h>
 #include <fstream>
 #include <unordered_map>
 
@@ -25,9 +26,10 @@ std::vector<int> read_vertex_id_file(const std::filesystem::path& file) {
     int id = 0;
     auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), id);
     if (ec != std::errc() || end != token.data() + token.size() || id < 0)
-      throw InputError(fmt::format("{}:{}: '{}' is not a vertex index; expected one 0-based "
-                                   "integer per line",
-                                   file.string(), number, token));
+      throw InputError(
+          fmt::format("{}:{}: '{}' is not a vertex index; expected one 0-based "
+                      "integer per line",
+                      file.string(), number, token));
     ids.push_back(id);
   }
   return ids;
@@ -38,17 +40,19 @@ std::vector<int> select_fixed_vertices(const TetMesh& mesh, const AttachmentSpec
   std::vector<bool> fixed(nv, false);
   const Eigen::Vector3d lo = mesh.vertices.colwise().minCoeff().transpose();
   const Eigen::Vector3d hi = mesh.vertices.colwise().maxCoeff().transpose();
-  const std::string extent = fmt::format("the mesh spans ({:.4g}, {:.4g}, {:.4g}) to ({:.4g}, {:.4g}, {:.4g}) m",
-                                         lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z());
+  const std::string extent =
+      fmt::format("the mesh spans ({:.4g}, {:.4g}, {:.4g}) to ({:.4g}, {:.4g}, {:.4g}) m", lo.x(),
+                  lo.y(), lo.z(), hi.x(), hi.y(), hi.z());
 
   for (const auto& name : spec.groups) {
     auto it = mesh.group_vertices.find(name);
     if (it == mesh.group_vertices.end()) {
       std::string known;
       for (const auto& [g, v] : mesh.group_vertices) known += (known.empty() ? "" : ", ") + g;
-      throw InputError(fmt::format("{}: attachment group '{}' is not a physical group of the mesh "
-                                   "(its groups: {})",
-                                   mesh.source, name, known.empty() ? "none" : known));
+      throw InputError(
+          fmt::format("{}: attachment group '{}' is not a physical group of the mesh "
+                      "(its groups: {})",
+                      mesh.source, name, known.empty() ? "none" : known));
     }
     if (it->second.empty())
       throw InputError(fmt::format("{}: attachment group '{}' holds no vertex of a tetrahedron",
@@ -64,9 +68,10 @@ std::vector<int> select_fixed_vertices(const TetMesh& mesh, const AttachmentSpec
       auto it = index_of_source.find(id);
       if (it == index_of_source.end()) {
         if (id > max_source)
-          throw InputError(fmt::format("{}: vertex index {} is out of range: the mesh's nodes "
-                                       "are numbered 0..{}",
-                                       spec.ids_file.string(), id, max_source));
+          throw InputError(
+              fmt::format("{}: vertex index {} is out of range: the mesh's nodes "
+                          "are numbered 0..{}",
+                          spec.ids_file.string(), id, max_source));
         continue;  // a node no tetrahedron uses: dropped with a warning, nothing to hold
       }
       fixed[it->second] = true;
@@ -84,9 +89,12 @@ std::vector<int> select_fixed_vertices(const TetMesh& mesh, const AttachmentSpec
       throw InputError(fmt::format("attachment {} selects no vertex; {}", what, extent));
   };
   for (const auto& b : spec.boxes)
-    select([&](const Eigen::Vector3d& x) { return (x.array() >= b.min.array()).all() && (x.array() <= b.max.array()).all(); },
-           fmt::format("box ({}, {}, {}) to ({}, {}, {}) m", b.min.x(), b.min.y(), b.min.z(),
-                       b.max.x(), b.max.y(), b.max.z()));
+    select(
+        [&](const Eigen::Vector3d& x) {
+          return (x.array() >= b.min.array()).all() && (x.array() <= b.max.array()).all();
+        },
+        fmt::format("box ({}, {}, {}) to ({}, {}, {}) m", b.min.x(), b.min.y(), b.min.z(),
+                    b.max.x(), b.max.y(), b.max.z()));
   for (const auto& s : spec.spheres)
     select([&](const Eigen::Vector3d& x) { return (x - s.center).norm() <= s.radius; },
            fmt::format("sphere at ({}, {}, {}) m of radius {} m", s.center.x(), s.center.y(),
@@ -117,7 +125,8 @@ void check_attachment_stops_rigid_motion(const TetMesh& mesh, const std::vector<
     const auto p = static_cast<size_t>(part_of_tet[static_cast<size_t>(t)]);
     if (first_tet[p] < 0) first_tet[p] = t;
     for (int i = 0; i < 4; ++i)
-      if (is_fixed[static_cast<size_t>(mesh.tetrahedra(t, i))]) fixed_in[p].push_back(mesh.tetrahedra(t, i));
+      if (is_fixed[static_cast<size_t>(mesh.tetrahedra(t, i))])
+        fixed_in[p].push_back(mesh.tetrahedra(t, i));
   }
   for (int p = 0; p < parts; ++p) {
     auto& f = fixed_in[static_cast<size_t>(p)];
@@ -125,13 +134,15 @@ void check_attachment_stops_rigid_motion(const TetMesh& mesh, const std::vector<
     f.erase(std::unique(f.begin(), f.end()), f.end());
     std::string where;
     if (parts > 1)
-      where = fmt::format(" in part {} of {} (the part holding tetrahedron {}; parts touching only at a "
-                          "vertex or an edge can turn about it)",
-                          p + 1, parts, first_tet[static_cast<size_t>(p)]);
+      where = fmt::format(
+          " in part {} of {} (the part holding tetrahedron {}; parts touching only at a "
+          "vertex or an edge can turn about it)",
+          p + 1, parts, first_tet[static_cast<size_t>(p)]);
     bool spread = false;
     if (f.size() >= 3) {
       Eigen::MatrixX3d X(static_cast<Eigen::Index>(f.size()), 3);
-      for (size_t i = 0; i < f.size(); ++i) X.row(static_cast<Eigen::Index>(i)) = mesh.vertices.row(f[i]);
+      for (size_t i = 0; i < f.size(); ++i)
+        X.row(static_cast<Eigen::Index>(i)) = mesh.vertices.row(f[i]);
       X.rowwise() -= X.colwise().mean();
       const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::MatrixX3d>(X).singularValues();
       spread = sv[1] > 1e-6 * sv[0];  // not all on one line

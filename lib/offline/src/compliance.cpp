@@ -1,19 +1,20 @@
 #include "palpate/offline/compliance.hpp"
 
-#include <Eigen/Eigenvalues>
-#include <algorithm>
-#include <cmath>
-#include <chrono>
-#include <numeric>
-#include <mutex>
-#include <thread>
 #include <dlfcn.h>
 #include <sched.h>
-#include <atomic>
-#include <exception>
 
-#include "palpate/offline/dense.hpp"
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <exception>
+#include <mutex>
+#include <numeric>
+#include <thread>
+
 #include "palpate/core/error.hpp"
+#include "palpate/offline/dense.hpp"
 
 namespace palpate {
 
@@ -79,8 +80,8 @@ void check_columns(const SparseMatrixd& K_upper, SparseCholesky& factor, CRef<Ei
     const auto c = static_cast<Eigen::Index>(i);
     stats->max_residual = std::max(stats->max_residual, R.col(c).norm());  // ‖e_j‖ = 1
     const double g = G.col(cols[i]).norm();
-    stats->max_column_mismatch = std::max(
-        stats->max_column_mismatch, (U.col(c).head(m) - G.col(cols[i])).norm() / g);
+    stats->max_column_mismatch =
+        std::max(stats->max_column_mismatch, (U.col(c).head(m) - G.col(cols[i])).norm() / g);
   }
   stats->checked_columns = cols;
   stats->check_seconds = seconds_since(t0);
@@ -129,7 +130,8 @@ void solve_blocks(const SparseMatrixd& K_upper, const SparseCholesky& factor, in
       Eigen::MatrixXd E = Eigen::MatrixXd::Zero(n, std::min(block, m));
       Eigen::MatrixXd U(n, E.cols());
       Eigen::VectorXd e(n), u(n);
-      for (size_t i = static_cast<size_t>(t); i < blocks.size() && !failed; i += static_cast<size_t>(threads)) {
+      for (size_t i = static_cast<size_t>(t); i < blocks.size() && !failed;
+           i += static_cast<size_t>(threads)) {
         const int b = blocks[i];
         const int c0 = b * block;
         const int width = std::min(block, m - c0);
@@ -244,7 +246,7 @@ Eigen::MatrixXd compliance_by_condensation(const SparseMatrixd& K_upper, int m,
   Eigen::MatrixXd G(m, m);
   factor.trailing_factor_block(G);  // L_S, S = L_S L_Sᵀ
   if (options.progress) options.progress(2, 3);
-  invert_from_cholesky(G);          // G_SS = S⁻¹ = L_S⁻ᵀ L_S⁻¹
+  invert_from_cholesky(G);  // G_SS = S⁻¹ = L_S⁻ᵀ L_S⁻¹
   stats->dense_seconds = seconds_since(t0);
   stats->dense_flops = 2.0 * m * static_cast<double>(m) * m / 3.0;
   if (options.progress) options.progress(3, 3);
@@ -281,7 +283,8 @@ double symmetry_error(CRef<Eigen::MatrixXd> G) {
   for (Eigen::Index j = 0; j < n; j += b)
     for (Eigen::Index i = 0; i <= j; i += b) {
       const Eigen::Index h = std::min(b, n - i), w = std::min(b, n - j);
-      worst = std::max(worst, (G.block(i, j, h, w) - G.block(j, i, w, h).transpose()).cwiseAbs().maxCoeff());
+      worst = std::max(
+          worst, (G.block(i, j, h, w) - G.block(j, i, w, h).transpose()).cwiseAbs().maxCoeff());
     }
   return scale > 0 ? worst / scale : worst;
 }

@@ -1,8 +1,9 @@
 #include "palpate/offline/fem.hpp"
 
+#include <fmt/format.h>
+
 #include <Eigen/Dense>
 #include <cmath>
-#include <fmt/format.h>
 
 #include "palpate/core/error.hpp"
 
@@ -10,15 +11,15 @@ namespace palpate {
 
 Lame lame_parameters(double young_modulus_pa, double poisson_ratio) {
   if (!(young_modulus_pa > 0) || !std::isfinite(young_modulus_pa))
-    throw InputError(fmt::format(
-        "Young's modulus {} Pa is not accepted: it must be a finite number > 0 Pa "
-        "(liver: about 1e4 to 1.7e5 Pa)",
-        young_modulus_pa));
+    throw InputError(
+        fmt::format("Young's modulus {} Pa is not accepted: it must be a finite number > 0 Pa "
+                    "(liver: about 1e4 to 1.7e5 Pa)",
+                    young_modulus_pa));
   if (!(poisson_ratio > -1.0 && poisson_ratio < 0.5))
-    throw InputError(fmt::format(
-        "Poisson ratio {} is not accepted: it must lie in the open interval (-1, 0.5) "
-        "(soft tissue: 0.45 to 0.49)",
-        poisson_ratio));
+    throw InputError(
+        fmt::format("Poisson ratio {} is not accepted: it must lie in the open interval (-1, 0.5) "
+                    "(soft tissue: 0.45 to 0.49)",
+                    poisson_ratio));
   const double E = young_modulus_pa;
   const double nu = poisson_ratio;
   // λ = Eν / ((1+ν)(1−2ν)),  μ = E / (2(1+ν))
@@ -125,19 +126,22 @@ SparseMatrixd assemble(CRef<Eigen::MatrixX3d> X, CRef<Eigen::MatrixX4i> T,
 
 }  // namespace
 
-SparseMatrixd assemble_stiffness(CRef<Eigen::MatrixX3d> vertices_m, CRef<Eigen::MatrixX4i> tetrahedra,
+SparseMatrixd assemble_stiffness(CRef<Eigen::MatrixX3d> vertices_m,
+                                 CRef<Eigen::MatrixX4i> tetrahedra,
                                  CRef<Eigen::VectorXi> material_of_tet,
                                  const std::vector<Lame>& materials, const DofMap& dofs) {
-  return assemble(vertices_m, tetrahedra, material_of_tet, materials, dofs.dofs(),
-                  [&](int v) { return dofs.first_dof[v]; }, true);
+  return assemble(
+      vertices_m, tetrahedra, material_of_tet, materials, dofs.dofs(),
+      [&](int v) { return dofs.first_dof[v]; }, true);
 }
 
 SparseMatrixd assemble_full_stiffness(CRef<Eigen::MatrixX3d> vertices_m,
                                       CRef<Eigen::MatrixX4i> tetrahedra,
                                       CRef<Eigen::VectorXi> material_of_tet,
                                       const std::vector<Lame>& materials) {
-  return assemble(vertices_m, tetrahedra, material_of_tet, materials,
-                  3 * static_cast<int>(vertices_m.rows()), [](int v) { return 3 * v; }, false);
+  return assemble(
+      vertices_m, tetrahedra, material_of_tet, materials, 3 * static_cast<int>(vertices_m.rows()),
+      [](int v) { return 3 * v; }, false);
 }
 
 }  // namespace palpate

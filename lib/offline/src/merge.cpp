@@ -53,19 +53,22 @@ void check_shards_tile(std::vector<std::unique_ptr<PartialFile>>& shards,
           "of one job (same mesh, materials and attachment)",
           names, r.input_hash.substr(0, 19), i.input_hash.substr(0, 19)));
     if (i.precision != r.precision)
-      throw InputError(fmt::format("merge: {} store G in {} and {}: compute every shard with the "
-                                   "same --precision",
-                                   names, to_string(r.precision), to_string(i.precision)));
+      throw InputError(
+          fmt::format("merge: {} store G in {} and {}: compute every shard with the "
+                      "same --precision",
+                      names, to_string(r.precision), to_string(i.precision)));
     if (i.block_columns != r.block_columns)
-      throw InputError(fmt::format("merge: {} were solved in blocks of {} and {} columns: compute "
-                                   "every shard with the same --block-columns (the merged file "
-                                   "must equal one run)",
-                                   names, r.block_columns, i.block_columns));
+      throw InputError(
+          fmt::format("merge: {} were solved in blocks of {} and {} columns: compute "
+                      "every shard with the same --block-columns (the merged file "
+                      "must equal one run)",
+                      names, r.block_columns, i.block_columns));
     if (blas_core(s->blas()) != blas_core(ref.blas()))
-      warn(fmt::format("merge: {} were computed with different BLAS kernels ({} and {}): G agrees "
-                       "to round-off but its last bits may differ from a single run's (set "
-                       "OPENBLAS_CORETYPE alike on every node)",
-                       names, ref.blas(), s->blas()));
+      warn(
+          fmt::format("merge: {} were computed with different BLAS kernels ({} and {}): G agrees "
+                      "to round-off but its last bits may differ from a single run's (set "
+                      "OPENBLAS_CORETYPE alike on every node)",
+                      names, ref.blas(), s->blas()));
   }
   int expected = 0;
   const PartialFile* previous = nullptr;
@@ -159,9 +162,10 @@ void write_from_shards(std::vector<std::unique_ptr<PartialFile>>& shards,
                   const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>
                   band_rows(rows, count, m);
               if (!band_rows.allFinite())
-                throw InputError(fmt::format("rows {}:{} of G in the shards hold a non-finite "
-                                             "value (a damaged shard?)",
-                                             first, first + count));
+                throw InputError(
+                    fmt::format("rows {}:{} of G in the shards hold a non-finite "
+                                "value (a damaged shard?)",
+                                first, first + count));
               largest = std::max(largest, band_rows.cwiseAbs().maxCoeff());
               for (size_t j = 0; j < sampled.size(); ++j) {
                 column[j].segment(first, count) = band_rows.col(sampled[j]);

@@ -1,9 +1,10 @@
 #include "palpate/offline/mesh.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <fmt/format.h>
 #include <numeric>
 #include <unordered_map>
 
@@ -17,9 +18,10 @@ MeshCheck validate_and_compact(TetMesh& mesh) {
   const Eigen::Index nv = mesh.vertices.rows();
   const Eigen::Index nt = mesh.tetrahedra.rows();
   if (nt == 0)
-    throw InputError(fmt::format("{}: the mesh has no tetrahedra; palpate needs a volume mesh "
-                                 "of linear tetrahedra (or a closed STL surface to fill)",
-                                 where));
+    throw InputError(
+        fmt::format("{}: the mesh has no tetrahedra; palpate needs a volume mesh "
+                    "of linear tetrahedra (or a closed STL surface to fill)",
+                    where));
   if (mesh.source_vertex_count < nv) mesh.source_vertex_count = nv;
   if (mesh.source_ids.size() != nv) {
     mesh.source_ids.resize(nv);
@@ -29,23 +31,25 @@ MeshCheck validate_and_compact(TetMesh& mesh) {
 
   for (Eigen::Index v = 0; v < nv; ++v)
     if (!mesh.vertices.row(v).allFinite())
-      throw InputError(fmt::format("{}: vertex {} has a non-finite coordinate ({}, {}, {}); "
-                                   "coordinates must be finite numbers",
-                                   where, mesh.source_ids[v], mesh.vertices(v, 0),
-                                   mesh.vertices(v, 1), mesh.vertices(v, 2)));
+      throw InputError(
+          fmt::format("{}: vertex {} has a non-finite coordinate ({}, {}, {}); "
+                      "coordinates must be finite numbers",
+                      where, mesh.source_ids[v], mesh.vertices(v, 0), mesh.vertices(v, 1),
+                      mesh.vertices(v, 2)));
 
   std::vector<bool> used(nv, false);
   for (Eigen::Index t = 0; t < nt; ++t) {
     for (int i = 0; i < 4; ++i) {
       const int v = mesh.tetrahedra(t, i);
       if (v < 0 || v >= nv)
-        throw InputError(fmt::format("{}: tetrahedron {} refers to vertex {}, out of range: the "
-                                     "mesh has {} vertices (indices 0..{})",
-                                     where, t, v, nv, nv - 1));
+        throw InputError(
+            fmt::format("{}: tetrahedron {} refers to vertex {}, out of range: the "
+                        "mesh has {} vertices (indices 0..{})",
+                        where, t, v, nv, nv - 1));
       for (int j = 0; j < i; ++j)
         if (mesh.tetrahedra(t, j) == v)
-          throw InputError(fmt::format("{}: tetrahedron {} uses vertex {} twice", where, t,
-                                       mesh.source_ids[v]));
+          throw InputError(
+              fmt::format("{}: tetrahedron {} uses vertex {} twice", where, t, mesh.source_ids[v]));
       used[v] = true;
     }
   }
@@ -67,9 +71,10 @@ MeshCheck validate_and_compact(TetMesh& mesh) {
                              mesh.tetrahedra(t, 3)};
       std::sort(key.begin(), key.end());
       if (auto [it, inserted] = first.try_emplace(key, t); !inserted)
-        throw InputError(fmt::format("{}: tetrahedra {} and {} have the same four vertices; each "
-                                     "tetrahedron must appear once",
-                                     where, it->second, t));
+        throw InputError(
+            fmt::format("{}: tetrahedra {} and {} have the same four vertices; each "
+                        "tetrahedron must appear once",
+                        where, it->second, t));
     }
   }
 
@@ -95,14 +100,16 @@ MeshCheck validate_and_compact(TetMesh& mesh) {
     // Coordinates so large that the volume overflows (NaN or infinity) would
     // pass both tests below.
     if (!std::isfinite(V) || !std::isfinite(degenerate))
-      throw InputError(fmt::format("{}: tetrahedron {} (vertices {}) is too large: its volume "
-                                   "overflows double precision; coordinates must be lengths "
-                                   "(check the mesh's unit)",
-                                   where, t, ids()));
+      throw InputError(
+          fmt::format("{}: tetrahedron {} (vertices {}) is too large: its volume "
+                      "overflows double precision; coordinates must be lengths "
+                      "(check the mesh's unit)",
+                      where, t, ids()));
     if (std::abs(V) <= degenerate)
-      throw InputError(fmt::format("{}: tetrahedron {} (vertices {}) has zero volume ({:.3g} m³); "
-                                   "every tetrahedron must have a positive volume",
-                                   where, t, ids(), V));
+      throw InputError(
+          fmt::format("{}: tetrahedron {} (vertices {}) has zero volume ({:.3g} m³); "
+                      "every tetrahedron must have a positive volume",
+                      where, t, ids(), V));
     if (V < 0)
       throw InputError(fmt::format(
           "{}: tetrahedron {} (vertices {}) is inverted (signed volume {:.3g} m³); palpate "
@@ -180,11 +187,11 @@ Boundary extract_boundary(const TetMesh& mesh) {
       std::sort(key.v.begin(), key.v.end());
       auto [it, inserted] = faces.try_emplace(key, Seen{o, 0, t});
       if (++it->second.count > 2)
-        throw InputError(fmt::format(
-            "{}: the face (vertices {} {} {}) is shared by more than two tetrahedra "
-            "(tetrahedra {} and {} among them); the mesh must be a manifold volume",
-            mesh.source, mesh.source_ids[key.v[0]], mesh.source_ids[key.v[1]],
-            mesh.source_ids[key.v[2]], it->second.tet, t));
+        throw InputError(
+            fmt::format("{}: the face (vertices {} {} {}) is shared by more than two tetrahedra "
+                        "(tetrahedra {} and {} among them); the mesh must be a manifold volume",
+                        mesh.source, mesh.source_ids[key.v[0]], mesh.source_ids[key.v[1]],
+                        mesh.source_ids[key.v[2]], it->second.tet, t));
     }
   }
   std::vector<std::array<int, 3>> tris;
@@ -214,12 +221,12 @@ Boundary extract_boundary(const TetMesh& mesh) {
     const int c = static_cast<int>(e & 0xffffffffu);
     auto back = directed.find(edge(c, a));
     if (count != 1 || back == directed.end() || back->second != 1)
-      throw InputError(fmt::format(
-          "{}: the boundary is not a 2-manifold at the edge between vertices {} and {} "
-          "({} boundary triangles use it); each boundary edge must join exactly two "
-          "boundary triangles",
-          mesh.source, mesh.source_ids[a], mesh.source_ids[c],
-          count + (back == directed.end() ? 0 : back->second)));
+      throw InputError(
+          fmt::format("{}: the boundary is not a 2-manifold at the edge between vertices {} and {} "
+                      "({} boundary triangles use it); each boundary edge must join exactly two "
+                      "boundary triangles",
+                      mesh.source, mesh.source_ids[a], mesh.source_ids[c],
+                      count + (back == directed.end() ? 0 : back->second)));
   }
   return b;
 }

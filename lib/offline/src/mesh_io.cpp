@@ -1,10 +1,10 @@
 #include "palpate/offline/mesh_io.hpp"
 
+#include <fmt/format.h>
 #include <gmsh.h>
 
 #include <algorithm>
 #include <cmath>
-#include <fmt/format.h>
 #include <fstream>
 #include <mutex>
 #include <unordered_map>
@@ -55,7 +55,8 @@ class GmshSession {
 
 std::string lower_extension(const std::filesystem::path& p) {
   std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   return ext;
 }
 
@@ -89,9 +90,10 @@ void fill_surface(const std::filesystem::path& file, double size) {
   gmsh::option::setNumber("Mesh.MeshSizeMin", size / 4);
   gmsh::model::mesh::generate(3);
   if (auto err = GmshSession::take_error(); !err.empty())
-    throw InputError(fmt::format("{}: Gmsh could not fill the surface with tetrahedra: {}; "
-                                 "the surface must be closed and free of self-intersections",
-                                 file.string(), err));
+    throw InputError(
+        fmt::format("{}: Gmsh could not fill the surface with tetrahedra: {}; "
+                    "the surface must be closed and free of self-intersections",
+                    file.string(), err));
 }
 
 }  // namespace
@@ -118,9 +120,10 @@ TetMesh read_with_gmsh(const std::filesystem::path& file, const MeshReadOptions&
   if (ext == ".stl") {
     double size = options.fill_size;
     if (!(size >= 0) || !std::isfinite(size))
-      throw InputError(fmt::format("fill size {} is not accepted: use a length > 0 in the "
-                                   "mesh's unit, or 0 for automatic",
-                                   size));
+      throw InputError(
+          fmt::format("fill size {} is not accepted: use a length > 0 in the "
+                      "mesh's unit, or 0 for automatic",
+                      size));
     if (size == 0) {
       std::vector<double> bbox(6);
       gmsh::model::getBoundingBox(-1, -1, bbox[0], bbox[1], bbox[2], bbox[3], bbox[4], bbox[5]);
@@ -137,7 +140,8 @@ TetMesh read_with_gmsh(const std::filesystem::path& file, const MeshReadOptions&
   gmsh::model::mesh::getNodes(node_tags, coords, params, -1, -1, false, false);
   std::vector<std::size_t> order(node_tags.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return node_tags[a] < node_tags[b]; });
+  std::sort(order.begin(), order.end(),
+            [&](size_t a, size_t b) { return node_tags[a] < node_tags[b]; });
   std::unordered_map<std::size_t, int> index_of_tag;
   index_of_tag.reserve(node_tags.size());
   mesh.vertices.resize(static_cast<Eigen::Index>(node_tags.size()), 3);
@@ -156,9 +160,10 @@ TetMesh read_with_gmsh(const std::filesystem::path& file, const MeshReadOptions&
       int dim, order_, nodes, primary;
       std::vector<double> local;
       gmsh::model::mesh::getElementProperties(type, name, dim, order_, nodes, local, primary);
-      throw InputError(fmt::format("{}: holds {} elements; palpate accepts linear (4-node) "
-                                   "tetrahedra only (re-mesh into first-order tetrahedra)",
-                                   file.string(), name));
+      throw InputError(
+          fmt::format("{}: holds {} elements; palpate accepts linear (4-node) "
+                      "tetrahedra only (re-mesh into first-order tetrahedra)",
+                      file.string(), name));
     }
 
   std::vector<std::size_t> elem_tags, elem_nodes;
@@ -171,8 +176,7 @@ TetMesh read_with_gmsh(const std::filesystem::path& file, const MeshReadOptions&
     for (int i = 0; i < 4; ++i) {
       auto it = index_of_tag.find(elem_nodes[4 * t + i]);
       // An unknown node tag becomes an out-of-range index that validation reports.
-      mesh.tetrahedra(static_cast<Eigen::Index>(t), i) =
-          it == index_of_tag.end() ? -1 : it->second;
+      mesh.tetrahedra(static_cast<Eigen::Index>(t), i) = it == index_of_tag.end() ? -1 : it->second;
     }
   }
   mesh.tet_group = Eigen::VectorXi::Zero(mesh.tetrahedra.rows());
@@ -191,7 +195,8 @@ TetMesh read_with_gmsh(const std::filesystem::path& file, const MeshReadOptions&
         std::vector<std::size_t> tags, nodes;
         gmsh::model::mesh::getElementsByType(4, tags, nodes, entity);
         for (auto et : tags)
-          if (auto it = tet_of_tag.find(et); it != tet_of_tag.end()) mesh.tet_group[it->second] = tag;
+          if (auto it = tet_of_tag.find(et); it != tet_of_tag.end())
+            mesh.tet_group[it->second] = tag;
       }
     }
     std::vector<std::size_t> tags;
@@ -275,8 +280,8 @@ void generate_sample_organ(const std::filesystem::path& file, double mesh_size_m
   gmsh::option::setNumber("Mesh.SaveAll", 0);
   gmsh::write(file.string());
   if (auto err = GmshSession::take_error(); !err.empty())
-    throw SystemError(fmt::format("{}: Gmsh could not generate the sample organ: {}",
-                                  file.string(), err));
+    throw SystemError(
+        fmt::format("{}: Gmsh could not generate the sample organ: {}", file.string(), err));
   if (!std::filesystem::exists(file))
     throw SystemError(fmt::format("{}: Gmsh did not write the sample organ", file.string()));
 }
@@ -285,28 +290,28 @@ void generate_sample_organ(const std::filesystem::path& file, double mesh_size_m
 
 void write_sample_organ(const std::filesystem::path& file, double mesh_size_m) {
   if (!(mesh_size_m > 0))
-    throw InputError(fmt::format("sample organ mesh size {} m is not accepted: use a length > 0",
-                                 mesh_size_m));
+    throw InputError(
+        fmt::format("sample organ mesh size {} m is not accepted: use a length > 0", mesh_size_m));
   GmshSession session;
   guarded<SystemError>(fmt::format("{}: Gmsh could not generate the sample organ", file.string()),
                        [&] { generate_sample_organ(file, mesh_size_m); });
 }
 
-
 void convert_mesh_file(const std::filesystem::path& input, const std::filesystem::path& output,
                        double msh_version) {
   require_readable(input);
   GmshSession session;
-  guarded<SystemError>(fmt::format("{} → {}: Gmsh could not convert", input.string(), output.string()), [&] {
-    gmsh::open(input.string());
-    gmsh::option::setNumber("Mesh.MshFileVersion", msh_version);
-    gmsh::option::setNumber("Mesh.Binary", 0);
-    gmsh::option::setNumber("Mesh.SaveAll", 1);
-    gmsh::write(output.string());
-  });
+  guarded<SystemError>(
+      fmt::format("{} → {}: Gmsh could not convert", input.string(), output.string()), [&] {
+        gmsh::open(input.string());
+        gmsh::option::setNumber("Mesh.MshFileVersion", msh_version);
+        gmsh::option::setNumber("Mesh.Binary", 0);
+        gmsh::option::setNumber("Mesh.SaveAll", 1);
+        gmsh::write(output.string());
+      });
   if (auto err = GmshSession::take_error(); !err.empty())
-    throw SystemError(fmt::format("{} → {}: Gmsh could not convert: {}", input.string(),
-                                  output.string(), err));
+    throw SystemError(
+        fmt::format("{} → {}: Gmsh could not convert: {}", input.string(), output.string(), err));
 }
 
 }  // namespace palpate

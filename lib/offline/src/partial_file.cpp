@@ -6,17 +6,17 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <algorithm>
 #include <limits>
 #include <optional>
 
+#include "palpate/core/error.hpp"
 #include "palpate/file/detail/compliance_file_internal.hpp"
 #include "palpate/file/detail/hdf5_support.hpp"
-#include "palpate/core/error.hpp"
 
 namespace palpate {
 
@@ -42,7 +42,8 @@ Handle fixed_dataset(hid_t file, const char* path, hid_t type, std::vector<hsize
   Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose,
                "create a dataspace");
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "create a property list");
-  if (!chunk.empty()) check(H5Pset_chunk(dcpl, static_cast<int>(chunk.size()), chunk.data()), "chunk");
+  if (!chunk.empty())
+    check(H5Pset_chunk(dcpl, static_cast<int>(chunk.size()), chunk.data()), "chunk");
   check(H5Pset_alloc_time(dcpl, H5D_ALLOC_TIME_EARLY), "allocate early");
   check(H5Pset_fill_time(dcpl, H5D_FILL_TIME_NEVER), "no fill");
   check(H5Pset_obj_track_times(dcpl, false), "no times");
@@ -51,13 +52,14 @@ Handle fixed_dataset(hid_t file, const char* path, hid_t type, std::vector<hsize
 }
 
 // Writes @p data (row-major, memory type @p mem_type) into rows [row, row + rows) of a 2-D set.
-void write_rows(hid_t set, hid_t mem_type, hsize_t row, hsize_t rows, hsize_t cols,
-                hsize_t col, const void* data, const char* what) {
+void write_rows(hid_t set, hid_t mem_type, hsize_t row, hsize_t rows, hsize_t cols, hsize_t col,
+                const void* data, const char* what) {
   Handle file_space(H5Dget_space(set), H5Sclose, "get a dataspace");
   hsize_t start[2] = {row, col}, count[2] = {rows, cols};
   check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr), what);
   Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose, "create a dataspace");
-  check(H5Dwrite(set, mem_type, mem_space, file_space, H5P_DEFAULT, data), fmt::format("write {}", what));
+  check(H5Dwrite(set, mem_type, mem_space, file_space, H5P_DEFAULT, data),
+        fmt::format("write {}", what));
 }
 
 std::string read_string_attribute(hid_t object, const char* name) {
@@ -81,7 +83,8 @@ bool read_int64_attribute(hid_t object, const char* name, std::int64_t* value) {
 }
 
 void set_string_attribute(hid_t object, const char* name, const std::string& value) {
-  if (H5Aexists(object, name) > 0) check(H5Adelete(object, name), fmt::format("replace attribute {}", name));
+  if (H5Aexists(object, name) > 0)
+    check(H5Adelete(object, name), fmt::format("replace attribute {}", name));
   hdf5::write_string_attribute(object, name, value);
 }
 
@@ -129,15 +132,18 @@ struct PartialFile::Impl {
 
   void open_fd() {
     void* handle = nullptr;
-    if (H5Fget_vfd_handle(h(), H5P_DEFAULT, &handle) >= 0 && handle) fd = *static_cast<int*>(handle);
+    if (H5Fget_vfd_handle(h(), H5P_DEFAULT, &handle) >= 0 && handle)
+      fd = *static_cast<int*>(handle);
   }
 
   // Reads the identity and checkpoint of an open file; @returns the reason it is unusable, or "".
   std::string load() {
     if (read_string_attribute(h(), "format") != kPartialFormatName) return "not a shard file";
     std::int64_t b = 0, e = 0, t = 0, k = 0;
-    if (!read_int64_attribute(h(), "columns_begin", &b) || !read_int64_attribute(h(), "columns_end", &e) ||
-        !read_int64_attribute(h(), "columns_total", &t) || !read_int64_attribute(h(), "block_columns", &k))
+    if (!read_int64_attribute(h(), "columns_begin", &b) ||
+        !read_int64_attribute(h(), "columns_end", &e) ||
+        !read_int64_attribute(h(), "columns_total", &t) ||
+        !read_int64_attribute(h(), "block_columns", &k))
       return "its column range attributes are missing";
     if (!(k > 0 && b >= 0 && b < e && e <= t && b % k == 0 && (e % k == 0 || e == t) &&
           t <= std::numeric_limits<int>::max()))
@@ -149,8 +155,9 @@ struct PartialFile::Impl {
     id.input_hash = read_string_attribute(h(), "input_hash");
     blas = read_string_attribute(h(), "blas");
     if (H5Lexists(h(), "/compliance", H5P_DEFAULT) <= 0 || H5Lexists(h(), kG, H5P_DEFAULT) <= 0 ||
-        H5Lexists(h(), "/checkpoint", H5P_DEFAULT) <= 0 || H5Lexists(h(), kDone, H5P_DEFAULT) <= 0 ||
-        H5Lexists(h(), kDiagonal, H5P_DEFAULT) <= 0 || H5Lexists(h(), kChecks, H5P_DEFAULT) <= 0)
+        H5Lexists(h(), "/checkpoint", H5P_DEFAULT) <= 0 ||
+        H5Lexists(h(), kDone, H5P_DEFAULT) <= 0 || H5Lexists(h(), kDiagonal, H5P_DEFAULT) <= 0 ||
+        H5Lexists(h(), kChecks, H5P_DEFAULT) <= 0)
       return "a dataset is missing";
     {
       Handle set(H5Dopen2(h(), kG, H5P_DEFAULT), H5Dclose, "open /compliance/G");
@@ -239,8 +246,10 @@ std::unique_ptr<PartialFile> PartialFile::create(const std::filesystem::path& pa
   {
     Handle set = fixed_dataset(f, kDone, H5T_STD_I8LE, {static_cast<hsize_t>(id.blocks())});
     const std::vector<std::int8_t> none(static_cast<size_t>(id.blocks()), 0);
-    check(H5Dwrite(set, H5T_NATIVE_INT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, none.data()), "write the checkpoint");
-    hdf5::write_string_attribute(set, "meaning", "1: block b (columns [(first_block + b)·block_columns, …)) is complete");
+    check(H5Dwrite(set, H5T_NATIVE_INT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, none.data()),
+          "write the checkpoint");
+    hdf5::write_string_attribute(
+        set, "meaning", "1: block b (columns [(first_block + b)·block_columns, …)) is complete");
   }
   fixed_dataset(f, kDiagonal, H5T_IEEE_F64LE, {w, 3});
   {
@@ -248,7 +257,8 @@ std::unique_ptr<PartialFile> PartialFile::create(const std::filesystem::path& pa
     std::vector<double> rows;
     for (const int c : check_columns) rows.insert(rows.end(), {double(c), NAN, NAN});
     if (!rows.empty())
-      check(H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rows.data()), "write the checks");
+      check(H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rows.data()),
+            "write the checks");
   }
   impl->done.assign(static_cast<size_t>(id.blocks()), 0);
   impl->open_fd();
@@ -257,7 +267,8 @@ std::unique_ptr<PartialFile> PartialFile::create(const std::filesystem::path& pa
 }
 
 std::unique_ptr<PartialFile> PartialFile::open_to_resume(const std::filesystem::path& path,
-                                                         const ShardIdentity& id, std::string* why) {
+                                                         const ShardIdentity& id,
+                                                         std::string* why) {
   hdf5::silence_hdf5();
   if (locked_by_another_process(path))
     throw InputError(fmt::format(
@@ -296,11 +307,13 @@ std::unique_ptr<PartialFile> PartialFile::open_to_resume(const std::filesystem::
 std::unique_ptr<PartialFile> PartialFile::open_complete(const std::filesystem::path& path) {
   hdf5::silence_hdf5();
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw InputError(fmt::format("{}: no such file", path.string()));
+  if (!std::filesystem::exists(path, ec))
+    throw InputError(fmt::format("{}: no such file", path.string()));
   if (H5Fis_hdf5(path.c_str()) <= 0)
-    throw InputError(fmt::format("{}: not an HDF5 file; expected a shard written by "
-                                 "palpate-precompute --shard or --columns",
-                                 path.string()));
+    throw InputError(
+        fmt::format("{}: not an HDF5 file; expected a shard written by "
+                    "palpate-precompute --shard or --columns",
+                    path.string()));
   auto impl = std::make_unique<Impl>();
   impl->path = path;
   const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
@@ -308,9 +321,10 @@ std::unique_ptr<PartialFile> PartialFile::open_complete(const std::filesystem::p
   impl->file.emplace(f, H5Fclose, "open");
   const std::string format = read_string_attribute(f, "format");
   if (format == kComplianceFormatName)
-    throw InputError(fmt::format("{}: a complete compliance file, not a shard: merge takes the "
-                                 "shards written by palpate-precompute --shard or --columns",
-                                 path.string()));
+    throw InputError(
+        fmt::format("{}: a complete compliance file, not a shard: merge takes the "
+                    "shards written by palpate-precompute --shard or --columns",
+                    path.string()));
   if (std::string reason = impl->load(); !reason.empty())
     throw InputError(fmt::format("{}: not a usable shard: {}", path.string(), reason));
   const long done = std::count(impl->done.begin(), impl->done.end(), 1);
@@ -339,7 +353,8 @@ void PartialFile::write_block(const SolvedBlock& block) {
   const auto m = static_cast<hsize_t>(p.id.columns_total);
   const int local = block.index - p.id.first_block();
   PALPATE_DEMAND(local >= 0 && local < p.id.blocks());
-  PALPATE_DEMAND(block.first == block.index * p.id.block_columns && block.columns.rows() == p.id.columns_total);
+  PALPATE_DEMAND(block.first == block.index * p.id.block_columns &&
+                 block.columns.rows() == p.id.columns_total);
   const auto w = static_cast<hsize_t>(block.columns.cols());
   const auto col = static_cast<hsize_t>(block.first - p.id.columns_begin);
   {
@@ -380,7 +395,8 @@ void PartialFile::write_block(const SolvedBlock& block) {
     Handle set(H5Dopen2(p.h(), kDone, H5P_DEFAULT), H5Dclose, "open the checkpoint");
     Handle file_space(H5Dget_space(set), H5Sclose, "get a dataspace");
     hsize_t start[1] = {static_cast<hsize_t>(local)}, count[1] = {1};
-    check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr), "select a flag");
+    check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr),
+          "select a flag");
     Handle mem_space(H5Screate_simple(1, count, nullptr), H5Sclose, "create a dataspace");
     const std::int8_t one = 1;
     check(H5Dwrite(set, H5T_NATIVE_INT8, mem_space, file_space, H5P_DEFAULT, &one), "flag a block");
@@ -408,7 +424,9 @@ ComplianceModel PartialFile::model() const {
   return detail::read_compliance_file(impl_->path, nullptr, nullptr, kPartialFormatName);
 }
 
-std::string PartialFile::report_json() const { return read_string_attribute(impl_->h(), "report_json"); }
+std::string PartialFile::report_json() const {
+  return read_string_attribute(impl_->h(), "report_json");
+}
 
 void PartialFile::read_rows(long first, long count, double* band) const {
   const Impl& p = *impl_;
@@ -416,12 +434,14 @@ void PartialFile::read_rows(long first, long count, double* band) const {
   Handle file_space(H5Dget_space(set), H5Sclose, "get a dataspace");
   hsize_t start[2] = {static_cast<hsize_t>(first), 0},
           count2[2] = {static_cast<hsize_t>(count), static_cast<hsize_t>(p.width())};
-  check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count2, nullptr), "select rows");
+  check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count2, nullptr),
+        "select rows");
   // Straight into the band's columns [begin, end), converted to double by HDF5.
   hsize_t band_dims[2] = {static_cast<hsize_t>(count), static_cast<hsize_t>(p.id.columns_total)};
   Handle mem_space(H5Screate_simple(2, band_dims, nullptr), H5Sclose, "create a dataspace");
   hsize_t at[2] = {0, static_cast<hsize_t>(p.id.columns_begin)};
-  check(H5Sselect_hyperslab(mem_space, H5S_SELECT_SET, at, nullptr, count2, nullptr), "select columns");
+  check(H5Sselect_hyperslab(mem_space, H5S_SELECT_SET, at, nullptr, count2, nullptr),
+        "select columns");
   if (H5Dread(set, H5T_NATIVE_DOUBLE, mem_space, file_space, H5P_DEFAULT, band) < 0)
     throw InputError(fmt::format("{}: /compliance/G: cannot be read (corrupt?)", p.path.string()));
 }
@@ -430,7 +450,8 @@ Eigen::MatrixX3d PartialFile::diagonal_entries() const {
   RowMajorD rows(impl_->width(), 3);
   Handle set(H5Dopen2(impl_->h(), kDiagonal, H5P_DEFAULT), H5Dclose, "open the diagonal");
   if (H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rows.data()) < 0)
-    throw InputError(fmt::format("{}: {}: cannot be read (corrupt?)", impl_->path.string(), kDiagonal));
+    throw InputError(
+        fmt::format("{}: {}: cannot be read (corrupt?)", impl_->path.string(), kDiagonal));
   return rows;
 }
 

@@ -29,8 +29,8 @@ void run_in_memory(const PrecomputeJob& job, Problem& p, const MemoryLimit& limi
                                                    /*converted=*/false) *
                                     solve_threads());
     if (do_condensation)
-      need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(
-                                          K, condensation_ordering(K, m)));
+      need = std::max(
+          need, g_bytes + SparseCholesky::estimate_factor_bytes(K, condensation_ordering(K, m)));
     need += 12.0 * static_cast<double>(K.nonZeros());
     MemoryReport& memory = report.memory.emplace();
     memory.G_bytes = g_bytes;

@@ -26,7 +26,11 @@ namespace {
 class SolveProgress {
  public:
   SolveProgress(std::function<void(const std::string&)> info, long done, long total, int threads)
-      : info_(std::move(info)), resumed_(done), done_(done), total_(total), threads_(threads),
+      : info_(std::move(info)),
+        resumed_(done),
+        done_(done),
+        total_(total),
+        threads_(threads),
         t0_(std::chrono::steady_clock::now()) {}
   /// The clock starts when the factor is ready: the first block's time (and
   /// so the estimate, and the rate) is then the solves' alone.
@@ -39,17 +43,19 @@ class SolveProgress {
       first_reported_ = true;
       // The threads solve their first blocks side by side.
       const double estimate = s * static_cast<double>(pending_blocks) / threads_;
-      info_(fmt::format("first block of {} columns solved in {:.2f} s: about {:.0f} s for the {} "
-                        "blocks left ({} thread{})",
-                        block_columns, s, estimate, pending_blocks, threads_, threads_ > 1 ? "s" : ""));
+      info_(fmt::format(
+          "first block of {} columns solved in {:.2f} s: about {:.0f} s for the {} "
+          "blocks left ({} thread{})",
+          block_columns, s, estimate, pending_blocks, threads_, threads_ > 1 ? "s" : ""));
     }
     const long tenth = 10 * done_ / std::max(1L, total_);
     if (tenth <= last_tenth_) return;
     last_tenth_ = tenth;
     const double rate = s > 0 ? static_cast<double>(done_ - resumed_) / s : 0;
     info_(fmt::format("solves: {}/{} columns ({:.0f} %), {:.0f} columns/s, about {:.0f} s left",
-                      done_, total_, 100.0 * static_cast<double>(done_) / static_cast<double>(total_),
-                      rate, rate > 0 ? static_cast<double>(total_ - done_) / rate : 0.0));
+                      done_, total_,
+                      100.0 * static_cast<double>(done_) / static_cast<double>(total_), rate,
+                      rate > 0 ? static_cast<double>(total_ - done_) / rate : 0.0));
   }
   double rate() const {
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
@@ -73,11 +79,11 @@ void run_streamed(const PrecomputeJob& job, Problem& p, ColumnRange columns,
   const SparseMatrixd& K = p.K;
   const int m = p.m, n = p.n;
   const int block_columns = job.block_columns;
-  const ShardIdentity id{p.model.input_hash, columns.begin, columns.end, m, block_columns,
-                         job.precision};
+  const ShardIdentity id{p.model.input_hash, columns.begin, columns.end, m,
+                         block_columns,      job.precision};
   const bool sharded = columns.begin != 0 || columns.end != m || job.shard.any();
-  const auto target = sharded ? shard_output_path(job.output, columns.begin, columns.end)
-                              : job.output;
+  const auto target =
+      sharded ? shard_output_path(job.output, columns.begin, columns.end) : job.output;
   const auto checkpoint = checkpoint_path(target);
   const int width = columns.end - columns.begin;
 
@@ -128,8 +134,9 @@ void run_streamed(const PrecomputeJob& job, Problem& p, ColumnRange columns,
                            id.blocks() - static_cast<int>(partial->pending_blocks().size()),
                            id.blocks()));
     } else {
-      say.warn(fmt::format("discarded {}, left by an earlier run: {}; starting from the first block",
-                           checkpoint.string(), why));
+      say.warn(
+          fmt::format("discarded {}, left by an earlier run: {}; starting from the first block",
+                      checkpoint.string(), why));
       std::filesystem::remove(checkpoint, ec);
     }
   }
@@ -174,10 +181,11 @@ void run_streamed(const PrecomputeJob& job, Problem& p, ColumnRange columns,
           &stats,
           [&](const FactorInfo& f) {
             lines.start();
-            say.info(fmt::format("factor: {} ordering, nnz(L) = {:.3g}, {:.2f} s; {} columns left "
-                                 "to solve, {:.3g} GFLOP",
-                                 f.ordering, f.nnz_L, f.factor_seconds, width - done,
-                                 4.0 * f.nnz_L * static_cast<double>(width - done) / 1e9));
+            say.info(
+                fmt::format("factor: {} ordering, nnz(L) = {:.3g}, {:.2f} s; {} columns left "
+                            "to solve, {:.3g} GFLOP",
+                            f.ordering, f.nnz_L, f.factor_seconds, width - done,
+                            4.0 * f.nnz_L * static_cast<double>(width - done) / 1e9));
           });
     });
     report.columns->columns_per_second = lines.rate();

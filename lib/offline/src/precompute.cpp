@@ -25,10 +25,10 @@ precompute::ColumnRange columns_of(const PrecomputeJob& job, int m) {
   if (job.shard.count > 0) {
     const int blocks = (m + block_columns - 1) / block_columns;
     if (job.shard.count > blocks)
-      throw InputError(fmt::format("shard {}/{}: G has {} columns, {} blocks of {}: at most {} "
-                                   "shards; use fewer shards or a smaller --block-columns",
-                                   job.shard.index, job.shard.count, m, blocks, block_columns,
-                                   blocks));
+      throw InputError(
+          fmt::format("shard {}/{}: G has {} columns, {} blocks of {}: at most {} "
+                      "shards; use fewer shards or a smaller --block-columns",
+                      job.shard.index, job.shard.count, m, blocks, block_columns, blocks));
     // As even as whole blocks go: shard k gets blocks [k·B/N, (k+1)·B/N).
     const auto first_block = static_cast<long>(job.shard.index) * blocks / job.shard.count;
     const auto end_block = static_cast<long>(job.shard.index + 1) * blocks / job.shard.count;
@@ -68,8 +68,9 @@ PrecomputeReport run_precompute(const PrecomputeJob& job, const PrecomputeHooks&
   // resumable. Its columns: all, or the shard's whole blocks. Shards are
   // computed by solves (condensation needs the whole G).
   if (job.shard.any() && job.method == Method::kCondensation)
-    throw InputError("--shard and --columns compute columns of G by solves: use --method solves "
-                     "(condensation computes the whole G at once)");
+    throw InputError(
+        "--shard and --columns compute columns of G by solves: use --method solves "
+        "(condensation computes the whole G at once)");
   const bool streaming = job.method == Method::kSolves || job.shard.any();
   {
     // The job the file stores: enough to run it again (no shard: the file

@@ -23,14 +23,18 @@ Method parse_method(const std::string& name) {
   if (name == "solves") return Method::kSolves;
   if (name == "condensation") return Method::kCondensation;
   if (name == "both") return Method::kBoth;
-  throw InputError(fmt::format("method '{}' is not accepted: use solves, condensation or both", name));
+  throw InputError(
+      fmt::format("method '{}' is not accepted: use solves, condensation or both", name));
 }
 
 std::string to_string(Method method) {
   switch (method) {
-    case Method::kSolves: return "solves";
-    case Method::kCondensation: return "condensation";
-    case Method::kBoth: return "both";
+    case Method::kSolves:
+      return "solves";
+    case Method::kCondensation:
+      return "condensation";
+    case Method::kBoth:
+      return "both";
   }
   return "?";
 }
@@ -59,9 +63,10 @@ void parse_shard(const std::string& text, ColumnShard* shard) {
       *shard = s;
       return;
     }
-    throw InputError(fmt::format("shard '{}' is not accepted: use INDEX/COUNT with 0 ≤ INDEX < "
-                                 "COUNT, e.g. 0/4 … 3/4",
-                                 text));
+    throw InputError(
+        fmt::format("shard '{}' is not accepted: use INDEX/COUNT with 0 ≤ INDEX < "
+                    "COUNT, e.g. 0/4 … 3/4",
+                    text));
   }
   if (colon != std::string::npos && slash == std::string::npos) {
     ColumnShard s;
@@ -71,9 +76,10 @@ void parse_shard(const std::string& text, ColumnShard* shard) {
       return;
     }
   }
-  throw InputError(fmt::format("columns '{}' are not accepted: use BEGIN:END with 0 ≤ BEGIN < END "
-                               "(columns of G, END excluded), or a shard INDEX/COUNT",
-                               text));
+  throw InputError(
+      fmt::format("columns '{}' are not accepted: use BEGIN:END with 0 ≤ BEGIN < END "
+                  "(columns of G, END excluded), or a shard INDEX/COUNT",
+                  text));
 }
 
 using detail::relative_to;
@@ -103,8 +109,10 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
   if (const auto* material = root.get("material")) {
     const auto& t = r.table(*material, "material");
     r.only_keys(t, "material", {"young_modulus_pa", "poisson_ratio", "group"});
-    if (const auto* n = t.get("young_modulus_pa")) job.young_modulus_pa = r.number(*n, "material.young_modulus_pa");
-    if (const auto* n = t.get("poisson_ratio")) job.poisson_ratio = r.number(*n, "material.poisson_ratio");
+    if (const auto* n = t.get("young_modulus_pa"))
+      job.young_modulus_pa = r.number(*n, "material.young_modulus_pa");
+    if (const auto* n = t.get("poisson_ratio"))
+      job.poisson_ratio = r.number(*n, "material.poisson_ratio");
     if (const auto* groups = t.get("group"))
       r.each_table(*groups, "material.group", [&](const toml::table& g) {
         r.only_keys(g, "material.group", {"name", "young_modulus_pa", "poisson_ratio"});
@@ -129,7 +137,8 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
       if (!arr) r.fail(n, "attachment.groups", "expected an array of group names");
       for (const auto& g : *arr) a.groups.push_back(r.string(g, "attachment.groups"));
     }
-    if (const auto* n = t.get("ids_file")) a.ids_file = relative_to(base, r.string(*n, "attachment.ids_file"));
+    if (const auto* n = t.get("ids_file"))
+      a.ids_file = relative_to(base, r.string(*n, "attachment.ids_file"));
     if (const auto* n = t.get("boxes"))
       r.each_table(*n, "attachment.boxes", [&](const toml::table& b) {
         r.only_keys(b, "attachment.boxes", {"min", "max"});
@@ -140,21 +149,24 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
     if (const auto* n = t.get("spheres"))
       r.each_table(*n, "attachment.spheres", [&](const toml::table& s) {
         r.only_keys(s, "attachment.spheres", {"center", "radius"});
-        if (!s.get("center") || !s.get("radius")) r.fail(&s, "attachment.spheres", "needs center and radius");
+        if (!s.get("center") || !s.get("radius"))
+          r.fail(&s, "attachment.spheres", "needs center and radius");
         a.spheres.push_back({unit * r.vec3(*s.get("center"), "attachment.spheres.center"),
                              unit * r.number(*s.get("radius"), "attachment.spheres.radius")});
       });
     if (const auto* n = t.get("half_spaces"))
       r.each_table(*n, "attachment.half_spaces", [&](const toml::table& h) {
         r.only_keys(h, "attachment.half_spaces", {"point", "normal"});
-        if (!h.get("point") || !h.get("normal")) r.fail(&h, "attachment.half_spaces", "needs point and normal");
+        if (!h.get("point") || !h.get("normal"))
+          r.fail(&h, "attachment.half_spaces", "needs point and normal");
         a.half_spaces.push_back({unit * r.vec3(*h.get("point"), "attachment.half_spaces.point"),
                                  r.vec3(*h.get("normal"), "attachment.half_spaces.normal")});
       });
   }
   if (const auto* compute = root.get("compute")) {
     const auto& t = r.table(*compute, "compute");
-    r.only_keys(t, "compute", {"method", "precision", "block_columns", "tolerance", "memory_limit_gb"});
+    r.only_keys(t, "compute",
+                {"method", "precision", "block_columns", "tolerance", "memory_limit_gb"});
     if (const auto* n = t.get("method")) {
       try {
         job.method = parse_method(r.string(*n, "compute.method"));
@@ -172,11 +184,13 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
     if (const auto* n = t.get("block_columns")) {
       const auto v = n->value<int64_t>();
       if (!v || *v < 1 || *v > kMaxBlockColumns)
-        r.fail(n, "compute.block_columns", fmt::format("expected an integer from 1 to {}", kMaxBlockColumns));
+        r.fail(n, "compute.block_columns",
+               fmt::format("expected an integer from 1 to {}", kMaxBlockColumns));
       job.block_columns = static_cast<int>(*v);
     }
     if (const auto* n = t.get("tolerance")) job.tolerance = r.number(*n, "compute.tolerance");
-    if (const auto* n = t.get("memory_limit_gb")) job.memory_limit_bytes = 1e9 * r.number(*n, "compute.memory_limit_gb");
+    if (const auto* n = t.get("memory_limit_gb"))
+      job.memory_limit_bytes = 1e9 * r.number(*n, "compute.memory_limit_gb");
   }
   if (const auto* output = root.get("output")) {
     const auto& t = r.table(*output, "output");
@@ -217,9 +231,13 @@ std::string to_toml(const PrecomputeJob& job) {
   }
   if (!a.ids_file.empty()) attachment.insert("ids_file", absolute(a.ids_file));
   toml::array boxes, spheres, half_spaces;
-  for (const auto& b : a.boxes) boxes.push_back(toml::table{{"min", vec(b.min, unit)}, {"max", vec(b.max, unit)}});
-  for (const auto& s : a.spheres) spheres.push_back(toml::table{{"center", vec(s.center, unit)}, {"radius", s.radius / unit}});
-  for (const auto& h : a.half_spaces) half_spaces.push_back(toml::table{{"point", vec(h.point, unit)}, {"normal", vec(h.normal, 1.0)}});
+  for (const auto& b : a.boxes)
+    boxes.push_back(toml::table{{"min", vec(b.min, unit)}, {"max", vec(b.max, unit)}});
+  for (const auto& s : a.spheres)
+    spheres.push_back(toml::table{{"center", vec(s.center, unit)}, {"radius", s.radius / unit}});
+  for (const auto& h : a.half_spaces)
+    half_spaces.push_back(
+        toml::table{{"point", vec(h.point, unit)}, {"normal", vec(h.normal, 1.0)}});
   if (!boxes.empty()) attachment.insert("boxes", boxes);
   if (!spheres.empty()) attachment.insert("spheres", spheres);
   if (!half_spaces.empty()) attachment.insert("half_spaces", half_spaces);
@@ -230,30 +248,41 @@ std::string to_toml(const PrecomputeJob& job) {
   if (job.memory_limit_bytes > 0) compute.insert("memory_limit_gb", job.memory_limit_bytes / 1e9);
   toml::table output{{"xdmf", job.write_xdmf}};
   if (!job.output.empty()) output.insert("file", absolute(job.output));
-  toml::table root{{"mesh", mesh}, {"material", material}, {"attachment", attachment},
-                   {"compute", compute}, {"output", output}};
+  toml::table root{{"mesh", mesh},
+                   {"material", material},
+                   {"attachment", attachment},
+                   {"compute", compute},
+                   {"output", output}};
   std::ostringstream out;
-  out << "# palpate-precompute job (written by " << "palpate-precompute " PALPATE_VERSION << ")\n"
+  out << "# palpate-precompute job (written by "
+      << "palpate-precompute " PALPATE_VERSION << ")\n"
       << root << "\n";
   return out.str();
 }
 
 void validate_job(const PrecomputeJob& job) {
-  if (job.mesh_file.empty()) throw InputError("no mesh given: use --mesh FILE or [mesh] file in the job file");
-  if (job.output.empty()) throw InputError("no output file given: use -o FILE.h5 or [output] file in the job file");
+  if (job.mesh_file.empty())
+    throw InputError("no mesh given: use --mesh FILE or [mesh] file in the job file");
+  if (job.output.empty())
+    throw InputError("no output file given: use -o FILE.h5 or [output] file in the job file");
   if (!job.young_modulus_pa)
-    throw InputError("no Young's modulus given: use --young-modulus PA or [material] young_modulus_pa");
+    throw InputError(
+        "no Young's modulus given: use --young-modulus PA or [material] young_modulus_pa");
   if (!job.poisson_ratio)
     throw InputError("no Poisson ratio given: use --poisson-ratio NU or [material] poisson_ratio");
   require_output_directory(job.output);
   if (job.write_xdmf) check_xdmf_sidecar_name(job.output);
   if (job.attachment.empty())
-    throw InputError("no attachment given: the organ must be held somewhere; use --fix-ids, "
-                     "--fix-group, --fix-box, --fix-sphere, --fix-half-space or [attachment]");
+    throw InputError(
+        "no attachment given: the organ must be held somewhere; use --fix-ids, "
+        "--fix-group, --fix-box, --fix-sphere, --fix-half-space or [attachment]");
   if (job.block_columns < 1 || job.block_columns > kMaxBlockColumns)
-    throw InputError(fmt::format("block columns {} is not accepted: use 1 to {}", job.block_columns, kMaxBlockColumns));
-  if (!(job.tolerance > 0)) throw InputError(fmt::format("tolerance {} is not accepted: use a number > 0", job.tolerance));
-  if (!(job.memory_limit_bytes >= 0)) throw InputError("memory limit must be ≥ 0 (0: available memory)");
+    throw InputError(fmt::format("block columns {} is not accepted: use 1 to {}", job.block_columns,
+                                 kMaxBlockColumns));
+  if (!(job.tolerance > 0))
+    throw InputError(fmt::format("tolerance {} is not accepted: use a number > 0", job.tolerance));
+  if (!(job.memory_limit_bytes >= 0))
+    throw InputError("memory limit must be ≥ 0 (0: available memory)");
   parse_length_unit(job.mesh_unit);
 }
 

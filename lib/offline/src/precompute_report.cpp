@@ -114,9 +114,9 @@ json to_json_value(const PrecomputeReport& r) {
   }
   if (r.columns) {
     const auto& c = *r.columns;
-    j["columns"] = {{"begin", c.begin},          {"end", c.end},
-                    {"total", c.total},          {"block_columns", c.block_columns},
-                    {"blocks", c.blocks},        {"resumed_blocks", c.resumed_blocks}};
+    j["columns"] = {{"begin", c.begin},   {"end", c.end},
+                    {"total", c.total},   {"block_columns", c.block_columns},
+                    {"blocks", c.blocks}, {"resumed_blocks", c.resumed_blocks}};
     put(j["columns"], "columns_per_second", c.columns_per_second);
   }
   if (r.checks) j["checks"] = to_json_value(*r.checks);
@@ -284,7 +284,8 @@ PrecomputeReport from_json_value(const json& j) {
     for (const json& s : j["shards"]) {
       ShardReport shard;
       take(s, "file", shard.file);
-      if (const auto columns = get<std::vector<long>>(s, "columns"); columns && columns->size() == 2) {
+      if (const auto columns = get<std::vector<long>>(s, "columns");
+          columns && columns->size() == 2) {
         shard.columns_begin = (*columns)[0];
         shard.columns_end = (*columns)[1];
       }
@@ -347,7 +348,8 @@ std::string format_report(const PrecomputeReport& r) {
   // A shard has no whole diagonal block, nor G to compare with its transpose.
   if (c.symmetry_error)
     s += fmt::format(
-        "             symmetry error {:.2e}{}; smallest eigenvalue of a diagonal block {:.4g} m/N\n",
+        "             symmetry error {:.2e}{}; smallest eigenvalue of a diagonal block {:.4g} "
+        "m/N\n",
         *c.symmetry_error,
         c.symmetry_error_sampled_columns
             ? fmt::format(" ({} sampled columns)", *c.symmetry_error_sampled_columns)
@@ -372,7 +374,8 @@ std::string format_report(const PrecomputeReport& r) {
         *c.max_relative_difference, c.tolerance.value_or(0.0));
   if (r.output)
     s += fmt::format("  output     {} ({}, {}), input hash {}\n", r.output->file,
-                     r.output->precision, format_bytes(static_cast<double>(r.output->bytes.value_or(0))),
+                     r.output->precision,
+                     format_bytes(static_cast<double>(r.output->bytes.value_or(0))),
                      r.input_hash.value_or("").substr(0, 23));
   if (r.peak_rss_bytes)
     s += fmt::format("  peak RSS   {} (G is {})\n", format_bytes(*r.peak_rss_bytes),

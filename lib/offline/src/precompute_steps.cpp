@@ -147,8 +147,8 @@ Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTi
         "{}: the organ is {:.3g} m across; if the file is in millimetres, use --mesh-unit mm",
         mesh.source, diagonal));
   if (diagonal < 0.005)
-    say.warn(fmt::format("{}: the organ is {:.3g} m across; check --mesh-unit", mesh.source,
-                         diagonal));
+    say.warn(
+        fmt::format("{}: the organ is {:.3g} m across; check --mesh-unit", mesh.source, diagonal));
   const Boundary boundary = extract_boundary(mesh);
   phases.end();
 
@@ -184,12 +184,12 @@ Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTi
   model.tet_material = p.tet_material;
   model.materials = materials;
   model.surface_triangles = boundary.triangles;
-  model.fixed_vertices = Eigen::Map<const Eigen::VectorXi>(
-      p.fixed.data(), static_cast<Eigen::Index>(p.fixed.size()));
+  model.fixed_vertices =
+      Eigen::Map<const Eigen::VectorXi>(p.fixed.data(), static_cast<Eigen::Index>(p.fixed.size()));
   model.source_vertex_ids = mesh.source_ids;
-  model.compliance_vertices =
-      Eigen::Map<const Eigen::VectorXi>(p.dofs.compliance_vertices.data(),
-                                        static_cast<Eigen::Index>(p.dofs.compliance_vertices.size()));
+  model.compliance_vertices = Eigen::Map<const Eigen::VectorXi>(
+      p.dofs.compliance_vertices.data(),
+      static_cast<Eigen::Index>(p.dofs.compliance_vertices.size()));
   model.precision = job.precision;
   model.producer = report.producer;
   model.created_utc = report.created_utc;
@@ -285,9 +285,10 @@ void write_compliance(const std::filesystem::path& output, bool write_xdmf,
   phases.end();
   std::error_code ec;
   if (!write_xdmf && std::filesystem::exists(sidecar, ec))
-    say.warn(fmt::format("{} is left from an earlier run and may not match the new {}: delete it, "
-                         "or run without --no-xdmf to rewrite it",
-                         sidecar.string(), output.string()));
+    say.warn(
+        fmt::format("{} is left from an earlier run and may not match the new {}: delete it, "
+                    "or run without --no-xdmf to rewrite it",
+                    sidecar.string(), output.string()));
   report.output->bytes = std::filesystem::file_size(output);
   report.peak_rss_bytes = phases.peak();
 }

@@ -1,10 +1,10 @@
 #include "palpate/offline/sparse_cholesky.hpp"
 
 #include <cholmod.h>
+#include <fmt/format.h>
 
 #include <chrono>
 #include <cstring>
-#include <fmt/format.h>
 
 namespace palpate {
 
@@ -25,7 +25,8 @@ struct Common {
   void check(const char* what) const {
     if (c.status == CHOLMOD_OUT_OF_MEMORY)
       throw ResourceError(fmt::format("CHOLMOD ran out of memory in {}", what));
-    if (c.status < CHOLMOD_OK) throw SystemError(fmt::format("CHOLMOD failed in {} (status {})", what, c.status));
+    if (c.status < CHOLMOD_OK)
+      throw SystemError(fmt::format("CHOLMOD failed in {} (status {})", what, c.status));
   }
 };
 
@@ -62,14 +63,22 @@ cholmod_dense view_dense(const double* data, Eigen::Index rows, Eigen::Index col
 
 const char* ordering_name(int ordering) {
   switch (ordering) {
-    case CHOLMOD_NATURAL: return "natural";
-    case CHOLMOD_GIVEN: return "given";
-    case CHOLMOD_AMD: return "amd";
-    case CHOLMOD_METIS: return "metis";
-    case CHOLMOD_NESDIS: return "nesdis";
-    case CHOLMOD_COLAMD: return "colamd";
-    case CHOLMOD_POSTORDERED: return "postordered";
-    default: return "unknown";
+    case CHOLMOD_NATURAL:
+      return "natural";
+    case CHOLMOD_GIVEN:
+      return "given";
+    case CHOLMOD_AMD:
+      return "amd";
+    case CHOLMOD_METIS:
+      return "metis";
+    case CHOLMOD_NESDIS:
+      return "nesdis";
+    case CHOLMOD_COLAMD:
+      return "colamd";
+    case CHOLMOD_POSTORDERED:
+      return "postordered";
+    default:
+      return "unknown";
   }
 }
 
@@ -225,12 +234,12 @@ std::vector<int> SparseCholesky::fill_reducing_ordering(const SparseMatrixd& upp
 }
 
 double SparseCholesky::estimate_factor_bytes(const SparseMatrixd& upper,
-                                            std::span<const int> permutation) {
+                                             std::span<const int> permutation) {
   Common common;
   cholmod_sparse A = view_upper(upper);
   cholmod_factor* L = analyze(&A, permutation, common);
-  const double bytes = static_cast<double>(L->xsize) * sizeof(double) +
-                       static_cast<double>(L->ssize) * sizeof(int);
+  const double bytes =
+      static_cast<double>(L->xsize) * sizeof(double) + static_cast<double>(L->ssize) * sizeof(int);
   cholmod_free_factor(&L, &common.c);
   return bytes;
 }

@@ -1,10 +1,10 @@
 #include "palpate/runtime/constraint_solver.hpp"
 
-#include <algorithm>
-#include <cmath>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <limits>
 
 #include "palpate/core/error.hpp"
@@ -298,8 +298,8 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
 RequestStatus ConstraintSolver::solve() {
   solved_ = false;
   if (added_ != count_)
-    return fail(message_, RequestStatus::kInternalError, "solve() after {} of {} constraints", added_,
-                count_);
+    return fail(message_, RequestStatus::kInternalError, "solve() after {} of {} constraints",
+                added_, count_);
   const int k = count_;
   const Slot& slot = find_or_build_slot();
   condition_ = slot.condition;
@@ -308,7 +308,8 @@ RequestStatus ConstraintSolver::solve() {
         message_, RequestStatus::kIllConditioned,
         "the {} × {} system of the imposed displacements has condition estimate {:.3g}, above the "
         "limit "
-        "{:.3g}: constrained vertices too close together, or normals nearly parallel on neighbours; "
+        "{:.3g}: constrained vertices too close together, or normals nearly parallel on "
+        "neighbours; "
         "constrain fewer vertices or give forces instead",
         slot.unknowns, slot.unknowns, condition_, limits_.max_condition);
 
@@ -333,7 +334,8 @@ RequestStatus ConstraintSolver::solve() {
     int info = 0;
     const int one = 1;
     dpotrs_("L", &m, &one, slot.L.data(), &m, rhs.data(), &m, &info);
-    if (info != 0) return fail(message_, RequestStatus::kInternalError, "dpotrs failed with info {}", info);
+    if (info != 0)
+      return fail(message_, RequestStatus::kInternalError, "dpotrs failed with info {}", info);
     for (int p = 0; p < m; ++p) {
       const int j = slot.unknown_vertex[p];
       for (int d = 0; d < 3; ++d) f(3 * j + d) += rhs(p) * slot.unknown_dir[3 * p + d];

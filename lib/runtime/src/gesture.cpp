@@ -5,10 +5,10 @@
 #include <limits>
 #include <numbers>
 
-#include "palpate/core/ids.hpp"
-#include "palpate/core/error.hpp"
-#include "palpate/core/units.hpp"
 #include "palpate/core/detail/toml_reader.hpp"
+#include "palpate/core/error.hpp"
+#include "palpate/core/ids.hpp"
+#include "palpate/core/units.hpp"
 
 namespace palpate {
 

@@ -1,6 +1,7 @@
-#include "palpate/core/version.hpp"
 #include "palpate/runtime/session_recorder.hpp"
 
+#include <fmt/format.h>
+#include <hdf5.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -15,14 +16,11 @@
 #include <set>
 #include <thread>
 
-#include <hdf5.h>
-
-#include <fmt/format.h>
-
-#include "palpate/file/detail/hdf5_support.hpp"
-#include "palpate/file/atomic_file.hpp"
-#include "palpate/core/ids.hpp"
 #include "palpate/core/error.hpp"
+#include "palpate/core/ids.hpp"
+#include "palpate/core/version.hpp"
+#include "palpate/file/atomic_file.hpp"
+#include "palpate/file/detail/hdf5_support.hpp"
 
 namespace palpate {
 

@@ -1,7 +1,7 @@
 #include "palpate/runtime/surface_model.hpp"
 
-#include "palpate/file/compliance_file.hpp"
 #include "palpate/core/error.hpp"
+#include "palpate/file/compliance_file.hpp"
 
 namespace palpate {
 

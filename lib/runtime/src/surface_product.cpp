@@ -65,8 +65,8 @@ void SplitSurfaceProduct::operator()(const Eigen::MatrixXf& G, std::span<const i
 }
 
 template <typename Matrix>
-void SplitSurfaceProduct::run(const Matrix& G, std::span<const int> indices,
-                              const double* forces_n, Eigen::Ref<Eigen::VectorXd> u_m) {
+void SplitSurfaceProduct::run(const Matrix& G, std::span<const int> indices, const double* forces_n,
+                              Eigen::Ref<Eigen::VectorXd> u_m) {
   PALPATE_DEMAND(u_m.size() == G.rows() && u_m.innerStride() == 1);
   const Eigen::Index rows = G.rows();
   // Split on a cache-line boundary (8 doubles) so the halves share no line of u.

@@ -11,33 +11,48 @@ namespace palpate {
 
 const char* tool_state_name(ToolState state) {
   switch (state) {
-    case ToolState::kFree: return "free";
-    case ToolState::kTouching: return "touching";
-    case ToolState::kGrasping: return "grasping";
+    case ToolState::kFree:
+      return "free";
+    case ToolState::kTouching:
+      return "touching";
+    case ToolState::kGrasping:
+      return "grasping";
   }
   return "unknown";
 }
 
 const char* tool_event_name(ToolEventKind kind) {
   switch (kind) {
-    case ToolEventKind::kTouch: return "touch";
-    case ToolEventKind::kLeave: return "leave";
-    case ToolEventKind::kGrasp: return "grasp";
-    case ToolEventKind::kRelease: return "release";
-    case ToolEventKind::kWatchdog: return "watchdog";
-    case ToolEventKind::kResumed: return "resumed";
+    case ToolEventKind::kTouch:
+      return "touch";
+    case ToolEventKind::kLeave:
+      return "leave";
+    case ToolEventKind::kGrasp:
+      return "grasp";
+    case ToolEventKind::kRelease:
+      return "release";
+    case ToolEventKind::kWatchdog:
+      return "watchdog";
+    case ToolEventKind::kResumed:
+      return "resumed";
   }
   return "unknown";
 }
 
 const char* pose_problem_name(PoseProblem problem) {
   switch (problem) {
-    case PoseProblem::kNone: return "none";
-    case PoseProblem::kNonFinite: return "non_finite";
-    case PoseProblem::kBadQuaternion: return "bad_quaternion";
-    case PoseProblem::kBadJawAngle: return "bad_jaw_angle";
-    case PoseProblem::kOutOfWorkspace: return "out_of_workspace";
-    case PoseProblem::kStale: return "stale";
+    case PoseProblem::kNone:
+      return "none";
+    case PoseProblem::kNonFinite:
+      return "non_finite";
+    case PoseProblem::kBadQuaternion:
+      return "bad_quaternion";
+    case PoseProblem::kBadJawAngle:
+      return "bad_jaw_angle";
+    case PoseProblem::kOutOfWorkspace:
+      return "out_of_workspace";
+    case PoseProblem::kStale:
+      return "stale";
   }
   return "unknown";
 }
@@ -56,12 +71,12 @@ Vector3d closest_on_segment(const Vector3d& a, const Vector3d& axis, double leng
 
 /// A tip contact found this tick.
 struct TipCandidate {
-  int index;        // compliance index
-  double depth;     // r − distance to the tip's axis segment, m (negative: within the hysteresis shell)
+  int index;  // compliance index
+  double
+      depth;  // r − distance to the tip's axis segment, m (negative: within the hysteresis shell)
   Vector3d normal;  // unit: the direction the tip pushes the vertex (the organ's inward normal)
   Vector3d target;  // the vertex's position put back on the tip's surface, m
 };
-
 
 struct HeldVertex {
   int index;
@@ -277,7 +292,8 @@ struct ToolContactEngine::Impl {
   }
 
   static void push_event(ToolOutput& out, ToolEventKind kind) {
-    if (out.event_count < static_cast<int>(out.events.size())) out.events[static_cast<std::size_t>(out.event_count++)] = kind;
+    if (out.event_count < static_cast<int>(out.events.size()))
+      out.events[static_cast<std::size_t>(out.event_count++)] = kind;
   }
 
   /// Tip contacts of tool @p t among its candidates (gathered just before).
@@ -298,8 +314,7 @@ struct ToolContactEngine::Impl {
       const bool was = previous_tip_owner[static_cast<std::size_t>(j)] == t;
       if (!(distance < r || (was && distance < r + shell))) continue;
       // Tissue between open jaws is not pushed: it may be grasped.
-      if (jaws_open && tool.held.empty() && between_jaws(tool, x, tool.pose.jaw_angle_rad) &&
-          !was)
+      if (jaws_open && tool.held.empty() && between_jaws(tool, x, tool.pose.jaw_angle_rad) && !was)
         continue;
       // Put back on the tip's surface at the nearest point, pushed along the
       // tip's surface normal there. That normal's tangent plane bounds the
@@ -315,12 +330,14 @@ struct ToolContactEngine::Impl {
     // Keep the deepest.
     if (found > per_tool_cap - static_cast<int>(tool.held.size())) {
       const int keep = std::max(0, per_tool_cap - static_cast<int>(tool.held.size()));
-      std::nth_element(tool.tips.begin(), tool.tips.begin() + keep, tool.tips.begin() + found,
-                       [](const TipCandidate& a, const TipCandidate& b) { return a.depth > b.depth; });
+      std::nth_element(
+          tool.tips.begin(), tool.tips.begin() + keep, tool.tips.begin() + found,
+          [](const TipCandidate& a, const TipCandidate& b) { return a.depth > b.depth; });
       found = keep;
     }
     tool.tip_count = found;
-    for (int c = 0; c < found; ++c) owner[static_cast<std::size_t>(tool.tips[static_cast<std::size_t>(c)].index)] = t;
+    for (int c = 0; c < found; ++c)
+      owner[static_cast<std::size_t>(tool.tips[static_cast<std::size_t>(c)].index)] = t;
   }
 
   /// Every living tool's contacts at its latest pose, one solve for all.
@@ -391,9 +408,9 @@ struct ToolContactEngine::Impl {
       for (int b = 0; b < building && status == RequestStatus::kOk; ++b) {
         const auto bb = static_cast<std::size_t>(b);
         if (released[bb]) continue;
-        status = solver.add(model.surface.vertex_ids[static_cast<std::size_t>(b_index[bb])],
-                            static_cast<std::int32_t>(b_kind[bb]), &b_value[3 * bb],
-                            &b_normal[3 * bb]);
+        status =
+            solver.add(model.surface.vertex_ids[static_cast<std::size_t>(b_index[bb])],
+                       static_cast<std::int32_t>(b_kind[bb]), &b_value[3 * bb], &b_normal[3 * bb]);
       }
       if (status == RequestStatus::kOk) status = solver.solve();
       ++solve_count;
@@ -465,7 +482,9 @@ struct ToolContactEngine::Impl {
       const Vector3d position = rest[static_cast<std::size_t>(b_index[bb])] + displacement;
       Eigen::Map<Vector3d>{&positions[3 * c]} = position;
       const bool sliding = b_kind[bb] == ConstraintKind::kNormalDisplacement;
-      for (int d = 0; d < 3; ++d) normals[3 * c + static_cast<std::size_t>(d)] = sliding ? b_normal[3 * bb + static_cast<std::size_t>(d)] : 0.0;
+      for (int d = 0; d < 3; ++d)
+        normals[3 * c + static_cast<std::size_t>(d)] =
+            sliding ? b_normal[3 * bb + static_cast<std::size_t>(d)] : 0.0;
       max_displacement = std::max(max_displacement, displacement.norm());
       Tool& tool = tools[static_cast<std::size_t>(b_tool[bb])];
       tool.raw_force -= force;  // the organ pushes the tool back

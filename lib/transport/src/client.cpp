@@ -6,10 +6,10 @@
 
 #include "client_common.hpp"
 #include "palpate.h"
+#include "palpate/core/error.hpp"
 #include "palpate/core/ids.hpp"
 #include "palpate/transport/dds.hpp"
 #include "palpate/transport/wire.hpp"
-#include "palpate/core/error.hpp"
 
 namespace palpate {
 
@@ -144,8 +144,7 @@ std::optional<SurfaceSample> Client::wait_surface(const std::string& model_id,
   std::optional<SurfaceSample> sample;
   impl_->surfaces.take_until<palpate_SurfaceDisplacement>(
       Clock::now() + timeout, [&](const palpate_SurfaceDisplacement& s) {
-        if (wire::bounded(s.model_id) != model_id || s.sequence_number < min_sequence)
-          return false;
+        if (wire::bounded(s.model_id) != model_id || s.sequence_number < min_sequence) return false;
         if (request_id != 0 && s.source_request_id != request_id) return false;
         sample = wire::from_idl(s);
         return true;
@@ -156,11 +155,11 @@ std::optional<SurfaceSample> Client::wait_surface(const std::string& model_id,
 std::optional<StatusSample> Client::wait_status(std::chrono::milliseconds timeout) {
   PALPATE_DEMAND(impl_->options.subscribe_status);
   std::optional<StatusSample> status;
-  impl_->statuses.take_until<palpate_DaemonStatus>(
-      Clock::now() + timeout, [&](const palpate_DaemonStatus& s) {
-        status = wire::from_idl(s);
-        return true;
-      });
+  impl_->statuses.take_until<palpate_DaemonStatus>(Clock::now() + timeout,
+                                                   [&](const palpate_DaemonStatus& s) {
+                                                     status = wire::from_idl(s);
+                                                     return true;
+                                                   });
   return status;
 }
 

@@ -18,10 +18,10 @@
 #include <vector>
 
 #include "palpate.h"
+#include "palpate/core/error.hpp"
 #include "palpate/transport/client.hpp"
 #include "palpate/transport/dds.hpp"
 #include "palpate/transport/wire.hpp"
-#include "palpate/core/error.hpp"
 
 namespace palpate::detail {
 

@@ -1,13 +1,12 @@
 #include "palpate/transport/dds.hpp"
 
-#include "loopback_config.hpp"
-
 #include <cstdlib>
 #include <fstream>
 #include <map>
 #include <mutex>
 #include <sstream>
 
+#include "loopback_config.hpp"
 #include "palpate/core/error.hpp"
 
 namespace palpate::dds {
@@ -76,8 +75,7 @@ dds_entity_t create_participant(std::uint32_t domain_id, const DomainConfig& con
   return check(participant, "creating the DDS participant");
 }
 
-dds_entity_t topic(dds_entity_t participant, const dds_topic_descriptor_t* type,
-                   const char* name) {
+dds_entity_t topic(dds_entity_t participant, const dds_topic_descriptor_t* type, const char* name) {
   return check(dds_create_topic(participant, type, name, nullptr, nullptr),
                std::string("creating topic ") + name);
 }

@@ -7,10 +7,10 @@
 
 #include "client_common.hpp"
 #include "palpate.h"
+#include "palpate/core/error.hpp"
 #include "palpate/core/ids.hpp"
 #include "palpate/transport/dds.hpp"
 #include "palpate/transport/wire.hpp"
-#include "palpate/core/error.hpp"
 
 namespace palpate {
 

@@ -144,7 +144,9 @@ LatencySummary from_idl(const palpate_Latency& l) {
   return {l.p50_us, l.p99_us, l.p999_us, l.max_us};
 }
 
-palpate_Latency to_idl(const LatencySummary& l) { return {l.p50_us, l.p99_us, l.p999_us, l.max_us}; }
+palpate_Latency to_idl(const LatencySummary& l) {
+  return {l.p50_us, l.p99_us, l.p999_us, l.max_us};
+}
 
 StatusSample from_idl(const palpate_DaemonStatus& s) {
   StatusSample out;

@@ -53,11 +53,11 @@ enum class ExitCode : int {
 int report_current_exception(const char* program) noexcept;
 
 /// Internal invariant: a violation is a bug in palpate, never a user error.
-#define PALPATE_DEMAND(condition)                                                   \
-  do {                                                                              \
-    if (!(condition))                                                               \
-      throw std::logic_error(std::string("internal error: ") + #condition + " at " + \
-                             __FILE__ + ":" + std::to_string(__LINE__));            \
+#define PALPATE_DEMAND(condition)                                                               \
+  do {                                                                                          \
+    if (!(condition))                                                                           \
+      throw std::logic_error(std::string("internal error: ") + #condition + " at " + __FILE__ + \
+                             ":" + std::to_string(__LINE__));                                   \
   } while (false)
 
 }  // namespace palpate

@@ -36,7 +36,7 @@ struct DaemonConfig {
   /// Haptic tools ([[tools]]); "left" and "right" with the default geometry
   /// when the configuration names none.
   std::vector<ToolGeometry> tools = default_tools();
-  ContactSettings contact;                  ///< [contact]
+  ContactSettings contact;                 ///< [contact]
   std::filesystem::path record_directory;  ///< [recording] directory; empty: no recording
 
   static std::vector<ToolGeometry> default_tools();

@@ -32,13 +32,13 @@ enum class Precision { kFloat64, kFloat32 };
 
 /// Everything in a compliance file except G itself.
 struct ComplianceModel {
-  Eigen::MatrixX3d vertices_m;          ///< #V × 3, metres (/mesh/vertices)
-  Eigen::MatrixX4i tetrahedra;          ///< #T × 4, 0-based (/mesh/tetrahedra)
-  Eigen::VectorXi tet_material;         ///< #T index into materials (/mesh/tetrahedron_material)
+  Eigen::MatrixX3d vertices_m;   ///< #V × 3, metres (/mesh/vertices)
+  Eigen::MatrixX4i tetrahedra;   ///< #T × 4, 0-based (/mesh/tetrahedra)
+  Eigen::VectorXi tet_material;  ///< #T index into materials (/mesh/tetrahedron_material)
   std::vector<MaterialRecord> materials;
-  Eigen::MatrixX3i surface_triangles;   ///< #F × 3, outward (/mesh/surface_triangles)
-  Eigen::VectorXi fixed_vertices;       ///< sorted (/mesh/fixed_vertex_ids)
-  Eigen::VectorXi source_vertex_ids;    ///< #V node index in the input file (/mesh/source_vertex_ids)
+  Eigen::MatrixX3i surface_triangles;  ///< #F × 3, outward (/mesh/surface_triangles)
+  Eigen::VectorXi fixed_vertices;      ///< sorted (/mesh/fixed_vertex_ids)
+  Eigen::VectorXi source_vertex_ids;  ///< #V node index in the input file (/mesh/source_vertex_ids)
   Eigen::VectorXi compliance_vertices;  ///< n, compliance order (/compliance/vertex_ids)
   /// #V, m/N (/visualization/softness, since 1.1): for compliance vertex a,
   /// diagonal_block_largest_eigenvalues(G)[a] of the float64 G; 0 on every
@@ -47,14 +47,14 @@ struct ComplianceModel {
   Precision precision = Precision::kFloat64;
   // Root attributes.
   int format_version_minor = kComplianceFormatMinor;  ///< read from the file; written as ours
-  std::string method;            ///< "solves", "condensation" or "both"
-  std::string producer;          ///< e.g. "palpate-precompute 0.1.0"
-  std::string created_utc;       ///< ISO 8601
-  std::string input_hash;        ///< "sha256:<hex>" of the problem (hash.hpp)
-  std::string material_summary;  ///< human-readable
-  std::string job_toml;          ///< the effective job, enough to reproduce the file
-  std::string report_json;       ///< the precompute report
-  std::string content_sha256;    ///< read from the file (1.2); written as computed
+  std::string method;                                 ///< "solves", "condensation" or "both"
+  std::string producer;                               ///< e.g. "palpate-precompute 0.1.0"
+  std::string created_utc;                            ///< ISO 8601
+  std::string input_hash;                             ///< "sha256:<hex>" of the problem (hash.hpp)
+  std::string material_summary;                       ///< human-readable
+  std::string job_toml;        ///< the effective job, enough to reproduce the file
+  std::string report_json;     ///< the precompute report
+  std::string content_sha256;  ///< read from the file (1.2); written as computed
 };
 
 /// Writes the file atomically (AtomicOutput): nothing appears at @p path

@@ -27,8 +27,8 @@ struct HalfSpaceRegion {
 
 /// Where the organ is held. The union of all parts is fixed.
 struct AttachmentSpec {
-  std::vector<std::string> groups;    ///< Gmsh physical group names (or "#tag")
-  std::filesystem::path ids_file;     ///< 0-based vertex indices in the file's node order
+  std::vector<std::string> groups;  ///< Gmsh physical group names (or "#tag")
+  std::filesystem::path ids_file;   ///< 0-based vertex indices in the file's node order
   std::vector<BoxRegion> boxes;
   std::vector<SphereRegion> spheres;
   std::vector<HalfSpaceRegion> half_spaces;

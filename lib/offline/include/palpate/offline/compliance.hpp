@@ -73,8 +73,8 @@ struct ColumnCheck {
 
 /// A block of solved columns of G: G(:, first + i) = columns.col(i).
 struct SolvedBlock {
-  int index = 0;  ///< block number: columns [index · block_columns, ...)
-  int first = 0;  ///< first column of G
+  int index = 0;                    ///< block number: columns [index · block_columns, ...)
+  int first = 0;                    ///< first column of G
   CRef<Eigen::MatrixXd> columns;    ///< m × width, m/N
   std::vector<ColumnCheck> checks;  ///< the sampled columns that fall in this block
 };

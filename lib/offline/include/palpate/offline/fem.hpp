@@ -42,9 +42,9 @@ Matrix12d element_stiffness(CRef<Matrix43d> vertices_m, const Lame& material);
 /// then the free interior vertices; vertex r of that order owns DOFs 3r..3r+2
 /// (x, y, z). Fixed vertices own none.
 struct DofMap {
-  std::vector<int> first_dof;           ///< #V: 3·rank of the vertex, or −1 if fixed
-  std::vector<int> compliance_vertices; ///< free surface vertices, compliance order
-  std::vector<int> interior_vertices;   ///< free interior vertices, DOF order
+  std::vector<int> first_dof;            ///< #V: 3·rank of the vertex, or −1 if fixed
+  std::vector<int> compliance_vertices;  ///< free surface vertices, compliance order
+  std::vector<int> interior_vertices;    ///< free interior vertices, DOF order
   int surface_dofs() const { return 3 * static_cast<int>(compliance_vertices.size()); }
   int dofs() const {
     return 3 * static_cast<int>(compliance_vertices.size() + interior_vertices.size());

@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "palpate/offline/compliance.hpp"
 #include "palpate/file/compliance_file.hpp"
+#include "palpate/offline/compliance.hpp"
 
 namespace palpate {
 
@@ -45,8 +45,7 @@ class PartialFile {
   /// @param check_columns columns of the range to re-solve and check
   /// @param blas the BLAS in use (blas_description()), recorded for merge
   static std::unique_ptr<PartialFile> create(const std::filesystem::path& path,
-                                             const ComplianceModel& model,
-                                             const ShardIdentity& id,
+                                             const ComplianceModel& model, const ShardIdentity& id,
                                              const std::vector<int>& check_columns,
                                              const std::string& blas);
 
@@ -66,7 +65,7 @@ class PartialFile {
 
   const std::filesystem::path& path() const;
   const ShardIdentity& identity() const;
-  const std::string& blas() const;          ///< of the run that created it
+  const std::string& blas() const;  ///< of the run that created it
   const std::vector<int>& check_columns() const;
   /// Absolute numbers of the blocks not yet complete.
   std::vector<int> pending_blocks() const;

@@ -57,8 +57,8 @@ struct PrecomputeJob {
   Method method = Method::kBoth;
   Precision precision = Precision::kFloat64;
   int block_columns = 64;
-  double tolerance = 1e-8;         ///< `both`: largest accepted relative difference
-  double memory_limit_bytes = 0;   ///< 0: the machine's available memory
+  double tolerance = 1e-8;        ///< `both`: largest accepted relative difference
+  double memory_limit_bytes = 0;  ///< 0: the machine's available memory
   std::filesystem::path output;
   /// Also write the XDMF sidecar next to the output (xdmf.hpp), for ParaView.
   bool write_xdmf = true;

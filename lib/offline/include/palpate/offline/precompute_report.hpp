@@ -23,10 +23,10 @@ namespace palpate {
 struct PhaseReport {
   std::string name;
   double seconds = 0;
-  double start_rss_bytes = 0;  ///< resident memory as the phase starts (freed heap handed back)
-  double peak_rss_bytes = 0;   ///< peak resident memory during the phase
-  std::optional<long> nnz_upper;       ///< "assemble K": stored nonzeros of K's upper triangle
-  std::optional<double> gflop_per_s;   ///< method phases: rate of their dense part
+  double start_rss_bytes = 0;     ///< resident memory as the phase starts (freed heap handed back)
+  double peak_rss_bytes = 0;      ///< peak resident memory during the phase
+  std::optional<long> nnz_upper;  ///< "assemble K": stored nonzeros of K's upper triangle
+  std::optional<double> gflop_per_s;  ///< method phases: rate of their dense part
 };
 
 struct MeshReport {
@@ -80,19 +80,19 @@ struct ColumnsReport {
 struct ChecksReport {
   double max_residual = 0;         ///< max ‖K u − e_j‖ over sampled columns, ‖e_j‖ = 1
   double max_column_mismatch = 0;  ///< max ‖u_S − G(:, j)‖ / ‖G(:, j)‖
-  std::optional<double> symmetry_error;                  ///< max|G − Gᵀ| / max|G|
-  std::optional<long> symmetry_error_sampled_columns;    ///< when sampled (streamed)
+  std::optional<double> symmetry_error;                ///< max|G − Gᵀ| / max|G|
+  std::optional<long> symmetry_error_sampled_columns;  ///< when sampled (streamed)
   std::optional<double> min_diagonal_block_eigenvalue_m_per_n;
-  std::optional<long> min_diagonal_block_vertex;          ///< source vertex index
-  std::optional<std::vector<int>> checked_columns;        ///< streamed: the sampled columns
-  std::optional<double> max_relative_difference;          ///< `both`: solves vs condensation
-  std::optional<double> tolerance;                        ///< `both`: the accepted difference
+  std::optional<long> min_diagonal_block_vertex;    ///< source vertex index
+  std::optional<std::vector<int>> checked_columns;  ///< streamed: the sampled columns
+  std::optional<double> max_relative_difference;    ///< `both`: solves vs condensation
+  std::optional<double> tolerance;                  ///< `both`: the accepted difference
 };
 
 struct OutputReport {
   std::string file;
-  std::string precision;              ///< "float64", "float32"
-  std::optional<std::string> xdmf;    ///< the sidecar's path; none with --no-xdmf (null in JSON)
+  std::string precision;               ///< "float64", "float32"
+  std::optional<std::string> xdmf;     ///< the sidecar's path; none with --no-xdmf (null in JSON)
   std::optional<std::uint64_t> bytes;  ///< file size, once written
 };
 

@@ -28,10 +28,10 @@ class NotPositiveDefinite : public NumericalError {
 
 /// Facts about a factorization, for reports and benchmarks.
 struct FactorInfo {
-  std::string ordering;       ///< fill-reducing ordering CHOLMOD used ("amd", "metis", "given"...)
-  double nnz_L = 0;           ///< nonzeros in L
-  double flops = 0;           ///< floating-point operations of the numeric factorization
-  double bytes = 0;           ///< memory held by the factor
+  std::string ordering;  ///< fill-reducing ordering CHOLMOD used ("amd", "metis", "given"...)
+  double nnz_L = 0;      ///< nonzeros in L
+  double flops = 0;      ///< floating-point operations of the numeric factorization
+  double bytes = 0;      ///< memory held by the factor
   int supernodes = 0;
   double analyze_seconds = 0;
   double factor_seconds = 0;

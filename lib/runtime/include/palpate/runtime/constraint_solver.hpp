@@ -1,9 +1,9 @@
 #pragma once
 /// @file
-/// The run-time algebra of the precomputed model (docs/model.md, "The reduced system of a request"):
-/// constraints on a few surface vertices in, forces and displacements out,
-/// by a small dense SPD solve on the compliance G. Allocation-free after
-/// construction, no exceptions: every failure is a RequestStatus.
+/// The run-time algebra of the precomputed model (docs/model.md, "The reduced system of a
+/// request"): constraints on a few surface vertices in, forces and displacements out, by a small
+/// dense SPD solve on the compliance G. Allocation-free after construction, no exceptions: every
+/// failure is a RequestStatus.
 
 #include <array>
 #include <cstdint>

@@ -16,10 +16,10 @@ namespace palpate {
 /// vertices are the compliance vertices in compliance order (they can move);
 /// the others are the fixed (attached) vertices of the surface.
 struct DrawnSurface {
-  int compliance_vertex_count = 0;           ///< N_S
-  std::vector<std::uint32_t> vertex_ids;     ///< mesh vertex id of each drawn vertex
-  std::vector<double> rest_positions_m;      ///< 3 per drawn vertex, m, model frame
-  std::vector<std::uint32_t> triangles;      ///< 3 per triangle, into drawn vertices, outward
+  int compliance_vertex_count = 0;        ///< N_S
+  std::vector<std::uint32_t> vertex_ids;  ///< mesh vertex id of each drawn vertex
+  std::vector<double> rest_positions_m;   ///< 3 per drawn vertex, m, model frame
+  std::vector<std::uint32_t> triangles;   ///< 3 per triangle, into drawn vertices, outward
 
   /// Drawn vertices.
   int vertex_count() const { return static_cast<int>(vertex_ids.size()); }

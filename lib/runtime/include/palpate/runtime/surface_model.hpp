@@ -22,9 +22,9 @@ enum class VertexRole : std::int8_t {
 /// One organ as palpated serves it. Immutable once loaded; shared read-only by
 /// the request thread and the stream thread.
 struct SurfaceModel {
-  std::string id;                ///< model id clients name in requests
-  std::filesystem::path path;    ///< the compliance file it came from
-  Eigen::MatrixXd G;             ///< 3N_S × 3N_S surface compliance, m/N, compliance order
+  std::string id;              ///< model id clients name in requests
+  std::filesystem::path path;  ///< the compliance file it came from
+  Eigen::MatrixXd G;           ///< 3N_S × 3N_S surface compliance, m/N, compliance order
   /// The same, as stored, when a float32 file is loaded with keep_float32
   /// (half the memory; G is then empty). Use G_block() and
   /// surface_displacement(const SurfaceModel&, …) to read either.

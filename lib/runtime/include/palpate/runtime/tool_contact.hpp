@@ -33,6 +33,7 @@
 /// Not thread-safe: the caller serializes update() and watchdog(). Allocates
 /// nothing after construction.
 
+#include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -41,11 +42,9 @@
 #include <string_view>
 #include <vector>
 
-#include <Eigen/Geometry>
-
-#include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/core/eigen.hpp"
 #include "palpate/core/units.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/surface_model.hpp"
 
 namespace palpate {
@@ -54,16 +53,16 @@ enum class TipShape : std::int8_t { kSphere, kCapsule };
 
 /// One tool, from the configuration's [[tools]] tables (SI).
 struct ToolGeometry {
-  std::string id;                   ///< the key of its ToolPose samples
+  std::string id;  ///< the key of its ToolPose samples
   TipShape tip = TipShape::kCapsule;
-  double tip_radius_m = 0.004;      ///< sphere or capsule radius
-  double tip_length_m = 0.015;      ///< capsule: segment hinge → hinge + length·z; sphere: 0
+  double tip_radius_m = 0.004;  ///< sphere or capsule radius
+  double tip_length_m = 0.015;  ///< capsule: segment hinge → hinge + length·z; sphere: 0
   /// Coulomb friction between tip and tissue: a tip contact sticks (its
   /// vertex fully put back on the tip's surface) while its tangential force
   /// stays within friction × its normal force, and slides (normal-only
   /// constraint) beyond. 0: frictionless gliding; infinity: always sticks.
   double friction = 0.3;
-  double jaw_length_m = 0.015;      ///< 0: a probe that cannot grasp
+  double jaw_length_m = 0.015;  ///< 0: a probe that cannot grasp
   double jaw_width_m = 0.005;
   double grasp_angle_rad = degrees(15);    ///< jaws closing below this grasp
   double release_angle_rad = degrees(25);  ///< jaws opening above this release
@@ -98,7 +97,7 @@ const char* tool_event_name(ToolEventKind kind);
 struct ToolPoseInput {
   std::uint64_t sequence = 0;
   std::int64_t send_time_ns = 0;
-  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();  ///< hinge, model frame
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();             ///< hinge, model frame
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< tool → model
   double jaw_angle_rad = 0;
 };

@@ -65,7 +65,7 @@ struct SurfaceSample {
   std::string source_client_id;
   std::uint64_t source_request_id = 0;
   std::array<double, 3> total_force_n{};
-  std::vector<double> displacement_m;  ///< 3 per compliance vertex
+  std::vector<double> displacement_m;               ///< 3 per compliance vertex
   std::vector<std::uint32_t> constrained_vertices;  ///< mesh vertex ids; empty at rest
   std::vector<double> constrained_forces_n;         ///< 3 per constrained vertex
 };

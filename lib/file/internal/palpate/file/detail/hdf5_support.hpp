@@ -2,13 +2,12 @@
 // Private to the library: RAII handles and small writers over the HDF5 C API,
 // shared by the compliance file and the session recorder.
 
+#include <fmt/format.h>
+#include <hdf5.h>
+
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <hdf5.h>
-
-#include <fmt/format.h>
 
 #include "palpate/core/error.hpp"
 
