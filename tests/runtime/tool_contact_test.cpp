@@ -476,5 +476,55 @@ TEST_F(ToolContactTest, AGraspersContactsDoNotFlickerWhileItGlides) {
   EXPECT_GE(switches.size(), 2u) << "the contact moved along";
 }
 
+TEST_F(ToolContactTest, EveryStoredContactIsTheSolutionOfTheSetSolvedLast) {
+  // Whatever the iteration limit, the contacts the engine stores and feeds
+  // back are those of its last solve: each contact's deformed position is
+  // its rest position plus G times every stored force, and the tool feels
+  // minus their sum. A contact let go (adhesion) after the last allowed
+  // solve must not shift the forces onto other vertices.
+  //
+  // A frictionless probe rests lightly on v; in one tick a sticking probe
+  // (6 mm radius) presses the neighbour w 5 mm in, which drags v down, away
+  // from the first probe: to hold v on its surface it would have to pull,
+  // so that contact is let go (with one iteration, after the only solve).
+  const int v = top_vertex(62.5, 25), w = top_vertex(75, 25);
+  for (const int iterations : {1, 2, 4}) {
+    ContactSettings settings;
+    settings.max_iterations = iterations;
+    ToolContactEngine engine(
+        model(), {probe("presser", kSticks, 0.006), probe("rester", 0.0, 0.003)}, settings, {});
+    Driver driver(engine, 2);
+    start(driver, 0, rest(w) + Vector3d(0, 0, 0.008));
+    start(driver, 1, rest(v) + Vector3d(0, 0, 0.0035));
+    driver.move(1, rest(v) + Vector3d(0, 0, 0.0029), 0);  // 0.1 mm into v
+    driver.hold(5);
+    ASSERT_EQ(driver.last(1).state, ToolState::kTouching) << iterations << " iterations";
+    for (const double depth : {0.005, 0.0055, 0.006}) {
+      driver.poses[0].position_m = rest(w) + Vector3d(0, 0, 0.006 - depth);
+      driver.tick(0);  // the presser alone: its output is of the contacts now stored
+      const auto idx = engine.contact_indices();
+      const auto f = engine.contact_forces();
+      const auto x = engine.contact_positions();
+      const auto tools = engine.contact_tools();
+      Vector3d felt = Vector3d::Zero();
+      for (std::size_t c = 0; c < idx.size(); ++c) {
+        Vector3d u = Vector3d::Zero();
+        for (std::size_t j = 0; j < idx.size(); ++j)
+          u += G_block(idx[c], idx[j]) * Eigen::Map<const Vector3d>(&f[3 * j]);
+        // Positions are u_C = G_CC f_C from the solve: round-off of the
+        // small dense products, ~1e-15 m against displacements of mm.
+        EXPECT_LT((Eigen::Map<const Vector3d>(&x[3 * c]) - rest(idx[c]) - u).norm(), 1e-12)
+            << "contact " << c << " of " << idx.size() << ", depth " << depth << ", " << iterations
+            << " iterations";
+        if (tools[c] == 0) felt -= Eigen::Map<const Vector3d>(&f[3 * c]);
+      }
+      EXPECT_GT(felt.norm(), 0.1) << "the presser presses";
+      EXPECT_LT((driver.last(0).force_n - felt).norm(), 1e-9 * felt.norm())
+          << "depth " << depth << ", " << iterations << " iterations";
+      driver.now += kTick;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace palpate

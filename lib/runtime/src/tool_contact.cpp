@@ -401,7 +401,8 @@ struct ToolContactEngine::Impl {
     }
 
     RequestStatus status = RequestStatus::kOk;
-    for (int iteration = 0; iteration < std::max(1, settings.max_iterations); ++iteration) {
+    const int iterations = std::max(1, settings.max_iterations);
+    for (int iteration = 0; iteration < iterations; ++iteration) {
       int k = 0;
       for (int b = 0; b < building; ++b) k += released[static_cast<std::size_t>(b)] ? 0 : 1;
       status = solver.begin(static_cast<std::size_t>(k));
@@ -415,6 +416,10 @@ struct ToolContactEngine::Impl {
       if (status == RequestStatus::kOk) status = solver.solve();
       ++solve_count;
       if (status != RequestStatus::kOk) break;
+      // The last allowed solve stands as solved: the contacts stored are
+      // exactly its constraints, and their forces its forces (changing the
+      // set now would pair each force with another vertex).
+      if (iteration + 1 == iterations) break;
       // Adhesion: a tip contact whose force pulls the tissue towards the
       // tool lets go. Friction: a sticking one whose tangential force
       // exceeds friction × normal force slides.
@@ -444,7 +449,7 @@ struct ToolContactEngine::Impl {
         }
         ++j;
       }
-      if (!any || iteration + 1 == settings.max_iterations) break;
+      if (!any) break;
     }
     for (auto& o : owner) o = -1;  // cleared sparsely below would be cheaper; n is small
     if (status != RequestStatus::kOk) {
