@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "palpate/runtime/tool_contact.hpp"
+#include "palpate/runtime/tool_geometry.hpp"
 
 namespace palpate::viewer {
 

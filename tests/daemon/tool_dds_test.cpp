@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "palpate.h"
+#include "palpate/core/units.hpp"
 #include "palpate/file/compliance_file.hpp"
 #include "palpate/transport/dds.hpp"
 #include "palpate/transport/tool_client.hpp"

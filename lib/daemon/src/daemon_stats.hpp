@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <mutex>
@@ -61,6 +62,21 @@ class LatencyLog {
   std::mutex mutex_;
   std::vector<double> first_us_, second_us_;
   std::size_t count_ = 0;
+};
+
+/// What a serving thread counts, for the status heartbeat: samples served,
+/// those refused or answered with an error, and their latencies.
+class ServerStats {
+ public:
+  void count_served() { served_.fetch_add(1, std::memory_order_relaxed); }
+  void count_error() { errors_.fetch_add(1, std::memory_order_relaxed); }
+  std::uint64_t served() const { return served_.load(std::memory_order_relaxed); }
+  std::uint64_t errors() const { return errors_.load(std::memory_order_relaxed); }
+  LatencyLog& latencies() { return latencies_; }
+
+ private:
+  std::atomic<std::uint64_t> served_{0}, errors_{0};
+  LatencyLog latencies_;
 };
 
 /// Nearest-rank percentiles of the first @p count of @p values_us (sorted here).

@@ -7,7 +7,6 @@
 #include <string_view>
 
 #include "palpate.h"
-#include "palpate/transport/wire.hpp"
 
 namespace palpate::daemon {
 
@@ -50,7 +49,9 @@ ReplyWriters::Writer* ReplyWriters::writer_for(const char* client_id) {
       return nullptr;
     }
   }
-  wire::copy_bounded(slot->id, client_id);
+  const std::size_t length = strnlen(client_id, sizeof slot->id - 1);
+  std::memcpy(slot->id, client_id, length);
+  slot->id[length] = '\0';
   const std::string partition = dds::reply_partition(client_id);
   const char* partitions[] = {partition.c_str()};
   dds::Qos qos(dds_create_qos());

@@ -120,7 +120,7 @@ void RequestServer::handle(const palpate_ConstraintRequest& request,
 
   // A request that cannot be answered (no valid reply partition) changes nothing.
   if (!ReplyWriters::names_a_partition(reply_.client_id)) {
-    errors_.fetch_add(1, std::memory_order_relaxed);
+    stats_.count_error();
     spdlog::warn(
         "event=request_ignored client=\"{}\" request={} reason=\"client id cannot name a reply "
         "partition\"",
@@ -137,15 +137,15 @@ void RequestServer::handle(const palpate_ConstraintRequest& request,
   if (status != RequestStatus::kOk) {
     reply_.results._length = 0;
     reply_.surface_displacement._length = 0;
-    errors_.fetch_add(1, std::memory_order_relaxed);
+    stats_.count_error();
     spdlog::debug("event=request_refused client={} request={} status={} message=\"{}\"",
                   reply_.client_id, request.request_id, status_name(status), reply_.message);
   }
   replies_.send<Clock>(reply_, start);
-  served_.fetch_add(1, std::memory_order_relaxed);
+  stats_.count_served();
   const double solve_us = static_cast<double>(reply_.solve_ns) * 1e-3;
   const double request_to_reply_us = static_cast<double>(dds_time() - info.source_timestamp) * 1e-3;
-  latencies_.record(solve_us, request_to_reply_us);
+  stats_.latencies().record(solve_us, request_to_reply_us);
 }
 
 }  // namespace palpate::daemon

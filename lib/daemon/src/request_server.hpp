@@ -37,10 +37,9 @@ class RequestServer {
   /// Deletes the reader: no listener call after this returns.
   void stop();
 
-  std::uint64_t served() const { return served_.load(std::memory_order_relaxed); }
-  std::uint64_t errors() const { return errors_.load(std::memory_order_relaxed); }
-  /// Solve time and request-to-reply time of each request, µs.
-  LatencyLog& latencies() { return latencies_; }
+  /// Requests served, error replies, and each request's solve time and
+  /// request-to-reply time (µs).
+  ServerStats& stats() { return stats_; }
 
  private:
   static constexpr int kBatch = 16;  // requests taken per dds_take
@@ -67,8 +66,7 @@ class RequestServer {
   std::vector<palpate_ConstraintResult> reply_results_;
   std::vector<double> reply_surface_;
 
-  std::atomic<std::uint64_t> served_{0}, errors_{0};
-  LatencyLog latencies_;
+  ServerStats stats_;
 };
 
 }  // namespace palpate::daemon

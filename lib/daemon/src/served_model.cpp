@@ -58,8 +58,7 @@ bool ShownState::copy_if_newer(std::uint64_t& version, Snapshot& out) {
   return true;
 }
 
-ServedModel::ServedModel(SurfaceModel loaded, const DaemonConfig& config,
-                         std::int64_t start_unix_ns)
+ServedModel::ServedModel(SurfaceModel loaded, const Options& config)
     : model(std::move(loaded)), shown(static_cast<std::size_t>(config.limits.max_constraints)) {
   solver = std::make_unique<ConstraintSolver>(model, config.limits);
   const auto k = static_cast<std::size_t>(config.limits.max_constraints);
@@ -76,8 +75,8 @@ ServedModel::ServedModel(SurfaceModel loaded, const DaemonConfig& config,
     info.daemon_id = config.daemon_id;
     info.tools = config.tools;
     info.contact = config.contact;
-    info.start_unix_ns = start_unix_ns;
-    const std::time_t seconds = static_cast<std::time_t>(start_unix_ns / 1'000'000'000);
+    info.start_unix_ns = config.start_unix_ns;
+    const std::time_t seconds = static_cast<std::time_t>(config.start_unix_ns / 1'000'000'000);
     std::tm utc{};
     gmtime_r(&seconds, &utc);
     char stamp[32];

@@ -3,13 +3,14 @@
 // it shows on the surface stream.
 
 #include <cstdint>
+#include <filesystem>
 #include <memory>
 #include <mutex>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
-#include "palpate/daemon/daemon_config.hpp"
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/session_recorder.hpp"
 #include "palpate/runtime/surface_model.hpp"
@@ -56,12 +57,21 @@ class ShownState {
 /// One model: its compliance, the request server's solver, the shown state,
 /// and the tools acting on it.
 struct ServedModel {
-  /// Serves @p loaded, sized for @p config. When recording is configured,
-  /// the model's session file starts now, before any pose, so that the
-  /// pose listener never creates a file (a recorder that cannot start is
-  /// logged and the model served without). @p start_unix_ns: the wall
-  /// clock at palpated's start, time 0 of the tools' clock.
-  ServedModel(SurfaceModel loaded, const DaemonConfig& config, std::int64_t start_unix_ns);
+  /// What the daemon's configuration says of every model.
+  struct Options {
+    SolverLimits limits;
+    std::vector<ToolGeometry> tools;
+    ContactSettings contact;
+    std::filesystem::path record_directory;  ///< empty: no recording
+    std::string daemon_id;                   ///< for the recordings
+    std::int64_t start_unix_ns = 0;  ///< wall clock at palpated's start: time 0 of the tools
+  };
+
+  /// Serves @p loaded. When recording is on, the model's session file
+  /// starts now, before any pose, so that the pose listener never creates a
+  /// file (a recorder that cannot start is logged and the model served
+  /// without).
+  ServedModel(SurfaceModel loaded, const Options& options);
 
   SurfaceModel model;
   std::unique_ptr<ConstraintSolver> solver;  // the request listener's

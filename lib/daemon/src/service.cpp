@@ -84,8 +84,10 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
                                                      config.limits.max_constraints);
   tools = std::make_unique<daemon::ToolServer>(models, served_ids, clock);
   stream = std::make_unique<daemon::StreamPublisher>(
-      daemon::StreamPublisher::Sources{models, *requests, *tools, *replies, clock}, config,
-      participant.get(), surface_topic, status_topic);
+      daemon::StreamPublisher::Sources{models, requests->stats(), tools->stats(), clock,
+                                       [this] { return replies->count(); },
+                                       [this] { tools->run_watchdogs(); }},
+      config, participant.get(), surface_topic, status_topic);
 
   publish_descriptions();
   // The listeners are made last: they may fire at once.
@@ -97,6 +99,9 @@ void Service::Impl::load_models() {
   const auto wall_start = std::chrono::system_clock::now() - (Clock::now() - clock.started);
   const std::int64_t start_unix_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(wall_start.time_since_epoch()).count();
+  const daemon::ServedModel::Options options{config.limits,    config.tools,
+                                             config.contact,   config.record_directory,
+                                             config.daemon_id, start_unix_ns};
   for (const auto& entry : config.models) {
     const auto start = Clock::now();
     SurfaceModel loaded = load_surface_model(entry.id, entry.file, /*keep_float32=*/true);
@@ -110,8 +115,7 @@ void Service::Impl::load_models() {
         loaded.mesh_vertex_count(), loaded.surface.triangle_count(), loaded.G_bytes() / 1e6,
         loaded.float32() ? "float32" : "float64", seconds);
     served_ids += (served_ids.empty() ? "" : ", ") + loaded.id;
-    models.push_back(
-        std::make_unique<daemon::ServedModel>(std::move(loaded), config, start_unix_ns));
+    models.push_back(std::make_unique<daemon::ServedModel>(std::move(loaded), options));
   }
 }
 
@@ -176,8 +180,8 @@ void Service::run() {
   s.stream->join();
   if (!s.stream_failure.empty())
     throw SystemError("the surface stream failed: " + s.stream_failure);
-  spdlog::info("event=stopped requests_served={} error_replies={}", s.requests->served(),
-               s.requests->errors());
+  spdlog::info("event=stopped requests_served={} error_replies={}", s.requests->stats().served(),
+               s.requests->stats().errors());
 }
 
 void Service::request_stop() { impl_->stop(); }

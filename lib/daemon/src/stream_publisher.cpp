@@ -109,11 +109,11 @@ void StreamPublisher::publish_status(double interval_s, std::uint64_t served_in_
     status.request_to_reply = percentiles(second_us_, n);
   }
   status.models = static_cast<std::uint32_t>(sources_.models.size());
-  status.clients = static_cast<std::uint32_t>(sources_.replies.count());
-  status.tool_poses = sources_.tools.poses();
-  status.tool_poses_refused = sources_.tools.refused();
+  status.clients = static_cast<std::uint32_t>(sources_.clients());
+  status.tool_poses = sources_.poses.served();
+  status.tool_poses_refused = sources_.poses.errors();
   {
-    const std::size_t n = sources_.tools.latencies().drain(first_us_, second_us_);
+    const std::size_t n = sources_.poses.latencies().drain(first_us_, second_us_);
     status.tool_compute = percentiles(first_us_, n);
   }
   if (const dds_return_t rc = dds_write(status_writer_.get(), &status); rc < 0)
@@ -140,7 +140,7 @@ void StreamPublisher::loop() {
     if (stopping_.load()) break;
     auto now = Clock::now();
     if (now >= next_watchdog) {
-      sources_.tools.run_watchdogs();
+      sources_.watchdog();
       next_watchdog = std::max(next_watchdog + watchdog_period, now);
       now = Clock::now();
     }

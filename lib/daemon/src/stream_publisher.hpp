@@ -17,10 +17,7 @@
 #include "palpate.h"
 #include "palpate/daemon/daemon_config.hpp"
 #include "palpate/transport/dds.hpp"
-#include "reply_writers.hpp"
-#include "request_server.hpp"
 #include "served_model.hpp"
-#include "tool_server.hpp"
 
 namespace palpate::daemon {
 
@@ -29,10 +26,11 @@ class StreamPublisher {
   /// Everything the stream and the heartbeat report on.
   struct Sources {
     const std::vector<std::unique_ptr<ServedModel>>& models;
-    RequestServer& requests;
-    ToolServer& tools;
-    ReplyWriters& replies;
+    ServerStats& requests;  ///< served: requests; errors: error replies
+    ServerStats& poses;     ///< served: poses taken; errors: poses refused
     const DaemonClock& clock;
+    std::function<std::size_t()> clients;  ///< clients with a reply writer
+    std::function<void()> watchdog;        ///< the tools' watchdog, every 5 ms
   };
   /// Writers of @p surface_topic and @p status_topic in @p participant.
   StreamPublisher(Sources sources, const DaemonConfig& config, dds_entity_t participant,

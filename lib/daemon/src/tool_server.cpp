@@ -71,7 +71,7 @@ void ToolServer::take(const palpate_ToolPose& pose) {
   for (const auto& candidate : models_)
     if (candidate->model.id == model_id) served = candidate.get();
   if (served == nullptr) {
-    refused_.fetch_add(1, std::memory_order_relaxed);
+    stats_.count_error();
     warnings_.warn(kUnknownModel,
                    "event=pose_ignored tool=\"{}\" model=\"{}\" reason=unknown_model "
                    "served=\"{}\"",
@@ -81,7 +81,7 @@ void ToolServer::take(const palpate_ToolPose& pose) {
   ToolContactEngine& engine = *served->tools.engine;
   const int tool = engine.tool_index(tool_id);
   if (tool < 0) {
-    refused_.fetch_add(1, std::memory_order_relaxed);
+    stats_.count_error();
     warnings_.warn(kUnknownTool,
                    "event=pose_ignored tool=\"{}\" model={} reason=unknown_tool "
                    "hint=\"tools are configured in [[tools]]\"",
@@ -91,7 +91,7 @@ void ToolServer::take(const palpate_ToolPose& pose) {
   ToolPoseInput input = wire::from_idl(pose);
   const std::lock_guard lock(served->tools.mutex);
   if (const PoseProblem problem = engine.check(tool, input); problem != PoseProblem::kNone) {
-    refused_.fetch_add(1, std::memory_order_relaxed);
+    stats_.count_error();
     warnings_.warn(kBadPose + static_cast<int>(problem) * 4,
                    "event=pose_ignored tool={} model={} sequence={} reason={} "
                    "position=[{:g},{:g},{:g}] jaw_angle={:g}",
@@ -104,7 +104,7 @@ void ToolServer::take(const palpate_ToolPose& pose) {
     warnings_.warn(kSolveFailed,
                    "event=tool_solve_failed tool={} model={} status={} message=\"{}\"", tool_id,
                    model_id, status_name(status), engine.solver_message());
-  poses_.fetch_add(1, std::memory_order_relaxed);
+  stats_.count_served();
   publish(*served, tool,
           static_cast<std::uint64_t>(
               std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count()));
@@ -120,7 +120,7 @@ void ToolServer::publish(ServedModel& served, int tool, std::uint64_t compute_ns
     spdlog::error("event=dds_error what=\"writing tool feedback\" tool={} error={}", tool_id,
                   dds_strretcode(rc));
   const double compute_us = static_cast<double>(compute_ns) * 1e-3;
-  latencies_.record(compute_us, compute_us);
+  stats_.latencies().record(compute_us, compute_us);
 
   for (int e = 0; e < out.event_count; ++e) {
     const ToolEventKind kind = out.events[static_cast<std::size_t>(e)];

@@ -42,10 +42,9 @@ class ToolServer {
   /// Closes every model's session recording (after stop()).
   void close_recorders();
 
-  std::uint64_t poses() const { return poses_.load(std::memory_order_relaxed); }
-  std::uint64_t refused() const { return refused_.load(std::memory_order_relaxed); }
-  /// Compute time of each tick, µs (twice: the log keeps pairs).
-  LatencyLog& latencies() { return latencies_; }
+  /// Poses taken, poses refused, and each tick's compute time (µs, twice:
+  /// the log keeps pairs).
+  ServerStats& stats() { return stats_; }
 
  private:
   static constexpr int kBatch = 8;  // poses taken per dds_take
@@ -68,8 +67,7 @@ class ToolServer {
   dds_sample_info_t infos_[kBatch];
 
   WarningLimiter warnings_;  // the listener's only: Cyclone calls it from one thread at a time
-  std::atomic<std::uint64_t> poses_{0}, refused_{0};
-  LatencyLog latencies_;
+  ServerStats stats_;
 };
 
 }  // namespace palpate::daemon

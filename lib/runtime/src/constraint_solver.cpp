@@ -34,34 +34,6 @@ RequestStatus fail(std::array<char, 256>& message, RequestStatus status,
 
 }  // namespace
 
-const char* status_name(RequestStatus status) {
-  switch (status) {
-    case RequestStatus::kOk:
-      return "ok";
-    case RequestStatus::kUnknownModel:
-      return "unknown_model";
-    case RequestStatus::kVertexOutOfRange:
-      return "vertex_out_of_range";
-    case RequestStatus::kVertexNotOnSurface:
-      return "vertex_not_on_surface";
-    case RequestStatus::kVertexFixed:
-      return "vertex_fixed";
-    case RequestStatus::kDuplicateVertex:
-      return "duplicate_vertex";
-    case RequestStatus::kNonFiniteValue:
-      return "non_finite_value";
-    case RequestStatus::kBadConstraint:
-      return "bad_constraint";
-    case RequestStatus::kTooManyConstraints:
-      return "too_many_constraints";
-    case RequestStatus::kIllConditioned:
-      return "ill_conditioned";
-    case RequestStatus::kInternalError:
-      return "internal_error";
-  }
-  return "unknown_status";
-}
-
 /// One cached factorization: the structure it was built for (vertices, kinds,
 /// normals) and G_CC, G_CC B and the Cholesky factor of Bᵀ G_CC B.
 struct ConstraintSolver::Slot {

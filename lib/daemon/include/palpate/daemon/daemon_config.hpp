@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "palpate/runtime/constraint_solver.hpp"
-#include "palpate/runtime/tool_contact.hpp"
+#include "palpate/runtime/tool_geometry.hpp"
 
 namespace palpate {
 

@@ -12,36 +12,11 @@
 #include <vector>
 
 #include "palpate/core/eigen.hpp"
+#include "palpate/runtime/request_status.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/surface_product.hpp"
 
 namespace palpate {
-
-/// What a request asks of one vertex (numbers match idl/palpate.idl).
-enum class ConstraintKind : std::int32_t {
-  kForce = 0,               ///< value = applied force, N
-  kDisplacement = 1,        ///< value = imposed displacement, m
-  kNormalDisplacement = 2,  ///< value[0] = displacement along the normal, m; no tangential force
-};
-
-/// Outcome of a request (numbers match ReplyStatus in idl/palpate.idl and
-/// the table in docs/dds.md).
-enum class RequestStatus : std::int32_t {
-  kOk = 0,
-  kUnknownModel,
-  kVertexOutOfRange,
-  kVertexNotOnSurface,
-  kVertexFixed,
-  kDuplicateVertex,
-  kNonFiniteValue,
-  kBadConstraint,
-  kTooManyConstraints,
-  kIllConditioned,
-  kInternalError,
-};
-
-/// Stable lower-case name of a status ("vertex_fixed"), for logs and docs.
-const char* status_name(RequestStatus status);
 
 /// Limits of one solver, from the daemon's configuration.
 struct SolverLimits {

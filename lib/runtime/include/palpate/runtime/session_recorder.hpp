@@ -19,7 +19,8 @@
 #include <string>
 #include <vector>
 
-#include "palpate/runtime/tool_contact.hpp"
+#include "palpate/runtime/tool_geometry.hpp"
+#include "palpate/runtime/tool_state.hpp"
 
 namespace palpate {
 

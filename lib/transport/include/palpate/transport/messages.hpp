@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/drawn_surface.hpp"
-#include "palpate/runtime/tool_contact.hpp"
+#include "palpate/runtime/request_status.hpp"
+#include "palpate/runtime/tool_state.hpp"
 
 namespace palpate {
 
