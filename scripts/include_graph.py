@@ -11,6 +11,9 @@ programs include only the library's public headers.
 
     scripts/include_graph.py [ROOT]          # the numbers, then the rule
     scripts/include_graph.py --check [ROOT]  # exit 1 if the rule is broken
+    scripts/include_graph.py --programs-as-one [ROOT]
+        # each program folder (precompute/, server/, clients/, viewer/,
+        # bench/, fuzz/, examples/) counted as one unit
 
 Reads the code as text: `#include "..."` lines, resolved against the
 repository's include folders. Needs only Python 3.
@@ -66,7 +69,8 @@ def layer_of(path):
 
 def main(argv):
     check = "--check" in argv
-    args = [a for a in argv if a != "--check"]
+    programs_as_one = "--programs-as-one" in argv
+    args = [a for a in argv if not a.startswith("--")]
     root = os.path.abspath(args[0] if args else os.path.join(os.path.dirname(__file__), ".."))
     all_files = sorted(files(root))
     present = set(all_files)
@@ -78,7 +82,7 @@ def main(argv):
             stem_unit[os.path.basename(unit(f))] = unit(f)
     def unit_of(f):
         if not f.startswith("lib"):
-            return unit(f)
+            return f.split(os.sep)[0] if programs_as_one else unit(f)
         stem = os.path.basename(unit(f))
         stem = stem[: -len("_internal")] if stem.endswith("_internal") else stem
         return stem_unit.get(stem, unit(f))

@@ -1,5 +1,5 @@
-// Writes the known session that tests/session_report_test.py and
-// tests/session_plots_test.py check scripts/session_report.py and
+// Writes the known session that tests/scripts/session_report_test.py and
+// tests/scripts/session_plots_test.py check scripts/session_report.py and
 // scripts/session_plots.py against (its values are computed by hand there).
 // Usage: palpate_session_writer_for_tests OUT.h5 [--crash]
 //   --crash: wait until every tick is flushed, then SIGKILL this process, so

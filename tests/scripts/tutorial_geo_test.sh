@@ -4,7 +4,7 @@
 # tetrahedra of the size asked, and palpate-precompute takes the result.
 # The surface: an ellipsoid of semi-axes 60 × 40 × 30 mm made by Gmsh.
 #
-# Usage: tests/tutorial_geo_test.sh PALPATE_PRECOMPUTE
+# Usage: tests/scripts/tutorial_geo_test.sh PALPATE_PRECOMPUTE
 set -euo pipefail
 precompute=$1
 source_dir=$(realpath "$(dirname "$0")/../..")

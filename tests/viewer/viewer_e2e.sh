@@ -4,7 +4,7 @@
 # Chromium shows it, palpate-pliers presses it (viewer/test/viewer_e2e.mjs
 # has the checks). Screenshots and logs go to OUT_DIR.
 #
-# Usage: tests/viewer_e2e.sh BUILD_DIR OUT_DIR
+# Usage: tests/viewer/viewer_e2e.sh BUILD_DIR OUT_DIR
 # CTest starts it inside a private network namespace (unshare --net, lo up);
 # it refuses to start DDS anywhere else.
 set -euo pipefail

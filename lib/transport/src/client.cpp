@@ -165,17 +165,4 @@ std::optional<StatusSample> Client::wait_status(std::chrono::milliseconds timeou
 
 DaemonPresence Client::daemon_presence() { return impl_->watch.poll(Clock::now()); }
 
-std::optional<std::string> describe_presence_change(const DaemonPresence& before,
-                                                    const DaemonPresence& now) {
-  if (now.state == DaemonState::kLost && before.state != DaemonState::kLost)
-    return fmt::format("palpated lost: no status heartbeat for {:.1f} s", now.silent_s);
-  const bool restarted = now.restarts > before.restarts;
-  if (now.state == DaemonState::kPresent && before.state == DaemonState::kLost)
-    return fmt::format("palpated is back (up {:.1f} s{})", now.uptime_s,
-                       restarted ? "; restarted" : "");
-  if (now.state == DaemonState::kPresent && restarted)
-    return fmt::format("palpated restarted (up {:.1f} s)", now.uptime_s);
-  return std::nullopt;
-}
-
 }  // namespace palpate

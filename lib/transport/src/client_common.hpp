@@ -19,8 +19,9 @@
 
 #include "palpate.h"
 #include "palpate/core/error.hpp"
-#include "palpate/transport/client.hpp"
 #include "palpate/transport/dds.hpp"
+#include "palpate/transport/messages.hpp"
+#include "palpate/transport/presence.hpp"
 #include "palpate/transport/wire.hpp"
 
 namespace palpate::detail {

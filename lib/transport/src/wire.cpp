@@ -2,6 +2,9 @@
 
 #include <algorithm>
 
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/surface_model.hpp"
+
 namespace palpate::wire {
 
 // The wire enums and the library's agree number for number.

@@ -51,31 +51,6 @@
 
 namespace palpate {
 
-/// A pose as the device sends it.
-struct ToolPoseInput {
-  std::uint64_t sequence = 0;
-  std::int64_t send_time_ns = 0;
-  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();             ///< hinge, model frame
-  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< tool → model
-  double jaw_angle_rad = 0;
-};
-
-/// What a tool feels after a tick.
-struct ToolOutput {
-  Eigen::Vector3d force_n = Eigen::Vector3d::Zero();    ///< on the tool, limited
-  Eigen::Vector3d torque_nm = Eigen::Vector3d::Zero();  ///< about the hinge
-  double grip_n = 0;                                    ///< per jaw
-  int contacts = 0;                                     ///< vertices this tool constrains
-  int held = 0;                                         ///< of which held by the jaws
-  ToolState state = ToolState::kFree;
-  bool force_limited = false;  ///< clamped or rate limited this tick
-  bool watchdog = false;       ///< ramping out
-  std::uint64_t sequence = 0;  ///< of the pose it answers
-  std::int64_t send_time_ns = 0;
-  std::array<ToolEventKind, 4> events{};  ///< state changes of this tick, in order
-  int event_count = 0;
-};
-
 class ToolContactEngine {
  public:
   /// @p model must outlive the engine. Sizes every buffer for the tools.

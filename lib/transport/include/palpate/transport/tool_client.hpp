@@ -27,7 +27,8 @@
 #include <string_view>
 #include <vector>
 
-#include "palpate/transport/client.hpp"
+#include "palpate/transport/messages.hpp"
+#include "palpate/transport/presence.hpp"
 
 namespace palpate {
 

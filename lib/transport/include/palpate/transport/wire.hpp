@@ -20,10 +20,14 @@
 #include <vector>
 
 #include "palpate.h"
-#include "palpate/runtime/constraint_solver.hpp"
-#include "palpate/runtime/surface_model.hpp"
-#include "palpate/runtime/tool_contact.hpp"
+#include "palpate/runtime/request_status.hpp"
+#include "palpate/runtime/tool_state.hpp"
 #include "palpate/transport/messages.hpp"
+
+namespace palpate {
+class ConstraintSolver;
+struct SurfaceModel;
+}  // namespace palpate
 
 namespace palpate::wire {
 
