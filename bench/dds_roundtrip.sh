@@ -7,7 +7,7 @@
 # Everything runs inside ONE private network namespace whose only interface
 # is loopback (unshare --net), and every DDS process gets palpate's loopback
 # Cyclone configuration through CYCLONEDDS_URI (the XML of
-# palpate::dds::loopback_config() in lib/src/dds.cpp): no DDS packet can reach
+# palpate::dds::loopback_config() in lib/transport/src/dds.cpp): no DDS packet can reach
 # a real network.
 #
 # 1. palpated serves MODEL.h5 as "liver"; palpate_rtt_bench measures the

@@ -65,7 +65,7 @@ def new_figure(width_in, height_in):
 def nearest_rank(values, q):
     """The q-quantile (q in [0, 1]) of values: the sorted element at rank
     round(q·(n − 1)), as palpated's heartbeat reports its latencies
-    (lib/include/palpate/statistics.hpp). 0 for no values."""
+    (lib/core/include/palpate/core/statistics.hpp). 0 for no values."""
     if len(values) == 0:
         return 0.0
     s = np.sort(values)

@@ -8,7 +8,7 @@
 // Gmsh writes the output file even when meshing fails: check its exit code.
 //
 // The steps of Gmsh's tutorial t13 and of palpate-precompute's own STL
-// filling (--fill-size, lib/src/mesh_io.cpp): the STL triangles are
+// filling (--fill-size, lib/offline/src/mesh_io.cpp): the STL triangles are
 // grouped into patches, each patch gets a parametrization, the patches are
 // remeshed at the target size, and the volume they enclose is filled with
 // tetrahedra. Lengths are in the STL's unit (here mm).

@@ -1,7 +1,7 @@
 // Format 1.1's additions for viewers: the softness map and the fixed flags in
 // /visualization, the XDMF sidecar, its option, its errors, and that 1.0 files
 // (without /visualization) still load, in the daemon's loader too.
-// tests/xdmf_test.py checks the same files with independent readers (numpy,
+// tests/file/xdmf_test.py checks the same files with independent readers (numpy,
 // meshio).
 
 #include "palpate/file/xdmf.hpp"
