@@ -18,15 +18,13 @@
 #include <string.h>
 
 #include "palpate.h"
+/* PALPATE_LOOPBACK_CONFIG: palpate's own configuration (config/dds-loopback.xml:
+ * loopback only, no multicast, unicast discovery to 127.0.0.1), as
+ * palpate::dds::loopback_config() uses it. A copy of this example outside
+ * palpate's build pastes that file's text instead. */
+#include "palpate_loopback_config.h"
 
-/* The same configuration as palpate::dds::loopback_config(): loopback only,
- * no multicast, unicast discovery to 127.0.0.1. */
-static const char* const kLoopbackConfig =
-    "<General><Interfaces><NetworkInterface name=\"lo\" multicast=\"false\"/></Interfaces>"
-    "<AllowMulticast>false</AllowMulticast></General>"
-    "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
-    "<MaxAutoParticipantIndex>100</MaxAutoParticipantIndex>"
-    "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery>";
+static const char* const kLoopbackConfig = PALPATE_LOOPBACK_CONFIG;
 
 static const dds_domainid_t kDomain = 0;
 

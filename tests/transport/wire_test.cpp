@@ -519,7 +519,9 @@ TEST_F(WireSolverTest, LoadingStopsAtTheFirstBadConstraint) {
   // An unknown kind number from the wire is refused, not cast blindly.
   storage[1] = storage[0];
   storage[1].vertex = vertex(4);
-  storage[1].kind = static_cast<palpate_ConstraintKind>(7);
+  // As a sender writes it: 32 bits that no enumerator of the IDL names.
+  const std::int32_t unknown_kind = 7;
+  std::memcpy(&storage[1].kind, &unknown_kind, sizeof unknown_kind);
   EXPECT_EQ(wire::load_constraints(request, solver), RequestStatus::kBadConstraint);
   // Too many for the limits.
   ConstraintSolver small(model(), {.max_constraints = 2});

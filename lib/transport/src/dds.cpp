@@ -6,8 +6,8 @@
 #include <mutex>
 #include <sstream>
 
-#include "loopback_config.hpp"
 #include "palpate/core/error.hpp"
+#include "palpate_loopback_config.h"
 
 namespace palpate::dds {
 
@@ -22,7 +22,7 @@ dds_return_t check(dds_return_t status, std::string_view what) {
   return status;
 }
 
-std::string_view loopback_config() { return detail::kLoopbackConfig; }
+std::string_view loopback_config() { return PALPATE_LOOPBACK_CONFIG; }
 
 DomainConfig resolve_domain_config(const std::string& user_config) {
   if (!user_config.empty()) {

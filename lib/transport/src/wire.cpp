@@ -29,6 +29,17 @@ std::array<T, N> to_array(const T (&values)[N]) {
   return a;
 }
 
+/// An enum field of a received sample as the number it holds. A sender may
+/// put any 32-bit value there (palpated validates it); loading it as the C
+/// enum type would be undefined behaviour for a value outside its range.
+template <typename Enum>
+std::int32_t received(const Enum& field) {
+  static_assert(sizeof(Enum) == sizeof(std::int32_t));
+  std::int32_t value;
+  std::memcpy(&value, &field, sizeof value);
+  return value;
+}
+
 template <typename Sequence>
 auto to_vector(const Sequence& sequence) {
   return std::vector(sequence._buffer, sequence._buffer + sequence._length);
@@ -89,7 +100,7 @@ RequestStatus load_constraints(const palpate_ConstraintRequest& request, Constra
   RequestStatus status = solver.begin(k);
   for (std::uint32_t j = 0; j < k && status == RequestStatus::kOk; ++j) {
     const palpate_Constraint& c = request.constraints._buffer[j];
-    status = solver.add(c.vertex, static_cast<std::int32_t>(c.kind), c.value, c.normal);
+    status = solver.add(c.vertex, received(c.kind), c.value, c.normal);
   }
   return status;
 }
@@ -116,7 +127,7 @@ Reply from_idl(const palpate_ConstraintReply& r) {
   Reply out;
   out.request_id = r.request_id;
   out.model_id = bounded(r.model_id);
-  out.status = static_cast<RequestStatus>(r.status);
+  out.status = static_cast<RequestStatus>(received(r.status));
   out.message = bounded(r.message);
   out.condition_estimate = r.condition_estimate;
   out.total_force_n = to_array(r.total_force);
@@ -220,7 +231,7 @@ ToolFeedbackSample from_idl(const palpate_ToolFeedback& f, std::int64_t receive_
   s.torque_nm = to_array(f.torque);
   s.grip_n = f.grip_force;
   s.contacts = f.contacts;
-  s.state = static_cast<ToolState>(f.state);
+  s.state = static_cast<ToolState>(received(f.state));
   s.force_limited = f.force_limited;
   s.watchdog = f.watchdog;
   s.compute_ns = f.compute_ns;
@@ -241,7 +252,7 @@ ToolEventSample from_idl(const palpate_ToolEvent& e, std::int64_t receive_time_n
   ToolEventSample s;
   s.tool_id = bounded(e.tool_id);
   s.model_id = bounded(e.model_id);
-  s.kind = static_cast<ToolEventKind>(e.kind);
+  s.kind = static_cast<ToolEventKind>(received(e.kind));
   s.pose_sequence = e.pose_sequence;
   s.held_vertices = e.held_vertices;
   s.daemon_time_ns = e.daemon_time_ns;
