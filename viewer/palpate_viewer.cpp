@@ -27,6 +27,7 @@
 
 #include "feed.hpp"
 #include "palpate/core/error.hpp"
+#include "palpate/core/suggest.hpp"
 #include "palpate/core/version.hpp"
 #include "palpate/daemon/daemon_config.hpp"
 
@@ -403,7 +404,10 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);
-    std::fprintf(stderr, "palpate-viewer: error: %s (see --help)\n", e.what());
+    std::fprintf(stderr, "palpate-viewer: error: %s%s (see --help)\n", e.what(),
+                 palpate::flag_suggestions(std::vector<std::string>(argv + 1, argv + argc),
+                                           palpate::long_flag_names(app))
+                     .c_str());
     return static_cast<int>(ExitCode::kUsage);
   }
   files = {web_root, node_modules};

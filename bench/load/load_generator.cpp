@@ -69,6 +69,7 @@
 
 #include "load_common.hpp"
 #include "load_report.hpp"
+#include "palpate/core/suggest.hpp"
 #include "palpate/transport/tool_client.hpp"
 #include "support/child_process.hpp"
 
@@ -211,7 +212,10 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);
-    std::fprintf(stderr, "palpate_load_generator: error: %s (see --help)\n", e.what());
+    std::fprintf(stderr, "palpate_load_generator: error: %s%s (see --help)\n", e.what(),
+                 palpate::flag_suggestions(std::vector<std::string>(argv + 1, argv + argc),
+                                           palpate::long_flag_names(app))
+                     .c_str());
     return static_cast<int>(palpate::ExitCode::kUsage);
   }
   if (s.warmup_s >= s.seconds) throw palpate::InputError("--warmup must be shorter than --seconds");

@@ -143,7 +143,7 @@ TEST(Precompute, EachBadInputGetsItsErrorAndNoFile) {
     PrecomputeJob j = good;
     j.attachment = {};
     j.attachment.spheres.push_back({{0, 0, 0}, 1e-4});  // one corner vertex only
-    expect_error<InputError>([&] { run(j); }, {"fixes 1 vertices", "rigid motions", "at least 3"});
+    expect_error<InputError>([&] { run(j); }, {"fixes 1 vertex,", "rigid motions", "at least 3"});
   }
   {
     PrecomputeJob j = good;

@@ -9,6 +9,7 @@
 #include <unordered_map>
 
 #include "palpate/core/error.hpp"
+#include "palpate/offline/mesh_io.hpp"
 
 namespace palpate {
 
@@ -38,11 +39,17 @@ std::vector<int> read_vertex_id_file(const std::filesystem::path& file) {
 std::vector<int> select_fixed_vertices(const TetMesh& mesh, const AttachmentSpec& spec) {
   const Eigen::Index nv = mesh.vertices.rows();
   std::vector<bool> fixed(nv, false);
-  const Eigen::Vector3d lo = mesh.vertices.colwise().minCoeff().transpose();
-  const Eigen::Vector3d hi = mesh.vertices.colwise().maxCoeff().transpose();
+  // Messages about regions speak the unit they were given in.
+  const std::string& unit = spec.unit;
+  const double scale = 1 / parse_length_unit(unit).to_metres;
+  const Eigen::Vector3d lo = scale * mesh.vertices.colwise().minCoeff().transpose();
+  const Eigen::Vector3d hi = scale * mesh.vertices.colwise().maxCoeff().transpose();
   const std::string extent =
-      fmt::format("the mesh spans ({:.4g}, {:.4g}, {:.4g}) to ({:.4g}, {:.4g}, {:.4g}) m", lo.x(),
-                  lo.y(), lo.z(), hi.x(), hi.y(), hi.z());
+      fmt::format("the mesh spans ({:.4g}, {:.4g}, {:.4g}) to ({:.4g}, {:.4g}, {:.4g}) {}", lo.x(),
+                  lo.y(), lo.z(), hi.x(), hi.y(), hi.z(), unit);
+  auto point = [&](const Eigen::Vector3d& x) {
+    return fmt::format("({:.6g}, {:.6g}, {:.6g})", scale * x.x(), scale * x.y(), scale * x.z());
+  };
 
   for (const auto& name : spec.groups) {
     auto it = mesh.group_vertices.find(name);
@@ -64,7 +71,9 @@ std::vector<int> select_fixed_vertices(const TetMesh& mesh, const AttachmentSpec
     const auto max_source = std::max<Eigen::Index>(mesh.source_vertex_count, nv) - 1;
     std::unordered_map<int, int> index_of_source;
     for (Eigen::Index v = 0; v < nv; ++v) index_of_source[mesh.source_ids[v]] = static_cast<int>(v);
-    for (int id : read_vertex_id_file(spec.ids_file)) {
+    const std::vector<int> listed = read_vertex_id_file(spec.ids_file);
+    int selected = 0;
+    for (int id : listed) {
       auto it = index_of_source.find(id);
       if (it == index_of_source.end()) {
         if (id > max_source)
@@ -75,7 +84,14 @@ std::vector<int> select_fixed_vertices(const TetMesh& mesh, const AttachmentSpec
         continue;  // a node no tetrahedron uses: dropped with a warning, nothing to hold
       }
       fixed[it->second] = true;
+      ++selected;
     }
+    if (selected == 0)
+      throw InputError(fmt::format(
+          "{}: the vertex id file selects no vertex of a tetrahedron ({}); expected 0-based "
+          "indices of the mesh file's nodes, one per line",
+          spec.ids_file.string(),
+          listed.empty() ? "it lists none" : "every index it lists is a node no tetrahedron uses"));
   }
 
   auto select = [&](auto inside, const std::string& what) {
@@ -93,18 +109,17 @@ std::vector<int> select_fixed_vertices(const TetMesh& mesh, const AttachmentSpec
         [&](const Eigen::Vector3d& x) {
           return (x.array() >= b.min.array()).all() && (x.array() <= b.max.array()).all();
         },
-        fmt::format("box ({}, {}, {}) to ({}, {}, {}) m", b.min.x(), b.min.y(), b.min.z(),
-                    b.max.x(), b.max.y(), b.max.z()));
+        fmt::format("box {} to {} {}", point(b.min), point(b.max), unit));
   for (const auto& s : spec.spheres)
     select([&](const Eigen::Vector3d& x) { return (x - s.center).norm() <= s.radius; },
-           fmt::format("sphere at ({}, {}, {}) m of radius {} m", s.center.x(), s.center.y(),
-                       s.center.z(), s.radius));
+           fmt::format("sphere at {} {} of radius {:.6g} {}", point(s.center), unit,
+                       scale * s.radius, unit));
   for (const auto& h : spec.half_spaces) {
     if (!(h.normal.norm() > 0))
       throw InputError("attachment half-space: the normal must be a non-zero vector");
     select([&](const Eigen::Vector3d& x) { return (x - h.point).dot(h.normal) >= 0; },
-           fmt::format("half-space through ({}, {}, {}) m with normal ({}, {}, {})", h.point.x(),
-                       h.point.y(), h.point.z(), h.normal.x(), h.normal.y(), h.normal.z()));
+           fmt::format("half-space through {} {} with normal ({}, {}, {})", point(h.point), unit,
+                       h.normal.x(), h.normal.y(), h.normal.z()));
   }
 
   std::vector<int> ids;
@@ -149,9 +164,10 @@ void check_attachment_stops_rigid_motion(const TetMesh& mesh, const std::vector<
     }
     if (!spread)
       throw InputError(fmt::format(
-          "{}: the attachment fixes {} vertices{}{}, which cannot stop the rigid motions: fix at "
+          "{}: the attachment fixes {} {}{}{}, which cannot stop the rigid motions: fix at "
           "least 3 vertices not on one line in every part of the organ",
-          mesh.source, f.size(), f.size() >= 3 ? " all on one line" : "", where));
+          mesh.source, f.size(), f.size() == 1 ? "vertex" : "vertices",
+          f.size() >= 3 ? " all on one line" : "", where));
   }
 }
 

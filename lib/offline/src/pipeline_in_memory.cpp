@@ -21,17 +21,12 @@ void run_in_memory(const PrecomputeJob& job, Problem& p, const MemoryLimit& limi
   const bool do_condensation = job.method != Method::kSolves;
   const double g_bytes = 8.0 * m * static_cast<double>(m);
   {
-    // G, plus each method's factor and work arrays (they run one at a time).
-    double need = 0;
-    if (do_solves)
-      need = std::max(need, g_bytes + SparseCholesky::estimate_factor_bytes(K) +
-                                solve_thread_bytes(p.n, m, std::min(job.block_columns, m),
-                                                   /*converted=*/false) *
-                                    solve_threads());
-    if (do_condensation)
-      need = std::max(
-          need, g_bytes + SparseCholesky::estimate_factor_bytes(K, condensation_ordering(K, m)));
-    need += 12.0 * static_cast<double>(K.nonZeros());
+    const double need = in_memory_bytes(
+        job.method, p.n, m, std::min(job.block_columns, m),
+        12.0 * static_cast<double>(K.nonZeros()),
+        do_solves ? SparseCholesky::estimate_factor_bytes(K) : 0.0,
+        do_condensation ? SparseCholesky::estimate_factor_bytes(K, condensation_ordering(K, m))
+                        : 0.0);
     MemoryReport& memory = report.memory.emplace();
     memory.G_bytes = g_bytes;
     memory.estimate_bytes = need;

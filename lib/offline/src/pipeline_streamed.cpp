@@ -87,21 +87,12 @@ void run_streamed(const PrecomputeJob& job, Problem& p, ColumnRange columns,
   const auto checkpoint = checkpoint_path(target);
   const int width = columns.end - columns.begin;
 
-  // G is never in memory. What is: K; the factor, and CHOLMOD's permuted
-  // copies of K while it factors (freed, but glibc keeps them in the heap);
-  // per solve thread its arrays and the block on the way to the file (as
-  // float32 too); one more block being converted; the checks. Against the
-  // solves phase's peak resident memory less its start (docs/precompute.md):
-  // 280 MB for 310 estimated on one thread, 374 for 407 on two (110k-tet
-  // liver, B = 64); 2.90 GB for 3.06 on two (505k tets). Writing the final
-  // file needs a band of rows, which fits any limit these do.
+  // G is never in memory (streamed_memory_bytes() says what is).
   const double k_bytes = 12.0 * static_cast<double>(K.nonZeros());
   const int threads = std::min(solve_threads(), id.blocks());
   const int block = std::min(block_columns, m);
   const double factor_bytes = SparseCholesky::estimate_factor_bytes(K);
-  const double need = 3 * k_bytes + factor_bytes +
-                      threads * solve_thread_bytes(n, m, block, /*converted=*/true) +
-                      16.0 * m * block + 8.0 * m * 40 + 48.0 * m;
+  const double need = streamed_memory_bytes(n, m, block, threads, k_bytes, factor_bytes);
   const int element_bytes = job.precision == Precision::kFloat32 ? 4 : 8;
   const double file_bytes = static_cast<double>(element_bytes) * m * width;
   MemoryReport& memory = report.memory.emplace();

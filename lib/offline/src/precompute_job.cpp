@@ -139,6 +139,7 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
     }
     if (const auto* n = t.get("ids_file"))
       a.ids_file = relative_to(base, r.string(*n, "attachment.ids_file"));
+    a.unit = job.mesh_unit.empty() ? "m" : job.mesh_unit;
     if (const auto* n = t.get("boxes"))
       r.each_table(*n, "attachment.boxes", [&](const toml::table& b) {
         r.only_keys(b, "attachment.boxes", {"min", "max"});

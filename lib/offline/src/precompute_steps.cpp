@@ -11,6 +11,7 @@
 #include "palpate/file/xdmf.hpp"
 #include "palpate/offline/attachment.hpp"
 #include "palpate/offline/mesh_io.hpp"
+#include "palpate/offline/plausibility.hpp"
 
 namespace palpate::precompute {
 
@@ -127,11 +128,16 @@ Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTi
     }
     materials.push_back({g.group, g.young_modulus_pa, g.poisson_ratio});
   }
+  for (const auto& m : materials) {
+    const std::string what = m.name == "organ" ? "organ" : "material of group '" + m.name + "'";
+    if (auto w = young_modulus_warning(m.young_modulus_pa, what)) say.warn(*w);
+    if (auto w = poisson_ratio_warning(m.poisson_ratio, what)) say.warn(*w);
+  }
 
   say.phase("read mesh");
   phases.begin("read mesh");
   const MeshReadOptions read_options{parse_length_unit(job.mesh_unit), job.fill_size};
-  p.mesh = read_mesh(job.mesh_file, read_options);
+  p.mesh = read_mesh_isolated(job.mesh_file, read_options);
   TetMesh& mesh = p.mesh;
   const MeshCheck check = validate_and_compact(mesh);
   if (!check.dropped_vertices.empty()) {
@@ -142,13 +148,7 @@ Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTi
                          mesh.source, check.dropped_vertices.size(), first));
   }
   const double diagonal = (check.bbox_max - check.bbox_min).norm();
-  if (diagonal > 3.0)
-    say.warn(fmt::format(
-        "{}: the organ is {:.3g} m across; if the file is in millimetres, use --mesh-unit mm",
-        mesh.source, diagonal));
-  if (diagonal < 0.005)
-    say.warn(
-        fmt::format("{}: the organ is {:.3g} m across; check --mesh-unit", mesh.source, diagonal));
+  if (auto w = organ_size_warning(diagonal, job.mesh_unit, mesh.source)) say.warn(*w);
   const Boundary boundary = extract_boundary(mesh);
   phases.end();
 
@@ -238,6 +238,25 @@ void refuse_if_too_big(double need, const std::string& detail, const MemoryLimit
 
 double solve_thread_bytes(int n, int m, int block, bool converted) {
   return (32.0 * n + (converted ? 16.0 : 8.0) * m) * block;
+}
+
+double streamed_memory_bytes(int n, int m, int block, int threads, double k_bytes,
+                             double factor_bytes) {
+  return 3 * k_bytes + factor_bytes +
+         threads * solve_thread_bytes(n, m, block, /*converted=*/true) + 16.0 * m * block +
+         8.0 * m * 40 + 48.0 * m;
+}
+
+double in_memory_bytes(Method method, int n, int m, int block, double k_bytes,
+                       double solves_factor_bytes, double condensation_factor_bytes) {
+  const double g_bytes = 8.0 * m * static_cast<double>(m);
+  double need = 0;
+  if (method != Method::kCondensation)
+    need =
+        std::max(need, g_bytes + solves_factor_bytes +
+                           solve_thread_bytes(n, m, block, /*converted=*/false) * solve_threads());
+  if (method != Method::kSolves) need = std::max(need, g_bytes + condensation_factor_bytes);
+  return need + k_bytes;
 }
 
 // ---- the checks and the ending -------------------------------------------------------

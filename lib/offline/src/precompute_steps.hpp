@@ -111,6 +111,22 @@ void refuse_if_too_big(double need_bytes, const std::string& detail, const Memor
 /// block is converted on its way to a file (@p converted).
 double solve_thread_bytes(int n, int m, int block, bool converted);
 
+/// Memory (bytes) of the streamed `solves` run (pipeline_streamed.cpp): K
+/// and CHOLMOD's permuted copies of it while it factors (3 × @p k_bytes),
+/// the factor, each thread's arrays and block on the way to the file, one
+/// more block being converted, the checks. Against the solves phase's peak
+/// resident memory less its start (docs/precompute.md): 280 MB for 310
+/// estimated on one thread, 374 for 407 on two (110k-tet liver, B = 64);
+/// 2.90 GB for 3.06 on two (505k tets).
+double streamed_memory_bytes(int n, int m, int block, int threads, double k_bytes,
+                             double factor_bytes);
+
+/// Memory (bytes) of the in-memory run of @p method (pipeline_in_memory.cpp):
+/// G, plus each method's factor and work arrays (they run one at a time),
+/// plus K.
+double in_memory_bytes(Method method, int n, int m, int block, double k_bytes,
+                       double solves_factor_bytes, double condensation_factor_bytes);
+
 /// Largest relative residual or column mismatch accepted (docs/model.md,
 /// "Checks before a file is written").
 inline constexpr double kMaxResidual = 1e-6;

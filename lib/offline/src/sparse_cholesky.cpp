@@ -233,15 +233,23 @@ std::vector<int> SparseCholesky::fill_reducing_ordering(const SparseMatrixd& upp
   return perm;
 }
 
-double SparseCholesky::estimate_factor_bytes(const SparseMatrixd& upper,
-                                             std::span<const int> permutation) {
+SparseCholesky::Estimate SparseCholesky::estimate(const SparseMatrixd& upper,
+                                                  std::span<const int> permutation) {
   Common common;
   cholmod_sparse A = view_upper(upper);
   cholmod_factor* L = analyze(&A, permutation, common);
-  const double bytes =
+  Estimate e;
+  e.bytes =
       static_cast<double>(L->xsize) * sizeof(double) + static_cast<double>(L->ssize) * sizeof(int);
+  e.nnz_L = common.c.lnz;
+  e.flops = common.c.fl;
   cholmod_free_factor(&L, &common.c);
-  return bytes;
+  return e;
+}
+
+double SparseCholesky::estimate_factor_bytes(const SparseMatrixd& upper,
+                                             std::span<const int> permutation) {
+  return estimate(upper, permutation).bytes;
 }
 
 }  // namespace palpate

@@ -32,6 +32,9 @@ struct AttachmentSpec {
   std::vector<BoxRegion> boxes;
   std::vector<SphereRegion> spheres;
   std::vector<HalfSpaceRegion> half_spaces;
+  /// The unit the regions were given in ("m", "cm" or "mm"): they are kept
+  /// in metres, and messages about them speak the user's unit.
+  std::string unit = "m";
   bool empty() const {
     return groups.empty() && ids_file.empty() && boxes.empty() && spheres.empty() &&
            half_spaces.empty();

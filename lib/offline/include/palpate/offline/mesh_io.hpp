@@ -40,6 +40,13 @@ struct MeshReadOptions {
 ///   second-order elements, or a surface that cannot be filled.
 TetMesh read_mesh(const std::filesystem::path& file, const MeshReadOptions& options);
 
+/// read_mesh() in a child process that hands the mesh back: Gmsh crashes
+/// on some damaged files (docs/fuzzing.md), and in the caller's process that
+/// would be a segmentation fault. What palpate-precompute uses.
+/// @throws InputError naming the file when Gmsh dies reading it (signal),
+///   and whatever read_mesh() throws, with its message.
+TetMesh read_mesh_isolated(const std::filesystem::path& file, const MeshReadOptions& options);
+
 /// Generates palpate's sample organ with Gmsh: a liver-sized ellipsoid
 /// (semi-axes 80 × 50 × 40 mm) holding a stiffer spherical tumour (radius
 /// 15 mm), physical volumes "parenchyma" (1) and "tumour" (2), and writes it

@@ -83,8 +83,15 @@ class SparseCholesky {
   /// without factoring it.
   static std::vector<int> fill_reducing_ordering(const SparseMatrixd& upper);
 
-  /// Memory (bytes) the supernodal factor of A would take, from a symbolic
-  /// analysis only (same @p permutation rules as the constructor).
+  /// What factoring A would take, from a symbolic analysis only.
+  struct Estimate {
+    double bytes = 0;  ///< memory of the supernodal factor
+    double nnz_L = 0;  ///< nonzeros of L
+    double flops = 0;  ///< floating-point operations of the numeric factorization
+  };
+  /// Same @p permutation rules as the constructor.
+  static Estimate estimate(const SparseMatrixd& upper, std::span<const int> permutation = {});
+  /// estimate().bytes.
   static double estimate_factor_bytes(const SparseMatrixd& upper,
                                       std::span<const int> permutation = {});
 
