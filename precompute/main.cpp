@@ -222,7 +222,8 @@ int run(int argc, char** argv) {
     for (const auto& s : merge_shards) job.shards.emplace_back(s);
     if (app.count("--xdmf")) job.write_xdmf = xdmf;
     if (app.count("--memory-limit-gb")) job.memory_limit_bytes = 1e9 * memory_gb;
-    for (const auto& target : {job.output, palpate::xdmf_sidecar_path(job.output)})
+    for (const auto& target : {job.output, palpate::xdmf_sidecar_path(job.output),
+                               palpate::xdmf_surface_sidecar_path(job.output)})
       for (const auto& stale : palpate::remove_stale_temporaries(target))
         log->warn("removed {}, left by an interrupted run (process {} is gone)",
                   stale.path.string(), stale.pid);
@@ -286,7 +287,8 @@ int run(int argc, char** argv) {
 
   // Temporaries of earlier runs of this output that were killed (SIGKILL:
   // no handler could remove them; docs/compliance-file.md, "Atomic writing").
-  for (const auto& target : {job.output, palpate::xdmf_sidecar_path(job.output)})
+  for (const auto& target : {job.output, palpate::xdmf_sidecar_path(job.output),
+                             palpate::xdmf_surface_sidecar_path(job.output)})
     for (const auto& stale : palpate::remove_stale_temporaries(target))
       log->warn("removed {}, left by an interrupted run (process {} is gone)", stale.path.string(),
                 stale.pid);

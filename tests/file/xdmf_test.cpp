@@ -1,6 +1,7 @@
 // Format 1.1's additions for viewers: the softness map and the fixed flags in
-// /visualization, the XDMF sidecar, its option, its errors, and that 1.0 files
-// (without /visualization) still load, in the daemon's loader too.
+// /visualization, the XDMF sidecars (volume and surface), their option, their
+// errors, and that 1.0 files (without /visualization) still load, in the
+// daemon's loader too.
 // tests/file/xdmf_test.py checks the same files with independent readers (numpy,
 // meshio).
 
@@ -197,33 +198,52 @@ TEST(XdmfSidecar, IsWrittenNextToTheFileAndRefersToItsDatasets) {
   TempDir dir;
   const PrecomputeJob job = testing::box_job(dir.path());
   const auto report = run_precompute(job, {});
-  const auto sidecar = dir / "box.xdmf";
-  EXPECT_EQ(xdmf_sidecar_path(job.output), sidecar);
-  EXPECT_EQ(report.output->xdmf.value(), sidecar.string());
-  ASSERT_TRUE(std::filesystem::exists(sidecar));
+  const auto volume = dir / "box.xdmf";
+  const auto surface = dir / "box.surface.xdmf";
+  EXPECT_EQ(xdmf_sidecar_path(job.output), volume);
+  EXPECT_EQ(xdmf_surface_sidecar_path(job.output), surface);
+  EXPECT_EQ(report.output->xdmf.value(), volume.string());
+  ASSERT_TRUE(std::filesystem::exists(volume));
+  ASSERT_TRUE(std::filesystem::exists(surface));
   const ComplianceModel m = read_compliance_file(job.output, nullptr);
-  const std::string text = slurp(sidecar);
-  EXPECT_EQ(text, xdmf_document(m, "box.h5"));
-  EXPECT_NE(text.find("<Xdmf Version=\"3.0\">"), std::string::npos);
-  // Two grids sharing the vertices; every array by relative file name.
-  EXPECT_EQ(occurrences(text, "box.h5:/mesh/vertices</DataItem>"), 2u);
-  EXPECT_EQ(occurrences(text, "box.h5:/visualization/softness</DataItem>"), 2u);
-  EXPECT_EQ(occurrences(text, "box.h5:/visualization/fixed</DataItem>"), 2u);
-  EXPECT_EQ(occurrences(text, dir.path().string()), 0u) << "no absolute path";
+  const std::string v = slurp(volume), s = slurp(surface);
+  EXPECT_EQ(v, xdmf_document(m, "box.h5"));
+  EXPECT_EQ(s, xdmf_surface_document(m, "box.h5"));
   const auto count = [](Eigen::Index k) {
     std::string quoted(1, '"');
     quoted += std::to_string(k);
     quoted += '"';
     return quoted;
   };
-  EXPECT_NE(
-      text.find("TopologyType=\"Tetrahedron\" NumberOfElements=" + count(m.tetrahedra.rows())),
-      std::string::npos);
-  EXPECT_NE(
-      text.find("TopologyType=\"Triangle\" NumberOfElements=" + count(m.surface_triangles.rows())),
-      std::string::npos);
-  EXPECT_NE(text.find("Dimensions=\"" + std::to_string(m.vertices_m.rows()) + " 3\""),
+  // One Uniform grid per file (what meshio.read takes), no collection; every
+  // array by relative file name; the node arrays in both.
+  for (const std::string* text : {&v, &s}) {
+    EXPECT_NE(text->find("<Xdmf Version=\"3.0\">"), std::string::npos);
+    EXPECT_EQ(occurrences(*text, "<Grid "), 1u);
+    EXPECT_EQ(occurrences(*text, "GridType=\"Uniform\""), 1u);
+    EXPECT_EQ(occurrences(*text, "Collection"), 0u);
+    EXPECT_EQ(occurrences(*text, "<Topology "), 1u);
+    EXPECT_EQ(occurrences(*text, "box.h5:/mesh/vertices</DataItem>"), 1u);
+    EXPECT_EQ(occurrences(*text, "box.h5:/visualization/softness</DataItem>"), 1u);
+    // int8 is "Char" in XDMF 3: Xdmf3 reads "Int" with Precision 1 as int32.
+    EXPECT_EQ(occurrences(*text, "DataType=\"Char\" Precision=\"1\" Dimensions=" +
+                                     count(m.vertices_m.rows()) +
+                                     " Format=\"HDF\">box.h5:/visualization/fixed</DataItem>"),
+              1u);
+    EXPECT_EQ(occurrences(*text, dir.path().string()), 0u) << "no absolute path";
+    EXPECT_NE(text->find("Dimensions=\"" + std::to_string(m.vertices_m.rows()) + " 3\""),
+              std::string::npos);
+  }
+  EXPECT_NE(v.find("TopologyType=\"Tetrahedron\" NumberOfElements=" + count(m.tetrahedra.rows())),
             std::string::npos);
+  EXPECT_NE(v.find("box.h5:/mesh/tetrahedron_material</DataItem>"), std::string::npos);
+  EXPECT_NE(
+      s.find("TopologyType=\"Triangle\" NumberOfElements=" + count(m.surface_triangles.rows())),
+      std::string::npos);
+  EXPECT_EQ(s.find("Center=\"Cell\""), std::string::npos);
+  // Each names the other in its comment.
+  EXPECT_NE(v.find("box.surface.xdmf"), std::string::npos);
+  EXPECT_NE(s.find("box.xdmf"), std::string::npos);
   for (const auto& entry : std::filesystem::directory_iterator(dir.path()))
     EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << entry.path();
 }
@@ -236,13 +256,17 @@ TEST(XdmfSidecar, EscapesTheFileNameAndKeepsCommentsWellFormed) {
   m.materials = {
       {"organ", 1e5, 0.45}, {"odd--name-", 2e5, 0.45}, {std::string("bad") + '\xff', 1e5, 0.4}};
   const std::string text = xdmf_document(m, "a&b<c>.h5");
+  const std::string surface = xdmf_surface_document(m, "a&b<c>--.h5");
   EXPECT_NE(text.find(">a&amp;b&lt;c&gt;.h5:/mesh/vertices<"), std::string::npos);
+  EXPECT_NE(surface.find(">a&amp;b&lt;c&gt;--.h5:/mesh/vertices<"), std::string::npos);
   // A comment holds no "--" but its delimiters, and only valid UTF-8.
-  const size_t open = text.find("<!--"), close = text.find("-->");
-  ASSERT_NE(open, std::string::npos);
-  ASSERT_NE(close, std::string::npos);
-  EXPECT_EQ(text.substr(open + 4, close - open - 4).find("--"), std::string::npos);
-  EXPECT_EQ(text.find('\xff'), std::string::npos);
+  for (const std::string* doc : {&text, &surface}) {
+    const size_t open = doc->find("<!--"), close = doc->find("-->");
+    ASSERT_NE(open, std::string::npos);
+    ASSERT_NE(close, std::string::npos);
+    EXPECT_EQ(doc->substr(open + 4, close - open - 4).find("--"), std::string::npos);
+    EXPECT_EQ(doc->find('\xff'), std::string::npos);
+  }
   EXPECT_NE(text.find("1 = odd- -name-"), std::string::npos);
 }
 
@@ -258,6 +282,7 @@ TEST(XdmfSidecar, CanBeTurnedOffByTheJobFileAndThenWarnsAboutAStaleOne) {
   EXPECT_FALSE(report.output->xdmf.has_value());
   EXPECT_TRUE(std::filesystem::exists(job.output));
   EXPECT_FALSE(std::filesystem::exists(dir / "box.xdmf"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "box.surface.xdmf"));
 
   std::ofstream(dir / "box.xdmf") << "from an earlier run";
   std::vector<std::string> warnings;

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Format 1.1's /visualization datasets and the XDMF sidecar, read by
+"""Format 1.1's /visualization datasets and the XDMF sidecars, read by
 independent readers.
 
 Runs palpate-precompute on the sample organ, then:
@@ -7,16 +7,18 @@ Runs palpate-precompute on the sample organ, then:
   eigenvalue of each 3 x 3 diagonal block, and the same as the largest
   displacement a unit force produces, by SVD), the fixed flags from
   /mesh/fixed_vertex_ids, and the input hash (unchanged from 1.0);
-- reads the sidecar with meshio (Debian's python3-meshio, which reads XDMF
+- reads both sidecars (X.xdmf, the volume; X.surface.xdmf, the surface) with
+  meshio.read as a researcher would (Debian's python3-meshio, which reads XDMF
   with HDF5 heavy data through h5py) and compares points, cells and arrays
-  with the HDF5 datasets. meshio 5 reads one grid per file ("Only supports
-  one grid right now"), and the sidecar holds two in a spatial collection,
-  so each grid is copied, unchanged, into a one-grid XDMF file beside the
-  original and read from there;
+  with the HDF5 datasets;
+- checks each sidecar's XML against what ParaView's Xdmf3 reader needs
+  (xdmf3_problems below), every DataItem against the HDF5 dataset it names;
 - checks --no-xdmf, --xdmf, and the output names the sidecar cannot describe.
 Usage: xdmf_test.py PRECOMPUTE
 """
+import contextlib
 import hashlib
+import io
 import json
 import os
 import shutil
@@ -45,21 +47,152 @@ def run(*args, check=True):
     return p
 
 
-def one_grid_files(xdmf_path):
-    """For each Uniform grid of the sidecar, a one-grid XDMF file next to it
-    (same directory: the HDF5 references are relative). Returns {name: path}."""
-    tree = ET.parse(xdmf_path)
-    root = tree.getroot()
-    out = {}
-    for grid in root.iter("Grid"):
-        if grid.get("GridType") != "Uniform":
-            continue
-        xdmf = ET.Element("Xdmf", root.attrib)
-        ET.SubElement(xdmf, "Domain").append(grid)
-        path = os.path.join(os.path.dirname(xdmf_path), f"only-{grid.get('Name')}.xdmf")
-        ET.ElementTree(xdmf).write(path, encoding="utf-8", xml_declaration=True)
-        out[grid.get("Name")] = path
-    return out
+def meshio_read(path):
+    """meshio.read, with its failure as an AssertionError: meshio prints why a
+    file is unreadable and then calls sys.exit(1)."""
+    printed = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(printed):
+            return meshio.read(path)
+    except (SystemExit, meshio.ReadError) as e:
+        raise AssertionError(f"meshio cannot read {path}: {printed.getvalue().strip()} {e!r}") from None
+
+
+# What ParaView's Xdmf3 reader (the xdmf library, github.com/live-clones/xdmf)
+# accepts, as far as the sidecars use it. DataType/NumberType and Precision
+# -> array type: XdmfArrayType::InitTypes. Note "Int" with Precision 1 is not
+# there: Xdmf3 falls back to Int32 for it; int8 is "Char".
+XDMF3_TYPES = {("CHAR", "1"): "int8", ("SHORT", "2"): "int16", ("INT", "4"): "int32", ("INT", "8"): "int64",
+               ("FLOAT", "4"): "float32", ("FLOAT", "8"): "float64", ("UCHAR", "1"): "uint8",
+               ("USHORT", "2"): "uint16", ("UINT", "4"): "uint32"}
+# XdmfTopologyType (those a tetrahedral mesh and its surface need), with the
+# nodes per element; XdmfAttributeCenter; XdmfAttributeType.
+XDMF3_TOPOLOGIES = {"TRIANGLE": 3, "TETRAHEDRON": 4}
+XDMF3_CENTERS = {"GRID", "CELL", "FACE", "EDGE", "NODE", "OTHER"}
+XDMF3_ATTRIBUTE_TYPES = {"NONE", "SCALAR", "VECTOR", "TENSOR", "MATRIX", "TENSOR6", "GLOBALID"}
+
+
+def xdmf3_problems(xdmf_path):
+    """What in the XDMF file at xdmf_path ParaView's Xdmf3 reader would
+    refuse or misread, checked against the HDF5 files it refers to: a list of
+    messages, empty if none."""
+    problems = []
+    root = ET.parse(xdmf_path).getroot()
+    directory = os.path.dirname(xdmf_path)
+
+    def one_of(element, *keys):
+        # Xdmf3 reads "Type" before the XDMF 2 spelling; meshio refuses both.
+        present = [k for k in keys if k in element.attrib]
+        if len(present) != 1:
+            problems.append(f"<{element.tag} {element.attrib}>: expected exactly one of {keys}")
+            return None
+        return element.get(present[0])
+
+    def data_item(parent):
+        """The shape and dtype of the dataset parent's one DataItem reads, or None."""
+        items = list(parent)
+        if len(items) != 1 or items[0].tag != "DataItem":
+            problems.append(f"<{parent.tag}>: expected one DataItem, found {[i.tag for i in items]}")
+            return None
+        item = items[0]
+        where = f"DataItem {item.text!r}"
+        if item.get("Format") != "HDF":
+            problems.append(f"{where}: Format {item.get('Format')!r}, expected HDF")
+            return None
+        number_type = one_of(item, "DataType", "NumberType")
+        declared = XDMF3_TYPES.get(((number_type or "").upper(), item.get("Precision")))
+        if declared is None:
+            problems.append(f"{where}: type {number_type}/{item.get('Precision')} is not an Xdmf3 array type")
+        file_name, colon, dataset = (item.text or "").strip().partition(":")
+        if not colon or os.path.isabs(file_name) or os.sep in file_name:
+            problems.append(f"{where}: expected '<file name beside the sidecar>:/dataset'")
+            return None
+        try:
+            with h5py.File(os.path.join(directory, file_name), "r") as f:
+                d = f.get(dataset)
+                if not isinstance(d, h5py.Dataset):
+                    problems.append(f"{where}: no dataset {dataset} in {file_name}")
+                    return None
+                shape, dtype = d.shape, d.dtype
+        except OSError as e:
+            problems.append(f"{where}: cannot open {file_name}: {e}")
+            return None
+        dims = tuple(int(n) for n in item.get("Dimensions", "").split())
+        if dims != shape:
+            problems.append(f"{where}: Dimensions {dims}, the dataset is {shape}")
+        if declared is not None and np.dtype(declared) != dtype.newbyteorder("="):
+            problems.append(f"{where}: declared {declared}, the dataset is {dtype}")
+        return shape
+
+    def uniform_grid(grid):
+        name = f"grid {grid.get('Name')!r}"
+        tags = [c.tag for c in grid]
+        # One each: Xdmf3 keeps the last Topology or Geometry it meets (XdmfGrid::populateItem).
+        for tag in ("Topology", "Geometry"):
+            if tags.count(tag) != 1:
+                problems.append(f"{name}: {tags.count(tag)} <{tag}>, expected 1")
+                return
+        for c in grid:
+            if c.tag not in ("Topology", "Geometry", "Attribute", "Information", "Time"):
+                problems.append(f"{name}: unexpected <{c.tag}> in a Uniform grid")
+        topology, geometry = grid.find("Topology"), grid.find("Geometry")
+        kind = (one_of(topology, "Type", "TopologyType") or "").upper()
+        cells = data_item(topology)
+        if kind not in XDMF3_TOPOLOGIES:
+            problems.append(f"{name}: TopologyType {kind!r}, expected one of {sorted(XDMF3_TOPOLOGIES)}")
+        elif cells is not None:
+            nodes = XDMF3_TOPOLOGIES[kind]
+            if cells[1:] != (nodes,):
+                problems.append(f"{name}: {kind} connectivity of shape {cells}, expected (n, {nodes})")
+            if topology.get("NumberOfElements") != str(cells[0]):
+                problems.append(f"{name}: NumberOfElements {topology.get('NumberOfElements')}, "
+                                f"the dataset has {cells[0]}")
+            if topology.get("NodesPerElement", str(nodes)) != str(nodes):
+                problems.append(f"{name}: NodesPerElement {topology.get('NodesPerElement')}, expected {nodes}")
+        if one_of(geometry, "Type", "GeometryType") != "XYZ":
+            problems.append(f"{name}: GeometryType {geometry.attrib}, expected XYZ")
+        points = data_item(geometry)
+        if points is not None and points[1:] != (3,):
+            problems.append(f"{name}: points of shape {points}, expected (V, 3)")
+        names = [a.get("Name") for a in grid.iter("Attribute")]
+        if None in names or len(set(names)) != len(names):
+            problems.append(f"{name}: attribute names {names}, expected distinct names")
+        for a in grid.iter("Attribute"):
+            where = f"{name}, attribute {a.get('Name')!r}"
+            center = (a.get("Center") or "").upper()
+            if center not in XDMF3_CENTERS:
+                problems.append(f"{where}: Center {a.get('Center')!r}, expected one of {sorted(XDMF3_CENTERS)}")
+            kind_of = ([a.get(k) for k in ("Type", "AttributeType") if k in a.attrib] or ["Scalar"])[0]
+            if kind_of.upper() not in XDMF3_ATTRIBUTE_TYPES:
+                problems.append(f"{where}: AttributeType {kind_of!r}")
+            shape = data_item(a)
+            if shape is None or points is None or cells is None:
+                continue
+            expected = {"NODE": points[0], "CELL": cells[0]}.get(center)
+            if kind_of.upper() == "SCALAR" and shape not in ((expected,), (expected, 1)):
+                problems.append(f"{where}: {center} scalar of shape {shape}, expected ({expected},)")
+
+    def grid(g):
+        kind = g.get("GridType", "Uniform")
+        if kind == "Uniform":
+            uniform_grid(g)
+        elif kind == "Collection" and g.get("CollectionType", "Spatial") in ("Spatial", "Temporal"):
+            for child in g.findall("Grid"):
+                grid(child)
+        else:
+            problems.append(f"grid {g.get('Name')!r}: GridType {kind!r}")
+
+    if root.tag != "Xdmf" or root.get("Version") != "3.0":
+        problems.append(f"root <{root.tag} {root.attrib}>, expected <Xdmf Version=\"3.0\">")
+    domains = list(root)
+    if [d.tag for d in domains] != ["Domain"]:
+        return problems + [f"expected one <Domain>, found {[d.tag for d in domains]}"]
+    grids = list(domains[0])
+    if not grids or any(g.tag != "Grid" for g in grids):
+        return problems + [f"<Domain> holds {[g.tag for g in grids]}, expected grids"]
+    for g in grids:
+        grid(g)
+    return problems
 
 
 class Version1_1(unittest.TestCase):
@@ -158,7 +291,7 @@ class Version1_1(unittest.TestCase):
         self.assertGreater(np.max(np.abs(rounded - s[ids]) / s[ids]), 100 * REL_TOL)
 
 
-class SidecarThroughMeshio(unittest.TestCase):
+class SidecarsThroughMeshioAndTheXdmf3Checks(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.dir = tempfile.TemporaryDirectory()
@@ -170,6 +303,7 @@ class SidecarThroughMeshio(unittest.TestCase):
                 "--fix-sphere", "-0.03", "0", "0.04", "0.03", "-o", cls.out, "--json", "-q")
         cls.report = json.loads(p.stdout)
         cls.xdmf = os.path.join(d, "organ.xdmf")
+        cls.surface_xdmf = os.path.join(d, "organ.surface.xdmf")
         with h5py.File(cls.out, "r") as f:
             cls.h5 = {k: f[k][()] for k in ["/mesh/vertices", "/mesh/tetrahedra", "/mesh/surface_triangles",
                                             "/mesh/tetrahedron_material", "/mesh/source_vertex_ids",
@@ -182,57 +316,104 @@ class SidecarThroughMeshio(unittest.TestCase):
     def test_the_report_names_the_sidecar(self):
         self.assertEqual(self.report["output"]["xdmf"], self.xdmf)
         self.assertTrue(os.path.isfile(self.xdmf))
+        self.assertTrue(os.path.isfile(self.surface_xdmf))
         self.assertEqual([f for f in os.listdir(self.dir.name) if ".tmp-" in f], [])
 
-    def test_structure(self):
-        root = ET.parse(self.xdmf).getroot()
-        self.assertEqual(root.tag, "Xdmf")
-        self.assertEqual(root.get("Version"), "3.0")
-        (domain,) = list(root)
-        (collection,) = list(domain)
-        self.assertEqual(collection.get("GridType"), "Collection")
-        self.assertEqual(collection.get("CollectionType"), "Spatial")
-        self.assertEqual([g.get("Name") for g in collection], ["volume", "surface"])
-        for item in root.iter("DataItem"):
-            self.assertEqual(item.get("Format"), "HDF")
-            self.assertTrue(item.text.startswith("organ.h5:/"), item.text)  # relative
+    def test_each_sidecar_is_one_uniform_grid_with_relative_references(self):
+        # meshio.read takes one <Domain> holding one grid, whose children are
+        # only Topology, Geometry, Attribute and Information (meshio/xdmf/main.py).
+        for path, name in [(self.xdmf, "volume"), (self.surface_xdmf, "surface")]:
+            with self.subTest(path=path):
+                root = ET.parse(path).getroot()
+                (domain,) = list(root)
+                (grid,) = list(domain)
+                self.assertEqual((grid.tag, grid.get("Name"), grid.get("GridType")), ("Grid", name, "Uniform"))
+                self.assertTrue({c.tag for c in grid} <= {"Topology", "Geometry", "Attribute"})
+                for item in root.iter("DataItem"):
+                    self.assertTrue(item.text.startswith("organ.h5:/"), item.text)  # relative
 
-    def check_vertex_arrays(self, m):
-        self.assertTrue(np.array_equal(m.points, self.h5["/mesh/vertices"]))
+    def test_paraview_xdmf3_would_read_each_sidecar(self):
+        for path in (self.xdmf, self.surface_xdmf):
+            with self.subTest(path=path):
+                self.assertEqual(xdmf3_problems(path), [])
+
+    def test_a_float32_file_has_sidecars_of_the_same_types(self):
+        # --precision float32 stores G only in float32; the datasets the
+        # sidecars name keep their types, which the check compares.
+        d = self.dir.name
+        run("--mesh", os.path.join(d, "organ.msh"), "-E", "85e3", "--nu", "0.45", "--fix-sphere", "-0.03", "0",
+            "0.04", "0.03", "--precision", "float32", "-o", os.path.join(d, "organ32.h5"), "-q")
+        for name in ("organ32.xdmf", "organ32.surface.xdmf"):
+            with self.subTest(name=name):
+                self.assertEqual(xdmf3_problems(os.path.join(d, name)), [])
+                self.assertTrue(np.array_equal(meshio_read(os.path.join(d, name)).points, self.h5["/mesh/vertices"]))
+
+    def test_the_xdmf3_check_finds_what_it_is_for(self):
+        # The check itself, on broken copies of the sidecar: each must be caught.
+        with open(self.xdmf, encoding="utf-8") as f:
+            text = f.read()
+        V, T = len(self.h5["/mesh/vertices"]), len(self.h5["/mesh/tetrahedra"])
+        broken = [
+            ("dims", f'Dimensions="{V} 3"', f'Dimensions="{V + 1} 3"'),
+            ("count", f'NumberOfElements="{T}"', f'NumberOfElements="{T - 1}"'),
+            ("dtype", 'DataType="Char" Precision="1"', 'DataType="Int" Precision="1"'),
+            ("path", "organ.h5:/visualization/fixed", "organ.h5:/visualization/missing"),
+            ("center", 'Center="Cell"', 'Center="Node"'),
+            ("grids", "</Grid>", "</Grid><Grid/>"),
+        ]
+        for what, good, bad in broken:
+            with self.subTest(what=what):
+                self.assertIn(good, text)
+                path = os.path.join(self.dir.name, f"broken-{what}.xdmf")
+                with open(path, "w", encoding="utf-8") as f:
+                    f.write(text.replace(good, bad, 1))
+                self.assertNotEqual(xdmf3_problems(path), [])
+
+    def check_points_and_vertex_arrays(self, m):
+        # meshio copies the HDF5 datasets through h5py, no arithmetic: equal to the bit.
+        X = self.h5["/mesh/vertices"]
         self.assertEqual(m.points.dtype, np.float64)
+        self.assertEqual(m.points.shape, (self.report["mesh"]["vertices"], 3))
+        self.assertTrue(np.array_equal(m.points, X))
+        # In metres: the bounding box the report gives in metres (printed
+        # with round-trip precision, so 1e-12 m only absorbs formatting).
+        self.assertLessEqual(np.max(np.abs(m.points.min(axis=0) - self.report["mesh"]["bbox_min_m"])), 1e-12)
+        self.assertLessEqual(np.max(np.abs(m.points.max(axis=0) - self.report["mesh"]["bbox_max_m"])), 1e-12)
         pd = m.point_data
         self.assertEqual(sorted(pd), ["fixed", "softness_m_per_n", "source_vertex_id"])
         self.assertEqual(pd["softness_m_per_n"].dtype, np.float64)
+        self.assertEqual(pd["fixed"].dtype, np.int8)
         self.assertTrue(np.array_equal(pd["softness_m_per_n"], self.h5["/visualization/softness"]))
         self.assertTrue(np.array_equal(pd["fixed"], self.h5["/visualization/fixed"]))
         self.assertTrue(np.array_equal(pd["source_vertex_id"], self.h5["/mesh/source_vertex_ids"]))
 
-    def test_meshio_reads_the_volume_grid(self):
-        m = meshio.read(one_grid_files(self.xdmf)["volume"])
-        self.assertEqual(len(m.points), self.report["mesh"]["vertices"])
+    def test_meshio_reads_the_volume(self):
+        m = meshio_read(self.xdmf)
         self.assertEqual([c.type for c in m.cells], ["tetra"])
         self.assertEqual(len(m.cells[0].data), self.report["mesh"]["tetrahedra"])
         self.assertTrue(np.array_equal(m.cells[0].data, self.h5["/mesh/tetrahedra"]))
-        self.check_vertex_arrays(m)
+        self.check_points_and_vertex_arrays(m)
+        self.assertEqual(sorted(m.cell_data), ["material"])
         (material,) = m.cell_data["material"]
         self.assertTrue(np.array_equal(material, self.h5["/mesh/tetrahedron_material"]))
         self.assertEqual(sorted(set(material.tolist())), [0, 1])  # organ and tumour
 
-    def test_meshio_reads_the_surface_grid(self):
-        m = meshio.read(one_grid_files(self.xdmf)["surface"])
-        self.assertEqual(len(m.points), self.report["mesh"]["vertices"])
+    def test_meshio_reads_the_surface(self):
+        m = meshio_read(self.surface_xdmf)
         self.assertEqual([c.type for c in m.cells], ["triangle"])
         self.assertEqual(len(m.cells[0].data), self.report["mesh"]["surface_triangles"])
         self.assertTrue(np.array_equal(m.cells[0].data, self.h5["/mesh/surface_triangles"]))
-        self.check_vertex_arrays(m)
+        self.check_points_and_vertex_arrays(m)
         self.assertEqual(m.cell_data, {})
 
-    def test_the_pair_moves_together(self):
+    def test_the_files_move_together(self):
         with tempfile.TemporaryDirectory() as elsewhere:
-            for name in ("organ.h5", "organ.xdmf"):
+            for name in ("organ.h5", "organ.xdmf", "organ.surface.xdmf"):
                 shutil.copy(os.path.join(self.dir.name, name), elsewhere)
-            m = meshio.read(one_grid_files(os.path.join(elsewhere, "organ.xdmf"))["surface"])
-            self.assertTrue(np.array_equal(m.point_data["softness_m_per_n"], self.h5["/visualization/softness"]))
+            for name in ("organ.xdmf", "organ.surface.xdmf"):
+                m = meshio_read(os.path.join(elsewhere, name))
+                self.assertTrue(np.array_equal(m.point_data["softness_m_per_n"], self.h5["/visualization/softness"]))
+                self.assertEqual(xdmf3_problems(os.path.join(elsewhere, name)), [])
 
 
 class CommandLine(unittest.TestCase):
@@ -253,14 +434,16 @@ class CommandLine(unittest.TestCase):
         p = run(*self.base, "-o", self.path("a.h5"), "--no-xdmf", "--json", "--save-job", self.path("job.toml"))
         self.assertIsNone(json.loads(p.stdout)["output"]["xdmf"])
         self.assertTrue(os.path.exists(self.path("a.h5")))
-        self.assertFalse(os.path.exists(self.path("a.xdmf")))
+        self.assertEqual(sorted(os.listdir(self.dir.name)), ["a.h5", "job.toml", "organ.msh"])
         with open(self.path("job.toml")) as f:
             self.assertIn("xdmf = false", f.read())
         # The job file says no; the flag says yes.
         run("-j", self.path("job.toml"), "-o", self.path("b.h5"), "--xdmf", "-q")
         self.assertTrue(os.path.exists(self.path("b.xdmf")))
+        self.assertTrue(os.path.exists(self.path("b.surface.xdmf")))
         run("-j", self.path("job.toml"), "-o", self.path("c.h5"), "-q")
         self.assertFalse(os.path.exists(self.path("c.xdmf")))
+        self.assertFalse(os.path.exists(self.path("c.surface.xdmf")))
 
     def test_output_names_the_sidecar_cannot_describe(self):
         for name, fragment in [("organ.xdmf", "its own XDMF sidecar"), ("a:b.h5", "contains ':'")]:

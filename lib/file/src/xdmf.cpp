@@ -79,35 +79,90 @@ std::string comment_safe(const std::string& text) {
 }
 
 // One <DataItem> that reads dataset @p dataset of the compliance file.
+// @p type and @p precision are XDMF 3's names for the dataset's type
+// (XdmfArrayType: "Float" 8 = float64, "Int" 4 = int32, "Char" 1 = int8; Xdmf3
+// has no "Int" 1 and would read it as int32).
 std::string data_item(const std::string& h5, const char* dataset, const std::string& dims,
-                      const char* type, int precision, const char* indent) {
+                      const char* type, int precision) {
   return fmt::format(
-      "{}<DataItem DataType=\"{}\" Precision=\"{}\" Dimensions=\"{}\" "
+      "        <DataItem DataType=\"{}\" Precision=\"{}\" Dimensions=\"{}\" "
       "Format=\"HDF\">{}:{}</DataItem>\n",
-      indent, type, precision, dims, h5, dataset);
+      type, precision, dims, h5, dataset);
 }
 
-// The node attributes both grids carry (all #V long, from the compliance file).
-std::string vertex_attributes(const std::string& h5, Eigen::Index V) {
-  const std::string v = std::to_string(V);
-  const char* in = "          ";
+// One scalar <Attribute> of @p count values (one per vertex or per cell, as
+// @p center says), read from @p dataset.
+std::string attribute(const std::string& h5, const char* name, const char* center,
+                      const char* dataset, Eigen::Index count, const char* type, int precision) {
+  return fmt::format("      <Attribute Name=\"{}\" AttributeType=\"Scalar\" Center=\"{}\">\n", name,
+                     center) +
+         data_item(h5, dataset, std::to_string(count), type, precision) + "      </Attribute>\n";
+}
+
+// The one Uniform grid of a sidecar: @p count cells of @p nodes vertices
+// each (dataset @p cells), on all V vertices, with the node arrays both
+// sidecars carry and then @p cell_attributes. meshio.read accepts exactly
+// this: one <Domain> with one grid of Topology, Geometry and Attribute
+// elements (meshio/xdmf/main.py), no collection. And a grid has one
+// Topology (Xdmf3 keeps the last of several): hence a file per grid.
+std::string one_grid_document(const std::string& comment, const char* grid, const std::string& h5,
+                              const char* topology, const char* cells, Eigen::Index count,
+                              int nodes, Eigen::Index V, const std::string& cell_attributes) {
   std::string s;
-  s += "        <Attribute Name=\"softness_m_per_n\" AttributeType=\"Scalar\" Center=\"Node\">\n";
-  s += data_item(h5, "/visualization/softness", v, "Float", 8, in);
-  s += "        </Attribute>\n";
-  s += "        <Attribute Name=\"fixed\" AttributeType=\"Scalar\" Center=\"Node\">\n";
-  s += data_item(h5, "/visualization/fixed", v, "Int", 1, in);
-  s += "        </Attribute>\n";
-  s += "        <Attribute Name=\"source_vertex_id\" AttributeType=\"Scalar\" Center=\"Node\">\n";
-  s += data_item(h5, "/mesh/source_vertex_ids", v, "Int", 4, in);
-  s += "        </Attribute>\n";
+  s += "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n";
+  s += "<!-- " + comment_safe(comment) + " -->\n";
+  s += "<Xdmf Version=\"3.0\">\n";
+  s += "  <Domain>\n";
+  s += fmt::format("    <Grid Name=\"{}\" GridType=\"Uniform\">\n", grid);
+  s += fmt::format(
+      "      <Topology TopologyType=\"{}\" NumberOfElements=\"{}\" NodesPerElement=\"{}\">\n",
+      topology, count, nodes);
+  s += data_item(h5, cells, fmt::format("{} {}", count, nodes), "Int", 4);
+  s += "      </Topology>\n";
+  s += "      <Geometry GeometryType=\"XYZ\">\n";
+  s += data_item(h5, "/mesh/vertices", fmt::format("{} 3", V), "Float", 8);
+  s += "      </Geometry>\n";
+  s += cell_attributes;
+  s += attribute(h5, "softness_m_per_n", "Node", "/visualization/softness", V, "Float", 8);
+  s += attribute(h5, "fixed", "Node", "/visualization/fixed", V, "Char", 1);
+  s += attribute(h5, "source_vertex_id", "Node", "/mesh/source_vertex_ids", V, "Int", 4);
+  s += "    </Grid>\n";
+  s += "  </Domain>\n";
+  s += "</Xdmf>\n";
   return s;
+}
+
+// The first lines of both sidecars' comment.
+std::string comment_header(const ComplianceModel& model, const std::string& h5_file_name) {
+  return fmt::format(
+      "XDMF sidecar of the palpate compliance file {} (format {}.{}), written by {}.\n"
+      "     Open it in ParaView with the Xdmf3 reader, or with meshio.read. Layout and\n"
+      "     array meanings: docs/compliance-file.md, \"The XDMF sidecar\".\n",
+      h5_file_name, kComplianceFormatMajor, kComplianceFormatMinor, model.producer);
+}
+
+// Writes @p text at @p path atomically (AtomicOutput).
+void write_atomically(const std::filesystem::path& path, const std::string& text) {
+  AtomicOutput out(path);
+  {
+    std::ofstream file(out.temp_path(), std::ios::binary | std::ios::trunc);
+    file << text;
+    file.close();
+    if (!file)
+      throw SystemError(
+          fmt::format("cannot write the XDMF sidecar '{}'", out.temp_path().string()));
+  }
+  out.commit();
 }
 
 }  // namespace
 
 std::filesystem::path xdmf_sidecar_path(const std::filesystem::path& compliance_file) {
   return std::filesystem::path(compliance_file).replace_extension(".xdmf");
+}
+
+std::filesystem::path xdmf_surface_sidecar_path(const std::filesystem::path& compliance_file) {
+  return std::filesystem::path(compliance_file).replace_extension(".surface.xdmf");
 }
 
 void check_xdmf_sidecar_name(const std::filesystem::path& compliance_file) {
@@ -131,79 +186,41 @@ void check_xdmf_sidecar_name(const std::filesystem::path& compliance_file) {
 
 std::string xdmf_document(const ComplianceModel& model, const std::string& h5_file_name) {
   const std::string h5 = xml_escaped(h5_file_name);
-  const Eigen::Index V = model.vertices_m.rows();
   const Eigen::Index T = model.tetrahedra.rows();
-  const Eigen::Index F = model.surface_triangles.rows();
   std::string materials;
   for (size_t i = 0; i < model.materials.size(); ++i)
     materials += fmt::format("{}{} = {}", i ? ", " : "", i, model.materials[i].name);
+  const std::string comment =
+      comment_header(model, h5_file_name) +
+      fmt::format(
+          "     Grid \"volume\": the tetrahedra, with the cell array \"material\" ({}),\n"
+          "     and the node arrays softness_m_per_n (m/N), fixed and source_vertex_id.\n"
+          "     The boundary triangles, with the same node arrays: {}.",
+          materials, xdmf_surface_sidecar_path(h5_file_name).string());
+  return one_grid_document(
+      comment, "volume", h5, "Tetrahedron", "/mesh/tetrahedra", T, 4, model.vertices_m.rows(),
+      attribute(h5, "material", "Cell", "/mesh/tetrahedron_material", T, "Int", 4));
+}
 
-  std::string s;
-  s += "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n";
-  s += "<!-- ";
-  s += comment_safe(fmt::format(
-      "XDMF sidecar of the palpate compliance file {} (format {}.{}), written by {}.\n"
-      "     Open this file in ParaView with the Xdmf3 reader. Layout and array meanings:\n"
-      "     docs/compliance-file.md, \"The XDMF sidecar\". Grid \"volume\": tetrahedra with\n"
-      "     the cell array \"material\" ({}). Grid \"surface\": the boundary\n"
-      "     triangles. Both carry the node arrays softness_m_per_n (m/N), fixed\n"
-      "     and source_vertex_id.",
-      h5_file_name, kComplianceFormatMajor, kComplianceFormatMinor, model.producer, materials));
-  s += " -->\n";
-  s += "<Xdmf Version=\"3.0\">\n";
-  s += "  <Domain>\n";
-  s += "    <Grid Name=\"organ\" GridType=\"Collection\" CollectionType=\"Spatial\">\n";
-
-  const std::string geometry =
-      "        <Geometry GeometryType=\"XYZ\">\n" +
-      data_item(h5, "/mesh/vertices", fmt::format("{} 3", V), "Float", 8, "          ") +
-      "        </Geometry>\n";
-
-  // One grid's connectivity: @p count elements of @p nodes vertices each.
-  auto topology = [&](const char* type, const char* dataset, Eigen::Index count, int nodes) {
-    return fmt::format(
-               "        <Topology TopologyType=\"{}\" NumberOfElements=\"{}\" "
-               "NodesPerElement=\"{}\">\n",
-               type, count, nodes) +
-           data_item(h5, dataset, fmt::format("{} {}", count, nodes), "Int", 4, "          ") +
-           "        </Topology>\n";
-  };
-
-  s += "      <Grid Name=\"volume\" GridType=\"Uniform\">\n";
-  s += topology("Tetrahedron", "/mesh/tetrahedra", T, 4);
-  s += geometry;
-  s += "        <Attribute Name=\"material\" AttributeType=\"Scalar\" Center=\"Cell\">\n";
-  s += data_item(h5, "/mesh/tetrahedron_material", std::to_string(T), "Int", 4, "          ");
-  s += "        </Attribute>\n";
-  s += vertex_attributes(h5, V);
-  s += "      </Grid>\n";
-
-  s += "      <Grid Name=\"surface\" GridType=\"Uniform\">\n";
-  s += topology("Triangle", "/mesh/surface_triangles", F, 3);
-  s += geometry;
-  s += vertex_attributes(h5, V);
-  s += "      </Grid>\n";
-
-  s += "    </Grid>\n";
-  s += "  </Domain>\n";
-  s += "</Xdmf>\n";
-  return s;
+std::string xdmf_surface_document(const ComplianceModel& model, const std::string& h5_file_name) {
+  const std::string comment =
+      comment_header(model, h5_file_name) +
+      fmt::format(
+          "     Grid \"surface\": the boundary triangles (outward), on all the vertices\n"
+          "     (interior ones are in no triangle), with the node arrays softness_m_per_n\n"
+          "     (m/N), fixed and source_vertex_id. The tetrahedra: {}.",
+          xdmf_sidecar_path(h5_file_name).string());
+  return one_grid_document(comment, "surface", xml_escaped(h5_file_name), "Triangle",
+                           "/mesh/surface_triangles", model.surface_triangles.rows(), 3,
+                           model.vertices_m.rows(), "");
 }
 
 void write_xdmf_sidecar(const std::filesystem::path& compliance_file,
                         const ComplianceModel& model) {
-  const auto path = xdmf_sidecar_path(compliance_file);
-  const std::string text = xdmf_document(model, compliance_file.filename().string());
-  AtomicOutput out(path);
-  {
-    std::ofstream file(out.temp_path(), std::ios::binary | std::ios::trunc);
-    file << text;
-    file.close();
-    if (!file)
-      throw SystemError(
-          fmt::format("cannot write the XDMF sidecar '{}'", out.temp_path().string()));
-  }
-  out.commit();
+  const std::string h5 = compliance_file.filename().string();
+  // The one the report names first; each is atomic, the pair is not.
+  write_atomically(xdmf_sidecar_path(compliance_file), xdmf_document(model, h5));
+  write_atomically(xdmf_surface_sidecar_path(compliance_file), xdmf_surface_document(model, h5));
 }
 
 }  // namespace palpate

@@ -303,11 +303,13 @@ void write_compliance(const std::filesystem::path& output, bool write_xdmf,
   if (write_xdmf) write_xdmf_sidecar(output, model);
   phases.end();
   std::error_code ec;
-  if (!write_xdmf && std::filesystem::exists(sidecar, ec))
-    say.warn(
-        fmt::format("{} is left from an earlier run and may not match the new {}: delete it, "
-                    "or run without --no-xdmf to rewrite it",
-                    sidecar.string(), output.string()));
+  if (!write_xdmf)
+    for (const auto& old : {sidecar, xdmf_surface_sidecar_path(output)})
+      if (std::filesystem::exists(old, ec))
+        say.warn(
+            fmt::format("{} is left from an earlier run and may not match the new {}: delete it, "
+                        "or run without --no-xdmf to rewrite it",
+                        old.string(), output.string()));
   report.output->bytes = std::filesystem::file_size(output);
   report.peak_rss_bytes = phases.peak();
 }
