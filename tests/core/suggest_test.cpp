@@ -29,8 +29,8 @@ TEST(Suggest, NothingCloseGetsNothing) {
 }
 
 TEST(Suggest, TheLineNamesEachSuggestionOnceAndIgnoresValues) {
-  const std::vector<std::string> args{"--job", "a.toml", "--poisson", "0.45", "--poisson=0.4",
-                                      "--displacment", "1:0,0,0"};
+  const std::vector<std::string> args{"--job",         "a.toml",        "--poisson", "0.45",
+                                      "--poisson=0.4", "--displacment", "1:0,0,0"};
   EXPECT_EQ(flag_suggestions(args, kFlags), " (did you mean --poisson-ratio or --displacement?)");
   EXPECT_EQ(flag_suggestions(std::vector<std::string>{"--job", "0.45"}, kFlags), "");
 }

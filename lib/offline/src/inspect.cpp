@@ -37,8 +37,9 @@ std::array<double, 6> dihedral_angles(const Matrix43d& p) {
   for (int i = 0; i < 4; ++i)
     for (int j = i + 1; j < 4; ++j)
       angles[static_cast<std::size_t>(k++)] =
-          M_PI - std::acos(std::clamp(n[static_cast<std::size_t>(i)].dot(n[static_cast<std::size_t>(j)]),
-                                      -1.0, 1.0));
+          M_PI -
+          std::acos(std::clamp(n[static_cast<std::size_t>(i)].dot(n[static_cast<std::size_t>(j)]),
+                               -1.0, 1.0));
   return angles;
 }
 
@@ -52,7 +53,8 @@ double measure_dgemm() {
   for (int r = 0; r < 3; ++r) {
     const auto t0 = std::chrono::steady_clock::now();
     blas_gemm(A, B, C);
-    best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    best = std::min(best,
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
   return 2.0 * n * n * n / best / 1e9;
 }
@@ -80,9 +82,9 @@ void estimate_costs(MeshInspection& r, TetMesh& mesh, const Boundary& boundary) 
   const double write_s = g / kWriteBytesPerSecond;
   const double solves_s = solves.flops / (kFactorShare * flops_per_s) +
                           4.0 * solves.nnz_L * m / (kSolvesShare * flops_per_s);
-  const double condensation_s = condensation.flops / (kFactorShare * flops_per_s) +
-                                2.0 / 3.0 * m * static_cast<double>(m) * m /
-                                    (kInverseShare * flops_per_s);
+  const double condensation_s =
+      condensation.flops / (kFactorShare * flops_per_s) +
+      2.0 / 3.0 * m * static_cast<double>(m) * m / (kInverseShare * flops_per_s);
   r.methods.push_back({"condensation",
                        precompute::in_memory_bytes(Method::kCondensation, n, m, block, k_bytes, 0,
                                                    condensation.bytes),
@@ -91,8 +93,9 @@ void estimate_costs(MeshInspection& r, TetMesh& mesh, const Boundary& boundary) 
       {"solves (streamed)",
        precompute::streamed_memory_bytes(n, m, block, solve_threads(), k_bytes, solves.bytes), g,
        solves_s + 2 * write_s});
-  r.methods.push_back({"both", precompute::in_memory_bytes(Method::kBoth, n, m, block, k_bytes,
-                                                           solves.bytes, condensation.bytes),
+  r.methods.push_back({"both",
+                       precompute::in_memory_bytes(Method::kBoth, n, m, block, k_bytes,
+                                                   solves.bytes, condensation.bytes),
                        g, condensation_s + solves_s + write_s});
 }
 
@@ -136,8 +139,10 @@ MeshInspection inspect_mesh(const std::filesystem::path& file, const MeshReadOpt
     bool in_range = true;
     for (int i = 0; i < 4; ++i) {
       const int v = mesh.tetrahedra(t, i);
-      if (v < 0 || v >= vertex_count) in_range = false;
-      else p.row(i) = mesh.vertices.row(v);
+      if (v < 0 || v >= vertex_count)
+        in_range = false;
+      else
+        p.row(i) = mesh.vertices.row(v);
     }
     if (!in_range) continue;  // validate_and_compact names it below
     const double volume = signed_volume(p);
@@ -181,14 +186,16 @@ std::string format_inspection(const MeshInspection& r) {
   std::string s = fmt::format("palpate-precompute inspect: {}\n", r.file);
   s += fmt::format("  counts      {} nodes in the file, {} tetrahedra", r.file_nodes, r.tetrahedra);
   if (r.valid)
-    s += fmt::format("; {} vertices used ({} unreferenced), {} surface triangles, {} surface "
-                     "vertices",
-                     r.vertices, r.unreferenced_vertices, r.surface_triangles, r.surface_vertices);
+    s += fmt::format(
+        "; {} vertices used ({} unreferenced), {} surface triangles, {} surface "
+        "vertices",
+        r.vertices, r.unreferenced_vertices, r.surface_triangles, r.surface_vertices);
   s += "\n";
-  s += fmt::format("  box         in the file's numbers: x {:.4g} to {:.4g}, y {:.4g} to {:.4g}, "
-                   "z {:.4g} to {:.4g}; diagonal {:.4g}\n",
-                   r.bbox_min[0], r.bbox_max[0], r.bbox_min[1], r.bbox_max[1], r.bbox_min[2],
-                   r.bbox_max[2], r.diagonal);
+  s += fmt::format(
+      "  box         in the file's numbers: x {:.4g} to {:.4g}, y {:.4g} to {:.4g}, "
+      "z {:.4g} to {:.4g}; diagonal {:.4g}\n",
+      r.bbox_min[0], r.bbox_max[0], r.bbox_min[1], r.bbox_max[1], r.bbox_min[2], r.bbox_max[2],
+      r.diagonal);
   s += "  unit        ";
   for (const auto& u : r.readings)
     s += fmt::format("{}as {}: {:.3g} m across{}{}", &u == &r.readings.front() ? "" : "; ", u.unit,
@@ -200,21 +207,23 @@ std::string format_inspection(const MeshInspection& r) {
     s += "  groups      none: attach with boxes, spheres, half-spaces or an id file\n";
   } else {
     for (const auto& g : r.groups)
-      s += fmt::format("  group       {} \"{}\": {} vertices{}\n", g.tag, g.name, g.vertices,
-                       g.tetrahedra > 0 ? fmt::format(", {} tetrahedra (a material region)",
-                                                      g.tetrahedra)
-                                        : "");
+      s += fmt::format(
+          "  group       {} \"{}\": {} vertices{}\n", g.tag, g.name, g.vertices,
+          g.tetrahedra > 0 ? fmt::format(", {} tetrahedra (a material region)", g.tetrahedra) : "");
   }
   if (r.inverted + r.degenerate > 0)
-    s += fmt::format("  quality     {} inverted and {} degenerate tetrahedra (the first: {}): the "
-                     "mesh must be repaired or exported again with positive orientation\n",
-                     r.inverted, r.degenerate, r.first_bad);
+    s += fmt::format(
+        "  quality     {} inverted and {} degenerate tetrahedra (the first: {}): the "
+        "mesh must be repaired or exported again with positive orientation\n",
+        r.inverted, r.degenerate, r.first_bad);
   else if (r.min_dihedral_tetrahedron >= 0)
-    s += fmt::format("  quality     tetrahedron volumes {:.3g} to {:.3g} m³ as read with --mesh-unit {}; dihedral "
-                     "angles {:.1f}° to {:.1f}° (smallest in tetrahedron {}); {} tetrahedra with "
-                     "an angle under 5°\n",
-                     r.min_volume_m3, r.max_volume_m3, r.unit, r.min_dihedral_deg,
-                     r.max_dihedral_deg, r.min_dihedral_tetrahedron, r.sliver_count);
+    s += fmt::format(
+        "  quality     tetrahedron volumes {:.3g} to {:.3g} m³ as read with --mesh-unit {}; "
+        "dihedral "
+        "angles {:.1f}° to {:.1f}° (smallest in tetrahedron {}); {} tetrahedra with "
+        "an angle under 5°\n",
+        r.min_volume_m3, r.max_volume_m3, r.unit, r.min_dihedral_deg, r.max_dihedral_deg,
+        r.min_dihedral_tetrahedron, r.sliver_count);
   if (!r.valid) {
     s += fmt::format("  refused     {}\n", r.invalid_reason);
     return s;
@@ -226,9 +235,10 @@ std::string format_inspection(const MeshInspection& r) {
     s += fmt::format("  method      {:<18} about {} of memory, {} file, {:.0f} s on this machine\n",
                      m.method, format_bytes(m.memory_bytes), format_bytes(m.disk_bytes),
                      std::max(1.0, std::round(m.seconds)));
-  s += fmt::format("              (times scaled from this machine's dgemm, {:.0f} GFLOP/s; memory "
-                   "available now {})\n",
-                   r.dgemm_gflop_per_s, format_bytes(available_memory_bytes()));
+  s += fmt::format(
+      "              (times scaled from this machine's dgemm, {:.0f} GFLOP/s; memory "
+      "available now {})\n",
+      r.dgemm_gflop_per_s, format_bytes(available_memory_bytes()));
   return s;
 }
 
@@ -254,7 +264,8 @@ std::string inspection_json(const MeshInspection& r) {
               {"tetrahedra_under_5_deg", r.sliver_count}}},
             {"valid", r.valid}};
   for (const auto& u : r.readings)
-    j["units"].push_back({{"unit", u.unit}, {"diagonal_m", u.diagonal_m}, {"plausible", u.plausible}});
+    j["units"].push_back(
+        {{"unit", u.unit}, {"diagonal_m", u.diagonal_m}, {"plausible", u.plausible}});
   for (const auto& g : r.groups)
     j["groups"].push_back(
         {{"tag", g.tag}, {"name", g.name}, {"vertices", g.vertices}, {"tetrahedra", g.tetrahedra}});

@@ -186,8 +186,8 @@ bool receive_mesh(Reader& r, TetMesh& mesh) {
 TetMesh read_mesh_isolated(const std::filesystem::path& file, const MeshReadOptions& options) {
   int fds[2];
   if (::pipe(fds) != 0)
-    throw SystemError(fmt::format("reading {}: cannot make a pipe: {}", file.string(),
-                                  std::strerror(errno)));
+    throw SystemError(
+        fmt::format("reading {}: cannot make a pipe: {}", file.string(), std::strerror(errno)));
   std::fflush(nullptr);
   const pid_t pid = ::fork();
   if (pid < 0) {

@@ -19,8 +19,7 @@ std::string closest_flag(std::string_view typed, std::span<const std::string> kn
 /// " (did you mean --x?)" for the arguments of @p args that start with "--",
 /// are not known and have a close known flag (each suggestion once); ""
 /// otherwise. `--name=value` is read as `--name`.
-std::string flag_suggestions(std::span<const std::string> args,
-                             std::span<const std::string> known);
+std::string flag_suggestions(std::span<const std::string> args, std::span<const std::string> known);
 
 /// The long flag names of a CLI11 application and of its subcommands,
 /// without dashes (a template so that this header needs no CLI11).
