@@ -20,6 +20,8 @@
 
 #include "palpate/core/error.hpp"
 #include "palpate/core/statistics.hpp"
+#include "palpate/core/suggest.hpp"
+#include "palpate/file/atomic_file.hpp"
 #include "palpate/transport/client.hpp"
 
 namespace {
@@ -43,14 +45,20 @@ ConstraintSpec parse_constraint(const std::string& text, palpate::ConstraintKind
     throw palpate::InputError(
         fmt::format("{} '{}': expected VERTEX:x,y,z{}", flag, text,
                     kind == palpate::ConstraintKind::kNormalDisplacement ? ":DEPTH" : ""));
-  const auto vertex = static_cast<std::uint32_t>(std::stoul(text.substr(0, colon)));
+  std::uint32_t vertex = 0;
+  const std::string id = text.substr(0, colon);
+  if (id.empty() || id.find_first_not_of("0123456789") != std::string::npos ||
+      std::sscanf(id.c_str(), "%u", &vertex) != 1)
+    throw palpate::InputError(fmt::format(
+        "{} '{}': '{}' is not a vertex id (a mesh vertex id, 0 or more)", flag, text, id));
   std::string rest = text.substr(colon + 1);
   if (kind == palpate::ConstraintKind::kNormalDisplacement) {
     const auto second = rest.rfind(':');
-    if (second == std::string::npos)
+    double depth = 0;
+    if (second == std::string::npos || std::sscanf(rest.c_str() + second + 1, "%lf", &depth) != 1)
       throw palpate::InputError(fmt::format("{} '{}': expected VERTEX:nx,ny,nz:DEPTH", flag, text));
     return ConstraintSpec::normal_displacement(vertex, parse_vec3(rest.substr(0, second), flag),
-                                               std::stod(rest.substr(second + 1)));
+                                               depth);
   }
   return {vertex, kind, parse_vec3(rest, flag), {}};
 }
@@ -77,14 +85,56 @@ void print_reply(const palpate::Reply& reply) {
   }
 }
 
-palpate::ModelInfo connect(palpate::Client& client, const std::string& model_id) {
+/// The description of @p model_id; an unknown model is answered as soon as
+/// palpated's heartbeat shows every served model was described (about 1 s).
+palpate::ModelInfo describe_model(palpate::Client& client, const std::string& model_id,
+                                  std::uint32_t domain) {
   const auto model = client.wait_for_model(model_id, 10s);
-  if (!model)
-    throw palpate::SystemError("no description of model '" + model_id +
-                               "' within 10 s (is palpated serving it?)");
+  if (model) return *model;
+  const auto seen = client.models_seen();
+  if (seen.empty())
+    throw palpate::SystemError(fmt::format(
+        "no palpated answered within 10 s: no model description on DDS domain {} (is palpated "
+        "running, in this network namespace?)",
+        domain));
+  std::string ids;
+  for (const auto& id : seen) ids += (ids.empty() ? "" : ", ") + id;
+  throw palpate::InputError(
+      fmt::format("model '{}' is not served by palpated; served: {} (use --model)", model_id, ids));
+}
+
+palpate::ModelInfo connect(palpate::Client& client, const std::string& model_id,
+                           std::uint32_t domain) {
+  const auto model = describe_model(client, model_id, domain);
   if (!client.wait_for_service(10s))
     throw palpate::SystemError("palpated does not answer requests within 10 s");
-  return *model;
+  return model;
+}
+
+/// The reply's surface field as CSV, one compliance vertex a row, written
+/// atomically: vertex_id,x_m,y_m,z_m,ux_m,uy_m,uz_m.
+void write_field(const std::string& file, const palpate::ModelInfo& model,
+                 const palpate::Reply& reply) {
+  const auto& s = model.surface;
+  const auto n = static_cast<std::size_t>(s.compliance_vertex_count);
+  if (reply.surface_displacement_m.size() != 3 * n)
+    throw palpate::SystemError(
+        fmt::format("the reply carries {} surface values for {} compliance vertices",
+                    reply.surface_displacement_m.size(), n));
+  palpate::AtomicOutput out(file);
+  {
+    std::FILE* f = std::fopen(out.temp_path().c_str(), "w");
+    if (!f) throw palpate::SystemError(fmt::format("{}: cannot write it", file));
+    std::fprintf(f, "vertex_id,x_m,y_m,z_m,ux_m,uy_m,uz_m\n");
+    for (std::size_t v = 0; v < n; ++v) {
+      const double* x = &s.rest_positions_m[3 * v];
+      const double* u = &reply.surface_displacement_m[3 * v];
+      std::fprintf(f, "%u,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", s.vertex_ids[v], x[0], x[1], x[2],
+                   u[0], u[1], u[2]);
+    }
+    if (std::fclose(f) != 0) throw palpate::SystemError(fmt::format("{}: write failed", file));
+  }
+  out.commit();
 }
 
 std::atomic<bool> stop_requested{false};
@@ -118,8 +168,9 @@ double percentile(std::vector<double> values, double q) {
 
 /// Press the top of the organ, pinch a triangle, slide along the surface,
 /// release: the gestures of docs/model.md ("Tool contacts") at the haptic rate, with the forces.
-int demo(palpate::Client& client, const std::string& model_id, double rate_hz, int repeat) {
-  const palpate::ModelInfo m = connect(client, model_id);
+int demo(palpate::Client& client, const std::string& model_id, std::uint32_t domain, double rate_hz,
+         int repeat) {
+  const palpate::ModelInfo m = connect(client, model_id, domain);
   std::printf("model %s: %d compliance vertices, %zu triangles; %s\n", m.model_id.c_str(),
               m.surface.compliance_vertex_count, m.surface.triangles.size() / 3,
               m.material_summary.c_str());
@@ -270,21 +321,27 @@ int run(int argc, char** argv) {
 
   std::string model_id = "sample-organ";
   auto* describe = app.add_subcommand("describe", "print a model's description");
-  describe->add_option("--model", model_id, "model id");
+  describe->add_option("--model", model_id, "model id")->capture_default_str();
 
   auto* request = app.add_subcommand("request", "send one request and print the reply");
   std::vector<std::string> forces, displacements, normals;
   bool surface = false, no_update = false;
-  request->add_option("--model", model_id, "model id");
+  request->add_option("--model", model_id, "model id")->capture_default_str();
   request->add_option("--force", forces, "VERTEX:fx,fy,fz (N), repeatable");
   request->add_option("--displacement", displacements, "VERTEX:ux,uy,uz (m), repeatable");
   request->add_option("--normal-displacement", normals, "VERTEX:nx,ny,nz:DEPTH (m), repeatable");
   request->add_flag("--surface", surface, "ask for the displacement of every surface vertex");
   request->add_flag("--no-update", no_update, "do not change the state the model shows");
+  std::string output;
+  request
+      ->add_option("--output", output,
+                   "with --surface: write the field to this CSV file (vertex id, rest position and "
+                   "displacement of every compliance vertex, m)")
+      ->needs("--surface");
 
   auto* demo_command = app.add_subcommand("demo", "scripted palpation at the haptic rate");
   double rate_hz = 1000;
-  demo_command->add_option("--model", model_id, "model id");
+  demo_command->add_option("--model", model_id, "model id")->capture_default_str();
   demo_command->add_option("--rate", rate_hz, "requests per second (default 1000)")
       ->check(CLI::Range(10.0, 20000.0));
   int repeat = 1;
@@ -302,7 +359,10 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);
-    std::fprintf(stderr, "palpate-client: error: %s (see --help)\n", e.what());
+    std::fprintf(stderr, "palpate-client: error: %s%s (see --help)\n", e.what(),
+                 palpate::flag_suggestions(std::vector<std::string>(argv + 1, argv + argc),
+                                           palpate::long_flag_names(app))
+                     .c_str());
     return static_cast<int>(palpate::ExitCode::kUsage);
   }
 
@@ -310,14 +370,16 @@ int run(int argc, char** argv) {
                                  status->parsed() || demo_command->parsed()};
   palpate::Client client(options);
   if (*describe) {
-    const auto m = client.wait_for_model(model_id, 10s);
-    if (!m) throw palpate::SystemError("no description of model '" + model_id + "' within 10 s");
+    const palpate::ModelInfo m = describe_model(client, model_id, domain);
     std::printf(
         "model %s\n  units %s\n  material %s\n  input %s\n  %d compliance vertices, %zu drawn, %zu "
         "triangles\n",
-        m->model_id.c_str(), m->units.c_str(), m->material_summary.c_str(), m->input_hash.c_str(),
-        m->surface.compliance_vertex_count, m->surface.vertex_ids.size(),
-        m->surface.triangles.size() / 3);
+        m.model_id.c_str(), m.units.c_str(), m.material_summary.c_str(), m.input_hash.c_str(),
+        m.surface.compliance_vertex_count, m.surface.vertex_ids.size(),
+        m.surface.triangles.size() / 3);
+    if (m.max_displacement_m > 0)
+      std::printf("  a request may impose at most %.4g m and give at most %.4g N per vertex\n",
+                  m.max_displacement_m, m.max_force_n);
     return 0;
   }
   if (*request) {
@@ -330,14 +392,22 @@ int run(int argc, char** argv) {
     for (const auto& d : normals)
       constraints.push_back(parse_constraint(d, palpate::ConstraintKind::kNormalDisplacement,
                                              "--normal-displacement"));
-    connect(client, model_id);
+    if (!output.empty() && output.ends_with(".h5"))
+      throw palpate::InputError(
+          fmt::format("--output {}: the field is written as CSV; name the file .csv", output));
+    if (!output.empty()) palpate::require_output_directory(output);
+    const palpate::ModelInfo model = connect(client, model_id, domain);
     const auto reply = client.request(model_id, constraints, surface, !no_update);
     print_reply(reply);
+    if (!output.empty() && reply.status == palpate::RequestStatus::kOk) {
+      write_field(output, model, reply);
+      std::printf("  surface field written to %s\n", output.c_str());
+    }
     return reply.status == palpate::RequestStatus::kOk
                ? 0
                : static_cast<int>(palpate::ExitCode::kUsage);
   }
-  if (*demo_command) return demo(client, model_id, rate_hz, repeat);
+  if (*demo_command) return demo(client, model_id, domain, rate_hz, repeat);
   if (*watch) {
     std::signal(SIGINT, on_stop_signal);
     std::signal(SIGTERM, on_stop_signal);

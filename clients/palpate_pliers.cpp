@@ -3,11 +3,15 @@
 // tick publishes every tool's pose, waits for its ToolFeedback until the
 // next tick, and records the round trip, the force, the grip and the state.
 // Prints a summary per tool; --csv writes every tick, --json the summary.
+// Ends each tool's session when done (palpate_tool_command END), so that
+// palpated lets go at once rather than by its watchdog.
 //
 // Exit codes: 0 played; 2 bad command line, gesture file or model (unknown
-// model id, unknown tool, anchor); 3 palpated did not answer (no model
-// description or no tool-pose reader within --timeout, or no feedback at all
-// for a tool); 5 DDS failed; 130 interrupted (the summary is still printed).
+// model id, unknown tool, anchor), or palpated refused poses (its reason is
+// printed: a jaw angle over the tool's limit, a pose out of the workspace);
+// 3 palpated did not answer (no model description or no tool-pose reader
+// within --timeout, or no feedback at all for a tool); 5 DDS failed; 130
+// interrupted (the summary is still printed).
 
 #include <fmt/format.h>
 
@@ -30,6 +34,7 @@
 
 #include "palpate/core/error.hpp"
 #include "palpate/core/statistics.hpp"
+#include "palpate/core/suggest.hpp"
 #include "palpate/runtime/gesture.hpp"
 #include "palpate/transport/tool_client.hpp"
 
@@ -96,7 +101,9 @@ struct ToolRun {
   std::string id;
   int gesture_index = 0;
   std::vector<TickRecord> ticks;
-  std::array<std::uint64_t, 6> events{};  // by ToolEventKind
+  std::array<std::uint64_t, 7> events{};  // by ToolEventKind
+  std::uint64_t notices = 0;              // poses palpated said it refused (rate limited)
+  std::string first_refusal;              // the first reason palpated gave
 };
 
 void fill(TickRecord& r, const palpate::ToolFeedbackSample& f) {
@@ -192,9 +199,10 @@ double share(std::size_t part, std::size_t whole) {
   return whole == 0 ? 0 : 100.0 * static_cast<double>(part) / static_cast<double>(whole);
 }
 
-constexpr std::array<ToolEventKind, 6> kEventKinds{
+constexpr std::array<ToolEventKind, 7> kEventKinds{
     ToolEventKind::kTouch,   ToolEventKind::kLeave,    ToolEventKind::kGrasp,
-    ToolEventKind::kRelease, ToolEventKind::kWatchdog, ToolEventKind::kResumed};
+    ToolEventKind::kRelease, ToolEventKind::kWatchdog, ToolEventKind::kResumed,
+    ToolEventKind::kEnded};
 
 struct Settings {
   std::string gesture_file, model_id = "sample-organ", csv, json;
@@ -266,7 +274,10 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);
-    std::fprintf(stderr, "palpate-pliers: error: %s (see --help)\n", e.what());
+    std::fprintf(stderr, "palpate-pliers: error: %s%s (see --help)\n", e.what(),
+                 palpate::flag_suggestions(std::vector<std::string>(argv + 1, argv + argc),
+                                           palpate::long_flag_names(app))
+                     .c_str());
     return static_cast<int>(palpate::ExitCode::kUsage);
   }
 
@@ -275,8 +286,12 @@ int run(int argc, char** argv) {
   std::vector<ToolRun> runs;
   for (std::size_t t = 0; t < gesture.tools.size(); ++t)
     if (o.only_tools.empty() || std::find(o.only_tools.begin(), o.only_tools.end(),
-                                          gesture.tools[t].id) != o.only_tools.end())
-      runs.push_back({gesture.tools[t].id, static_cast<int>(t), {}, {}});
+                                          gesture.tools[t].id) != o.only_tools.end()) {
+      ToolRun run;
+      run.id = gesture.tools[t].id;
+      run.gesture_index = static_cast<int>(t);
+      runs.push_back(std::move(run));
+    }
   for (const auto& wanted : o.only_tools)
     if (std::none_of(runs.begin(), runs.end(), [&](const ToolRun& r) { return r.id == wanted; })) {
       std::string ids;
@@ -379,6 +394,38 @@ int run(int argc, char** argv) {
   const auto start = Clock::now() + std::chrono::milliseconds(5);
   const std::int64_t start_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
+  // Events and notices: printed (notices on stderr, even with -q) and counted.
+  auto take_events_and_notices = [&] {
+    for (const auto& e : client.take_events()) {
+      const auto it = std::find_if(runs.begin(), runs.end(),
+                                   [&](const ToolRun& r) { return r.id == e.tool_id; });
+      // Another client's tools, or the end of an earlier run (its watchdog).
+      if (it == runs.end() || e.model_id != o.model_id || e.pose_sequence < first_sequence)
+        continue;
+      const auto kind = static_cast<std::size_t>(e.kind);
+      if (kind < it->events.size()) ++it->events[kind];
+      if (!o.quiet && ++event_lines <= kMaxEventLines) {
+        std::printf("  %7.3f s  %-6s %s", static_cast<double>(e.receive_time_ns - start_ns) * 1e-9,
+                    e.tool_id.c_str(), palpate::tool_event_name(e.kind));
+        if (e.kind == ToolEventKind::kGrasp) std::printf(" (%u vertices held)", e.held_vertices);
+        std::printf("  [pose %llu]\n",
+                    static_cast<unsigned long long>(e.pose_sequence - first_sequence + 1));
+        if (event_lines == kMaxEventLines)
+          std::printf("  … further events are only counted (summary)\n");
+        std::fflush(stdout);
+      }
+    }
+    for (const auto& n : client.take_notices()) {
+      const auto it = std::find_if(runs.begin(), runs.end(),
+                                   [&](const ToolRun& r) { return r.id == n.tool_id; });
+      if (it == runs.end() || n.model_id != o.model_id || n.pose_sequence < first_sequence)
+        continue;
+      if (it->notices++ == 0) it->first_refusal = n.message;
+      std::fprintf(stderr, "palpate-pliers: palpated refused pose %llu of tool '%s': %s\n",
+                   static_cast<unsigned long long>(n.pose_sequence - first_sequence + 1),
+                   n.tool_id.c_str(), n.message.c_str());
+    }
+  };
   for (std::size_t i = 0; i < total && !interrupted; ++i, ++played) {
     const auto scheduled = start + i * period;
     std::this_thread::sleep_until(scheduled);
@@ -427,25 +474,7 @@ int run(int argc, char** argv) {
       run.ticks[i].rendered_n = std::hypot(f[0], f[1], f[2]);
       run.ticks[i].daemon = presence.state;
     }
-    for (const auto& e : client.take_events()) {
-      const auto it = std::find_if(runs.begin(), runs.end(),
-                                   [&](const ToolRun& r) { return r.id == e.tool_id; });
-      // Another client's tools, or the end of an earlier run (its watchdog).
-      if (it == runs.end() || e.model_id != o.model_id || e.pose_sequence < first_sequence)
-        continue;
-      const auto kind = static_cast<std::size_t>(e.kind);
-      if (kind < it->events.size()) ++it->events[kind];
-      if (!o.quiet && ++event_lines <= kMaxEventLines) {
-        std::printf("  %7.3f s  %-6s %s", static_cast<double>(e.receive_time_ns - start_ns) * 1e-9,
-                    e.tool_id.c_str(), palpate::tool_event_name(e.kind));
-        if (e.kind == ToolEventKind::kGrasp) std::printf(" (%u vertices held)", e.held_vertices);
-        std::printf("  [pose %llu]\n",
-                    static_cast<unsigned long long>(e.pose_sequence - first_sequence + 1));
-        if (event_lines == kMaxEventLines)
-          std::printf("  … further events are only counted (summary)\n");
-        std::fflush(stdout);
-      }
-    }
+    take_events_and_notices();
   }
   // Stragglers: feedback still on its way when the last tick ended.
   const auto drain_until = Clock::now() + std::chrono::milliseconds(20);
@@ -455,6 +484,27 @@ int run(int argc, char** argv) {
     collect_late(run, played - 1);
   }
   for (auto& r : runs) r.ticks.resize(played);
+  // The end of each tool's session: palpated lets go now (an `ended` event),
+  // not 50 ms later by its watchdog, and the next run starts afresh.
+  const auto end_by = Clock::now() + std::chrono::seconds(1);
+  bool ended = true;
+  for (const ToolRun& run : runs)
+    if (played > 0)
+      ended = client.end_session(run.id, o.model_id, std::chrono::milliseconds(500)) && ended;
+  // Only a tool palpated answered has a session to end (and an event to wait for).
+  auto all_ended = [&] {
+    return std::all_of(runs.begin(), runs.end(), [](const ToolRun& r) {
+      const bool answered = std::any_of(r.ticks.begin(), r.ticks.end(), [](const TickRecord& t) {
+        return t.outcome != Outcome::kMissing;
+      });
+      return !answered || r.events[static_cast<std::size_t>(ToolEventKind::kEnded)] > 0;
+    });
+  };
+  while (played > 0 && ended && !all_ended() && Clock::now() < end_by) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    take_events_and_notices();
+  }
+  take_events_and_notices();
 
   // 4. The summary.
   const double budget_us = period_s * 1e6;
@@ -474,7 +524,7 @@ int run(int argc, char** argv) {
         "%%\n"
         "    max |force| %.3f N, max grip %.3f N, max contacts %u; answered free %zu, touching "
         "%zu, "
-        "grasping %zu; force limited %zu, watchdog %zu\n",
+        "grasping %zu; force limited %zu, during a watchdog ramp %zu\n",
         run.id.c_str(), s.ticks, s.in_time, s.late, s.missing, s.newer, s.rtt.p50, s.rtt.p99,
         s.rtt.p999, s.rtt.max, budget_us * 1e-3, share(s.within_budget, s.ticks), s.max_force_n,
         s.max_grip_n, s.max_contacts, s.states[0], s.states[1], s.states[2], s.force_limited,
@@ -490,6 +540,9 @@ int run(int argc, char** argv) {
     }
     std::printf("    events: %s; palpated's compute p50 %.1f µs p99 %.1f µs\n",
                 events.empty() ? "none" : events.c_str(), s.compute.p50, s.compute.p99);
+    if (run.notices > 0)
+      std::printf("    poses refused by palpated: %llu or more (first: %s)\n",
+                  static_cast<unsigned long long>(run.notices), run.first_refusal.c_str());
     if (s.ticks_while_lost > 0)
       std::printf("    while palpated was lost: %zu ticks, force rendered max %.3f N\n",
                   s.ticks_while_lost, s.max_rendered_while_lost_n);
@@ -515,12 +568,14 @@ int run(int argc, char** argv) {
          {"max_rendered_force_n", s.max_rendered_n},
          {"ticks_while_daemon_lost", s.ticks_while_lost},
          {"max_rendered_force_while_daemon_lost_n", s.max_rendered_while_lost_n},
-         {"events", events_json}});
+         {"events", events_json},
+         {"refusal_notices", run.notices},
+         {"first_refusal", run.first_refusal}});
   }
   if (client.foreign_feedback() > 0 || client.dropped_late_feedback() > 0 || other_sessions > 0)
     std::printf(
-        "  feedback for other clients' tools %llu, for poses this run did not send %llu, late "
-        "feedback dropped %llu\n",
+        "  feedback for other clients' tools %llu, for poses this run did not send %llu (an "
+        "earlier run's, or another client driving the same tool), late feedback dropped %llu\n",
         static_cast<unsigned long long>(client.foreign_feedback()),
         static_cast<unsigned long long>(other_sessions),
         static_cast<unsigned long long>(client.dropped_late_feedback()));
@@ -552,7 +607,15 @@ int run(int argc, char** argv) {
     out << summary.dump(2) << "\n";
     if (!out) throw palpate::InputError(fmt::format("--json {}: cannot be written", o.json));
   }
+  std::fflush(stdout);  // the summary before any error on stderr
   if (interrupted) return static_cast<int>(palpate::ExitCode::kInterrupted);
+  std::string refusals;
+  for (const ToolRun& run : runs)
+    if (run.notices > 0)
+      refusals +=
+          fmt::format("{}tool '{}': {}", refusals.empty() ? "" : "; ", run.id, run.first_refusal);
+  if (!refusals.empty())
+    throw palpate::InputError(fmt::format("palpated refused poses of {}", refusals));
   if (!silent_tools.empty())
     throw NoAnswer(fmt::format(
         "palpated sent no feedback at all for tool {}: is it one of palpated's tools ([[tools]], "

@@ -232,12 +232,14 @@ subscribe() { echo "        <subscribe>"; topics "$@"; echo "        </subscribe
 kind_rules() {
   case $1 in
     daemon)
-      publish palpate_model palpate_surface palpate_status palpate_tool_feedback palpate_tool_event
+      publish palpate_model palpate_surface palpate_status palpate_tool_feedback palpate_tool_event \
+        palpate_tool_notice
       { echo "        <publish>"; topics palpate_reply; reply_partition; echo "        </publish>"; }
-      subscribe palpate_request palpate_tool_pose ;;
+      subscribe palpate_request palpate_tool_pose palpate_tool_command ;;
     pliers)
-      publish palpate_tool_pose
-      subscribe palpate_model palpate_status palpate_tool_feedback palpate_tool_event ;;
+      publish palpate_tool_pose palpate_tool_command
+      subscribe palpate_model palpate_status palpate_tool_feedback palpate_tool_event \
+        palpate_tool_notice ;;
     viewer)
       subscribe palpate_model palpate_surface palpate_status palpate_tool_pose palpate_tool_feedback \
         palpate_tool_event ;;

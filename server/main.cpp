@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "palpate/core/error.hpp"
+#include "palpate/core/suggest.hpp"
 #include "palpate/core/system_info.hpp"
 #include "palpate/core/version.hpp"
 #include "palpate/daemon/daemon_config.hpp"
@@ -109,6 +110,11 @@ int run(int argc, char** argv) {
                  "constrained vertices per request");
   app.add_option("--max-condition", overrides.limits.max_condition,
                  "largest accepted condition estimate");
+  app.add_option("--max-displacement-fraction", overrides.max_displacement_fraction,
+                 "longest imposed displacement a request may give, as a fraction of the organ's "
+                 "size (default 0.1)");
+  app.add_option("--max-force", overrides.max_force_n,
+                 "largest force a request may give, N (default 50)");
   app.add_option("--log-level", overrides.log_level, "trace, debug, info, warn or error");
   std::string record_directory;
   app.add_option("--record", record_directory,
@@ -126,7 +132,10 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);
-    std::fprintf(stderr, "palpated: error: %s (see --help)\n", e.what());
+    std::fprintf(stderr, "palpated: error: %s%s (see --help)\n", e.what(),
+                 palpate::flag_suggestions(std::vector<std::string>(argv + 1, argv + argc),
+                                           palpate::long_flag_names(app))
+                     .c_str());
     return static_cast<int>(palpate::ExitCode::kUsage);
   }
 
@@ -151,6 +160,9 @@ int run(int argc, char** argv) {
   if (app.count("--max-constraints"))
     config.limits.max_constraints = overrides.limits.max_constraints;
   if (app.count("--max-condition")) config.limits.max_condition = overrides.limits.max_condition;
+  if (app.count("--max-displacement-fraction"))
+    config.max_displacement_fraction = overrides.max_displacement_fraction;
+  if (app.count("--max-force")) config.max_force_n = overrides.max_force_n;
   if (app.count("--log-level")) config.log_level = overrides.log_level;
   if (app.count("--record")) config.record_directory = record_directory;
   for (const auto& flag : model_flags) config.models.push_back(palpate::parse_model_flag(flag));

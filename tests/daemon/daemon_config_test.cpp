@@ -40,6 +40,8 @@ max_constraints = 20
 max_condition = 1e9
 cache_slots = 4
 max_clients = 8
+max_displacement_fraction = 0.05
+max_force_n = 20
 [[model]]
 id = "liver"
 file = "organ.h5"
@@ -54,6 +56,8 @@ file = "organ.h5"
   EXPECT_EQ(config.limits.max_condition, 1e9);
   EXPECT_EQ(config.limits.cache_slots, 4);
   EXPECT_EQ(config.max_clients, 8);
+  EXPECT_EQ(config.max_displacement_fraction, 0.05);
+  EXPECT_EQ(config.max_force_n, 20);
   ASSERT_EQ(config.models.size(), 1u);
   EXPECT_EQ(config.models[0].id, "liver");
   EXPECT_EQ(config.models[0].file, dir.path() / "organ.h5");
@@ -65,6 +69,8 @@ TEST(DaemonConfig, DefaultsNeedOnlyAModel) {
   EXPECT_EQ(config.surface_rate_hz, 60);
   EXPECT_EQ(config.status_rate_hz, 1);
   EXPECT_TRUE(config.dds_config.empty()) << "loopback unless the user gives a configuration";
+  EXPECT_EQ(config.max_displacement_fraction, 0.1) << "10 % of the organ's size";
+  EXPECT_EQ(config.max_force_n, 50);
   expect_error<InputError>([&] { validate(config); }, {"no model to serve", "--model ID=PATH"});
   config.models.push_back(parse_model_flag("liver=/nonexistent/liver.h5"));
   expect_error<InputError>([&] { validate(config); },
@@ -95,6 +101,13 @@ TEST(DaemonConfig, ErrorsNameTheLineTheKeyAndWhatIsAccepted) {
   config.models = {{"bad id*", dir / "a.h5"}};
   expect_error<InputError>([&] { validate(config); }, {"model id 'bad id*'", "A-Z a-z 0-9"});
   config.models = {{"a", dir / "a.h5"}};
+  config.max_displacement_fraction = 2;
+  expect_error<InputError>([&] { validate(config); },
+                           {"limits.max_displacement_fraction 2", "(0, 1]"});
+  config.max_displacement_fraction = 0.1;
+  config.max_force_n = INFINITY;
+  expect_error<InputError>([&] { validate(config); }, {"limits.max_force_n inf", "> 0 in N"});
+  config.max_force_n = 50;
   config.log_level = "verbose";
   expect_error<InputError>([&] { validate(config); },
                            {"daemon.log_level 'verbose'", "trace, debug"});

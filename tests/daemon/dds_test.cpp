@@ -120,6 +120,16 @@ TEST_F(PalpatedTest, DescribesEachModelToLateJoiners) {
   EXPECT_EQ(m.units, "m, N (SI)");
   EXPECT_NE(m.material_summary.find("85000"), std::string::npos) << m.material_summary;
   EXPECT_EQ(m.input_hash.rfind("sha256:", 0), 0u);
+  // The bounds on a request's values: 10 % of the organ's size (the box's
+  // surface diagonal), 50 N (palpated's defaults).
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (std::size_t v = 0; v < m.surface.vertex_ids.size(); ++v) {
+    const Eigen::Vector3d x(&m.surface.rest_positions_m[3 * v]);
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  EXPECT_NEAR(m.max_displacement_m, 0.1 * (hi - lo).norm(), 1e-15);
+  EXPECT_EQ(m.max_force_n, 50.0);
   EXPECT_TRUE(client->wait_for_model("stiff", kTimeout));
 }
 
@@ -324,15 +334,32 @@ TEST_F(PalpatedTest, EveryBadRequestGetsItsErrorAndTheDaemonKeepsServing) {
        "no direction"},
       {"box", std::vector<ConstraintSpec>(9, push), RequestStatus::kTooManyConstraints,
        "at most 8"},
+      // Millimetres typed as metres, a force no tool could give, and a value
+      // that would overflow the solution.
+      {"box",
+       {ConstraintSpec::displacement(v, {0, 0, -3})},
+       RequestStatus::kDisplacementTooLarge,
+       "a displacement of 3 m is larger than model 'box' accepts"},
+      {"box",
+       {ConstraintSpec::displacement(v, {1e308, 0, 0})},
+       RequestStatus::kDisplacementTooLarge,
+       "1e+308 m"},
+      {"box", {ConstraintSpec::force(v, {0, 0, 500})}, RequestStatus::kForceTooLarge, "500 N"},
   };
   for (const auto& c : cases) {
     const Reply reply = client->request(c.model, c.constraints);
     EXPECT_EQ(reply.status, c.status) << c.fragment << ": " << reply.message;
     EXPECT_NE(reply.message.find(c.fragment), std::string::npos) << reply.message;
     EXPECT_TRUE(reply.results.empty());
+    // docs/dds.md: every error reply but ill_conditioned carries 1.
+    EXPECT_EQ(reply.condition_estimate, 1.0) << c.fragment;
     const Reply good = client->request("box", std::vector{push});
     EXPECT_EQ(good.status, RequestStatus::kOk) << "still serving after " << c.fragment;
   }
+  // A field the kind does not use is ignored (docs/dds.md): a NaN normal on a force.
+  ConstraintSpec force = ConstraintSpec::force(v, {0, 0, -1});
+  force.normal = {nan, nan, nan};
+  EXPECT_EQ(client->request("box", std::vector{force}).status, RequestStatus::kOk);
   // The heartbeat counts the refusals.
   std::optional<StatusSample> status;
   for (int i = 0; i < 50 && (!status || status->error_replies < cases.size()); ++i)

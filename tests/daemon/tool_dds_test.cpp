@@ -283,6 +283,76 @@ TEST_F(ToolsOverDdsTest, BadPosesAreIgnoredWithAWarningAndServingGoesOn) {
        {"reason=non_finite", "reason=bad_quaternion", "reason=out_of_workspace",
         "reason=bad_jaw_angle", "reason=unknown_tool", "reason=unknown_model"})
     EXPECT_NE(log.find(reason), std::string::npos) << reason << "\n" << log;
+
+  // Each refusal reached the client too, with its reason in one line.
+  std::vector<ToolNoticeSample> notices;
+  const auto until = std::chrono::steady_clock::now() + kTimeout;
+  while (notices.size() < 6 && std::chrono::steady_clock::now() < until) {
+    for (auto& n : client_->take_notices()) notices.push_back(std::move(n));
+    std::this_thread::sleep_for(5ms);
+  }
+  auto notice_of = [&](std::uint64_t sequence) -> const ToolNoticeSample* {
+    for (const auto& n : notices)
+      if (n.pose_sequence == sequence) return &n;
+    return nullptr;
+  };
+  const struct {
+    std::uint64_t sequence;
+    PoseProblem reason;
+    const char* says;
+  } expected[] = {
+      {s + 1, PoseProblem::kNonFinite, "non-finite"},
+      {s + 2, PoseProblem::kBadQuaternion, "quaternion of norm 2"},
+      {s + 3, PoseProblem::kOutOfWorkspace, "outside the organ's box"},
+      {s + 4, PoseProblem::kBadJawAngle,
+       "jaw angle 401.1° of tool 'left' is over its limit; "
+       "accepted: 0° to 75°"},
+      {s + 5, PoseProblem::kUnknownTool,
+       "tool 'nobody' is not one of palpated's tools on model "
+       "'box': probe, left, right"},
+      {s + 6, PoseProblem::kUnknownModel, "model 'liver' is not served by palpated; served: box"},
+  };
+  for (const auto& e : expected) {
+    const ToolNoticeSample* n = notice_of(e.sequence);
+    ASSERT_NE(n, nullptr) << pose_problem_name(e.reason);
+    EXPECT_EQ(n->reason, e.reason);
+    EXPECT_NE(n->message.find(e.says), std::string::npos) << n->message;
+  }
+}
+
+TEST_F(ToolsOverDdsTest, AClientThatEndsItsSessionIsLetGoAtOnceWithoutTheWatchdog) {
+  const int v = top_vertex(25, 25);
+  const double r = 0.002;
+  Hand probe("probe", rest(v) + Vector3d(0, 0, r + 0.002));
+  probe.move(rest(v) + Vector3d(0, 0, r - 0.002), 0);
+  probe.hold(5);
+  ASSERT_GT(probe.force().norm(), 0.05);
+  client_->take_events();
+
+  ASSERT_TRUE(client_->end_session("probe", "box", kTimeout));
+  std::vector<ToolEventSample> events;
+  const auto until = std::chrono::steady_clock::now() + 300ms;  // past the 50 ms watchdog
+  while (std::chrono::steady_clock::now() < until) {
+    for (auto& e : client_->take_events()) events.push_back(std::move(e));
+    std::this_thread::sleep_for(5ms);
+  }
+  EXPECT_TRUE(saw_event(events, "probe", ToolEventKind::kEnded));
+  EXPECT_FALSE(saw_event(events, "probe", ToolEventKind::kWatchdog));
+  // Its last feedback: nothing to feel, no contact, not a watchdog ramp.
+  const auto last =
+      client_->wait_feedback("probe", probe.sequence, std::chrono::steady_clock::now() + 100ms);
+  ASSERT_TRUE(last);
+  EXPECT_EQ(Vector3d(last->force_n.data()).norm(), 0.0);
+  EXPECT_EQ(last->contacts, 0u);
+  EXPECT_FALSE(last->watchdog);
+
+  // A new session counts from 1 again: served, and not "resumed".
+  Hand again("probe", rest(v) + Vector3d(0, 0, r + 0.002));
+  again.sequence = 0;
+  again.hold(5);
+  EXPECT_EQ(again.answered, 5);
+  std::this_thread::sleep_for(50ms);
+  EXPECT_FALSE(saw_event(client_->take_events(), "probe", ToolEventKind::kResumed));
 }
 
 TEST_F(ToolsOverDdsTest, WhenPosesStopTheWatchdogRampsTheForceToZero) {

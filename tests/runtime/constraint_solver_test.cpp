@@ -287,6 +287,53 @@ TEST_F(ConstraintSolverTest, RefusesASolutionThatOverflows) {
   }
 }
 
+TEST_F(ConstraintSolverTest, RefusesValuesBeyondTheModelsBoundsWithTheirOwnStatus) {
+  // The box is 0.1 m long; palpated's default bound is 10 % of the organ's
+  // size. 3 (mm typed as m) and 500 N are refused; 9 mm and 40 N are not.
+  ConstraintSolver solver(model(), {.max_constraints = 4,
+                                    .cache_slots = 2,
+                                    .max_condition = 1e12,
+                                    .max_displacement_m = 0.01,
+                                    .max_force_n = 50});
+  const struct {
+    Request request;
+    RequestStatus status;
+    const char* says;
+  } cases[] = {
+      {{vertex(1), ConstraintKind::kDisplacement, {0, 0, -3}},
+       RequestStatus::kDisplacementTooLarge,
+       "a displacement of 3 m is larger than model 'box' accepts (0.01 m"},
+      {{vertex(1), ConstraintKind::kNormalDisplacement, {-0.02, 0, 0}, {0, 0, 1}},
+       RequestStatus::kDisplacementTooLarge,
+       "0.02 m"},
+      {{vertex(1), ConstraintKind::kForce, {300, 400, 0}},
+       RequestStatus::kForceTooLarge,
+       "a force of 500 N is larger than accepted (50 N"},
+      {{vertex(1), ConstraintKind::kDisplacement, {0, 0, -0.009}}, RequestStatus::kOk, ""},
+      {{vertex(1), ConstraintKind::kForce, {0, 0, -40}}, RequestStatus::kOk, ""},
+  };
+  for (const auto& c : cases) {
+    EXPECT_EQ(run(solver, {c.request}), c.status) << c.says;
+    EXPECT_NE(std::string(solver.message()).find(c.says), std::string::npos) << solver.message();
+  }
+  EXPECT_STREQ(status_name(RequestStatus::kDisplacementTooLarge), "displacement_too_large");
+  EXPECT_STREQ(status_name(RequestStatus::kForceTooLarge), "force_too_large");
+}
+
+TEST_F(ConstraintSolverTest, FieldsAKindDoesNotUseAreIgnored) {
+  // docs/dds.md: `normal` matters to normal-displacement constraints only; a
+  // NaN there on a force or a displacement constraint changes nothing.
+  ConstraintSolver solver(model(), {});
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const ConstraintKind kind : {ConstraintKind::kForce, ConstraintKind::kDisplacement}) {
+    const Eigen::Vector3d value(0, 0, kind == ConstraintKind::kForce ? -1.0 : -0.001);
+    ASSERT_EQ(run(solver, {{vertex(1), kind, value, {0, 0, 0}}}), RequestStatus::kOk);
+    const Eigen::VectorXd plain = full_field(solver);
+    ASSERT_EQ(run(solver, {{vertex(1), kind, value, {nan, nan, nan}}}), RequestStatus::kOk);
+    EXPECT_EQ(relative(full_field(solver), plain), 0.0);
+  }
+}
+
 TEST_F(ConstraintSolverTest, RefusesSystemsAboveTheConditionLimit) {
   // Two neighbouring vertices with full imposed displacements give a system
   // whose condition is well above 1; a limit of 2 refuses it and says why.

@@ -350,9 +350,9 @@ TEST(SessionRecorder, RoundTripOfTwoToolsWithContactsAndEvents) {
   EXPECT_EQ(first_difference(h5.read<std::int32_t>("/events/tool"), tool), -1);
   EXPECT_EQ(first_difference(h5.read<std::int32_t>("/events/kind"), kind), -1);
   EXPECT_EQ(first_difference(h5.read<std::uint64_t>("/events/pose_sequence"), pose_sequence), -1);
-  EXPECT_EQ(
-      h5.strings_attribute("/events/kind", "names"),
-      (std::vector<std::string>{"touch", "leave", "grasp", "release", "watchdog", "resumed"}));
+  EXPECT_EQ(h5.strings_attribute("/events/kind", "names"),
+            (std::vector<std::string>{"touch", "leave", "grasp", "release", "watchdog", "resumed",
+                                      "ended"}));
 }
 
 ToolTickRecord tick(double time_s, ToolState state, std::array<double, 3> force,

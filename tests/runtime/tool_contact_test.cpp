@@ -4,6 +4,7 @@
 
 #include "palpate/runtime/tool_contact.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -19,6 +20,7 @@ namespace palpate {
 namespace {
 
 using Eigen::Vector3d;
+using ::testing::HasSubstr;
 
 // Forces come from small SPD solves on G (entries ~1e-4 m/N): they agree
 // with the direct dense solves to ~1e-12 relative; 1e-9 leaves margin.
@@ -379,6 +381,41 @@ TEST_F(ToolContactTest, TheWatchdogRampsAToolOutWhenItsPosesStop) {
   EXPECT_GT(driver.last(0).contacts, 0) << "back where it was, pressing again";
 }
 
+TEST_F(ToolContactTest, AClientsEndLetsGoAtOnceAndTheNextSessionStartsAfresh) {
+  ToolGeometry g;
+  g.id = "grasper";
+  g.force_limit_n = 100;
+  ToolContactEngine engine(model(), {g, probe("other", kSticks)}, {}, {});
+  Driver driver(engine, 1);
+  EXPECT_FALSE(engine.end(0, 0)) << "no session yet: nothing to end";
+  const Vector3d surface = rest(top_vertex(75, 25));
+  const Vector3d above = surface + Vector3d(0, 0, g.tip_length_m + g.tip_radius_m + 0.001);
+  start(driver, 0, above);
+  driver.move(0, above - Vector3d(0, 0, 0.005), 0);
+  ASSERT_GT(driver.last(0).force_n.norm(), 0.1);
+  ASSERT_FALSE(engine.contact_indices().empty());
+
+  ASSERT_TRUE(engine.end(0, driver.now));
+  const ToolOutput& out = engine.output(0);
+  EXPECT_EQ(out.force_n.norm(), 0.0) << "let go at once, no ramp";
+  EXPECT_EQ(out.contacts, 0);
+  EXPECT_FALSE(out.watchdog);
+  ASSERT_GE(out.event_count, 1);
+  EXPECT_EQ(out.events[static_cast<std::size_t>(out.event_count - 1)], ToolEventKind::kEnded);
+  EXPECT_TRUE(engine.contact_indices().empty()) << "the organ is back at rest";
+  EXPECT_EQ(engine.watchdog(driver.now + 1.0), 0u) << "nothing left for the watchdog";
+  EXPECT_FALSE(engine.end(0, driver.now)) << "ended twice: the second changes nothing";
+
+  // A new client counts its sequences from 1 again: not stale, not resumed.
+  driver.log.clear();
+  driver.log_tool.clear();
+  driver.poses[0].sequence = 0;
+  driver.now += 1.0;
+  driver.tick_all();
+  EXPECT_FALSE(driver.saw(0, ToolEventKind::kResumed));
+  EXPECT_GT(driver.last(0).contacts, 0) << "pressing again where it was";
+}
+
 TEST_F(ToolContactTest, AbsurdPosesAreRefusedWithTheirReason) {
   ToolContactEngine engine(model(), {ToolGeometry{.id = "grasper"}}, {}, {});
   const Vector3d above = rest(top_vertex(75, 25)) + Vector3d(0, 0, 0.05);
@@ -403,14 +440,20 @@ TEST_F(ToolContactTest, AbsurdPosesAreRefusedWithTheirReason) {
   p = good;
   p.jaw_angle_rad = -0.01;
   EXPECT_EQ(check(p), PoseProblem::kBadJawAngle);
-  p.jaw_angle_rad = degrees(80);
+  EXPECT_THAT(engine.problem_message(), HasSubstr("under its limit"));
+  p.jaw_angle_rad = degrees(90);
   EXPECT_EQ(check(p), PoseProblem::kBadJawAngle);
+  // The client is told what it sent and what is accepted, in degrees.
+  EXPECT_STREQ(engine.problem_message(),
+               "jaw angle 90° of tool 'grasper' is over its limit; accepted: 0° to 75°");
   p = good;
   p.position_m.z() += 2.0;
   EXPECT_EQ(check(p), PoseProblem::kOutOfWorkspace);
+  EXPECT_THAT(engine.problem_message(), HasSubstr("outside the organ's box"));
 
   ASSERT_EQ(engine.update(0, good, 0), RequestStatus::kOk);
   EXPECT_EQ(check(good), PoseProblem::kStale) << "the same sequence again";
+  EXPECT_THAT(engine.problem_message(), HasSubstr("is not newer than pose 1"));
   good.sequence = 2;
   EXPECT_EQ(check(good), PoseProblem::kNone);
 }

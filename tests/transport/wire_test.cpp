@@ -87,7 +87,7 @@ SurfaceModel hand_made_model() {
 
 TEST(Wire, TheModelDescriptionViewsTheModelsArrays) {
   const SurfaceModel model = hand_made_model();
-  const palpate_ModelDescription d = wire::describe(model);
+  const palpate_ModelDescription d = wire::describe(model, 0.03, 50);
   EXPECT_EQ(bounded(d.model_id), "liver");
   EXPECT_EQ(bounded(d.units), "m, N (SI)");
   EXPECT_EQ(bounded(d.material_summary), model.material_summary);
@@ -122,7 +122,7 @@ TEST(Wire, TheModelDescriptionViewsTheModelsArrays) {
   single.G.resize(0, 0);
   single.G32 = Eigen::MatrixXf::Identity(6, 6);
   single.id = std::string(70, 'q');
-  const palpate_ModelDescription d32 = wire::describe(single);
+  const palpate_ModelDescription d32 = wire::describe(single, 0.03, 50);
   EXPECT_EQ(d32.compliance_vertex_count, 2u);
   EXPECT_EQ(bounded(d32.model_id), std::string(63, 'q'));
 }
@@ -374,7 +374,7 @@ TEST(Wire, ToolOutputBecomesFeedbackAndFeedbackTheClientsSample) {
 
 TEST(Wire, ToolEventsCarryTheirKindAndTheTick) {
   const ToolOutput out = an_output();
-  for (int k = 0; k <= static_cast<int>(ToolEventKind::kResumed); ++k) {
+  for (int k = 0; k <= static_cast<int>(kLastToolEventKind); ++k) {
     const auto kind = static_cast<ToolEventKind>(k);
     palpate_ToolEvent event{};
     wire::to_idl(kind, out, "grasper-left", "liver", 1'700'000'000'000'000'000LL, event);
@@ -388,6 +388,44 @@ TEST(Wire, ToolEventsCarryTheirKindAndTheTick) {
     EXPECT_EQ(s.daemon_time_ns, 1'700'000'000'000'000'000LL);
     EXPECT_EQ(s.receive_time_ns, 42);
   }
+}
+
+TEST(Wire, EndCommandsNameTheToolAndTheLastPose) {
+  palpate_ToolCommand command{};
+  wire::to_idl_end("right", "liver", 77, command);
+  EXPECT_STREQ(command.tool_id, "right");
+  EXPECT_STREQ(command.model_id, "liver");
+  EXPECT_EQ(command.kind, palpate_TOOL_COMMAND_END);
+  EXPECT_EQ(command.pose_sequence, 77u);
+}
+
+TEST(Wire, NoticesCarryTheReasonAndItsMessage) {
+  palpate_ToolNotice notice{};
+  wire::to_idl(PoseProblem::kBadJawAngle, 12, "jaw angle 90° is over", "right", "liver", notice);
+  EXPECT_EQ(notice.reason, 3);  // the number docs/dds.md gives
+  const ToolNoticeSample s = wire::from_idl(notice, 5);
+  EXPECT_EQ(s.tool_id, "right");
+  EXPECT_EQ(s.model_id, "liver");
+  EXPECT_EQ(s.reason, PoseProblem::kBadJawAngle);
+  EXPECT_EQ(s.pose_sequence, 12u);
+  EXPECT_EQ(s.message, "jaw angle 90° is over");
+  EXPECT_EQ(s.receive_time_ns, 5);
+}
+
+TEST(Wire, ALongNoticeMessageIsCutToItsField) {
+  palpate_ToolNotice notice{};
+  const std::string long_message(400, 'x');
+  wire::to_idl(PoseProblem::kOutOfWorkspace, 1, long_message, "t", "m", notice);
+  EXPECT_EQ(wire::from_idl(notice, 0).message, std::string(255, 'x'));
+}
+
+TEST(Wire, ANoticeReasonThisBuildDoesNotKnowReadsAsNone) {
+  palpate_ToolNotice notice{};
+  wire::to_idl(PoseProblem::kStale, 1, "m", "t", "m", notice);
+  notice.reason = 99;
+  EXPECT_EQ(wire::from_idl(notice, 0).reason, PoseProblem::kNone);
+  notice.reason = -1;
+  EXPECT_EQ(wire::from_idl(notice, 0).reason, PoseProblem::kNone);
 }
 
 // ---- requests through a solver on a real model -------------------------------------------

@@ -3,7 +3,7 @@
 // the organ, move it when palpate-pliers presses it, draw the contact, and
 // let it go back to rest when the tool leaves. Screenshots go to --out.
 //
-// Started by tests/viewer_e2e.sh inside a private network namespace, with
+// Started by tests/viewer/viewer_e2e.sh inside a private network namespace, with
 // palpated and palpate-viewer already running.
 //
 //   node viewer_e2e.mjs --url URL --pliers PATH --gesture TOML --model ID --out DIR

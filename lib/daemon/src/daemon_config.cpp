@@ -59,9 +59,9 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
   }
   if (const auto* n = root.get("limits")) {
     const auto& t = r.table(*n, "limits");
-    r.only_keys(
-        t, "limits",
-        {"max_constraints", "max_condition", "cache_slots", "max_clients", "surface_threads"});
+    r.only_keys(t, "limits",
+                {"max_constraints", "max_condition", "cache_slots", "max_clients",
+                 "surface_threads", "max_displacement_fraction", "max_force_n"});
     if (const auto* v = t.get("max_constraints"))
       config.limits.max_constraints =
           static_cast<int>(integer(*v, "limits.max_constraints", 1, 1024));
@@ -71,6 +71,10 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
       config.limits.cache_slots = static_cast<int>(integer(*v, "limits.cache_slots", 1, 256));
     if (const auto* v = t.get("surface_threads"))
       config.limits.surface_threads = static_cast<int>(integer(*v, "limits.surface_threads", 1, 2));
+    if (const auto* v = t.get("max_displacement_fraction"))
+      config.max_displacement_fraction = positive(*v, "limits.max_displacement_fraction");
+    if (const auto* v = t.get("max_force_n"))
+      config.max_force_n = positive(*v, "limits.max_force_n");
     if (const auto* v = t.get("max_clients"))
       config.max_clients = static_cast<int>(integer(*v, "limits.max_clients", 1, 4096));
   }
@@ -201,6 +205,13 @@ void validate(const DaemonConfig& config) {
   if (config.limits.max_constraints < 1 || config.limits.max_constraints > 1024)
     throw InputError(fmt::format("limits.max_constraints {}: expected 1 to 1024",
                                  config.limits.max_constraints));
+  if (!(config.max_displacement_fraction > 0 && config.max_displacement_fraction <= 1))
+    throw InputError(fmt::format(
+        "limits.max_displacement_fraction {}: expected a fraction of the organ's size in (0, 1]",
+        config.max_displacement_fraction));
+  if (!(config.max_force_n > 0) || !std::isfinite(config.max_force_n))
+    throw InputError(
+        fmt::format("limits.max_force_n {}: expected a force > 0 in N", config.max_force_n));
   if (config.limits.cache_slots < 1 || config.limits.cache_slots > 256)
     throw InputError(
         fmt::format("limits.cache_slots {}: expected 1 to 256", config.limits.cache_slots));

@@ -85,7 +85,10 @@ RequestStatus RequestServer::solve(const palpate_ConstraintRequest& request) {
   ConstraintSolver& solver = *served->solver;
   RequestStatus status = wire::load_constraints(request, solver);
   if (status == RequestStatus::kOk) status = solver.solve();
-  reply_.condition_estimate = solver.condition_estimate();
+  // Meaningful when the system was solved, or refused for its condition;
+  // every other error reply carries 1 (docs/dds.md, "Status codes").
+  if (status == RequestStatus::kOk || status == RequestStatus::kIllConditioned)
+    reply_.condition_estimate = solver.condition_estimate();
   if (status != RequestStatus::kOk) {
     wire::copy_bounded(reply_.message, solver.message());
     return status;

@@ -60,12 +60,23 @@ bool ShownState::copy_if_newer(std::uint64_t& version, Snapshot& out) {
 
 ServedModel::ServedModel(SurfaceModel loaded, const Options& config)
     : model(std::move(loaded)), shown(static_cast<std::size_t>(config.limits.max_constraints)) {
-  solver = std::make_unique<ConstraintSolver>(model, config.limits);
+  // The organ's size: the diagonal of its surface's bounding box.
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (int v = 0; v < model.surface.vertex_count(); ++v) {
+    lo = lo.cwiseMin(model.surface.rest_position(v));
+    hi = hi.cwiseMax(model.surface.rest_position(v));
+  }
+  request_limits = config.limits;
+  request_limits.max_displacement_m = config.max_displacement_fraction * (hi - lo).norm();
+  request_limits.max_force_n = config.max_force_n;
+  solver = std::make_unique<ConstraintSolver>(model, request_limits);
   const auto k = static_cast<std::size_t>(config.limits.max_constraints);
   tools.engine =
       std::make_unique<ToolContactEngine>(model, config.tools, config.contact, config.limits);
   tools.record_vertices.resize(k);
   tools.record_forces.resize(3 * k);
+  for (const ToolGeometry& tool : config.tools)
+    tools.ids += (tools.ids.empty() ? "" : ", ") + tool.id;
   if (config.record_directory.empty()) return;
   try {
     SessionInfo info;

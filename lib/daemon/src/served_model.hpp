@@ -59,7 +59,9 @@ class ShownState {
 struct ServedModel {
   /// What the daemon's configuration says of every model.
   struct Options {
-    SolverLimits limits;
+    SolverLimits limits;                     ///< the tools' (no bounds on values)
+    double max_displacement_fraction = 0.1;  ///< of the organ's size, for requests
+    double max_force_n = 50;                 ///< for requests
     std::vector<ToolGeometry> tools;
     ContactSettings contact;
     std::filesystem::path record_directory;  ///< empty: no recording
@@ -74,6 +76,9 @@ struct ServedModel {
   ServedModel(SurfaceModel loaded, const Options& options);
 
   SurfaceModel model;
+  /// The request solver's limits: the tools', with the bounds on a
+  /// request's values for this organ (docs/dds.md, "Checks, in order").
+  SolverLimits request_limits;
   std::unique_ptr<ConstraintSolver> solver;  // the request listener's
   ShownState shown;
 
@@ -85,6 +90,7 @@ struct ServedModel {
     std::unique_ptr<SessionRecorder> recorder;   // when recording
     std::vector<std::uint32_t> record_vertices;  // one tool's contacts, for the recorder
     std::vector<double> record_forces;
+    std::string ids;  // the tools' ids, "left, right": for a pose naming another
   } tools;
 };
 

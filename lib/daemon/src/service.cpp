@@ -60,9 +60,12 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   const dds_entity_t reply_topic = topic(&palpate_ConstraintReply_desc, dds::kReplyTopic);
   const dds_entity_t surface_topic = topic(&palpate_SurfaceDisplacement_desc, dds::kSurfaceTopic);
   const dds_entity_t status_topic = topic(&palpate_DaemonStatus_desc, dds::kStatusTopic);
-  const dds_entity_t pose_topic = topic(&palpate_ToolPose_desc, dds::kToolPoseTopic);
-  const dds_entity_t feedback_topic = topic(&palpate_ToolFeedback_desc, dds::kToolFeedbackTopic);
-  const dds_entity_t event_topic = topic(&palpate_ToolEvent_desc, dds::kToolEventTopic);
+  const daemon::ToolServer::Topics tool_topics{
+      .pose = topic(&palpate_ToolPose_desc, dds::kToolPoseTopic),
+      .feedback = topic(&palpate_ToolFeedback_desc, dds::kToolFeedbackTopic),
+      .event = topic(&palpate_ToolEvent_desc, dds::kToolEventTopic),
+      .command = topic(&palpate_ToolCommand_desc, dds::kToolCommandTopic),
+      .notice = topic(&palpate_ToolNotice_desc, dds::kToolNoticeTopic)};
 
   model_writer = dds::Entity(
       dds::check(dds_create_writer(participant.get(), model_topic, dds::model_qos().get(), nullptr),
@@ -92,16 +95,22 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
   publish_descriptions();
   // The listeners are made last: they may fire at once.
   requests->listen(participant.get(), request_topic);
-  tools->listen(participant.get(), pose_topic, feedback_topic, event_topic);
+  tools->listen(participant.get(), tool_topics);
 }
 
 void Service::Impl::load_models() {
   const auto wall_start = std::chrono::system_clock::now() - (Clock::now() - clock.started);
   const std::int64_t start_unix_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(wall_start.time_since_epoch()).count();
-  const daemon::ServedModel::Options options{config.limits,    config.tools,
-                                             config.contact,   config.record_directory,
-                                             config.daemon_id, start_unix_ns};
+  daemon::ServedModel::Options options;
+  options.limits = config.limits;
+  options.max_displacement_fraction = config.max_displacement_fraction;
+  options.max_force_n = config.max_force_n;
+  options.tools = config.tools;
+  options.contact = config.contact;
+  options.record_directory = config.record_directory;
+  options.daemon_id = config.daemon_id;
+  options.start_unix_ns = start_unix_ns;
   for (const auto& entry : config.models) {
     const auto start = Clock::now();
     SurfaceModel loaded = load_surface_model(entry.id, entry.file, /*keep_float32=*/true);
@@ -147,7 +156,9 @@ Service::Impl::~Impl() {
 
 void Service::Impl::publish_descriptions() {
   for (const auto& served : models) {
-    const palpate_ModelDescription d = wire::describe(served->model);
+    const palpate_ModelDescription d =
+        wire::describe(served->model, served->request_limits.max_displacement_m,
+                       served->request_limits.max_force_n);
     dds::check(dds_write(model_writer.get(), &d), "publishing model " + served->model.id);
   }
 }

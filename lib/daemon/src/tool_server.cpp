@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
+#include <functional>
 
 #include "palpate/core/error.hpp"
 #include "palpate/transport/wire.hpp"
@@ -11,8 +13,10 @@
 namespace palpate::daemon {
 
 namespace {
-/// Reasons of the pose path's rate-limited warnings (WarningLimiter).
-enum PoseWarning { kUnknownModel, kUnknownTool, kBadPose, kSolveFailed };
+/// Reasons of the pose path's rate-limited warnings (WarningLimiter): one
+/// each, and kBadPose + each PoseProblem.
+enum PoseWarning { kUnknownModel, kUnknownTool, kSolveFailed, kBadPose };
+static_assert(kBadPose + static_cast<int>(PoseProblem::kUnknownTool) < 16);
 }  // namespace
 
 ToolServer::ToolServer(const std::vector<std::unique_ptr<ServedModel>>& models,
@@ -23,24 +27,35 @@ ToolServer::ToolServer(const std::vector<std::unique_ptr<ServedModel>>& models,
 
 ToolServer::~ToolServer() { stop(); }
 
-void ToolServer::listen(dds_entity_t participant, dds_entity_t pose_topic,
-                        dds_entity_t feedback_topic, dds_entity_t event_topic) {
+void ToolServer::listen(dds_entity_t participant, const Topics& topics) {
   feedback_writer_ = dds::Entity(dds::check(
-      dds_create_writer(participant, feedback_topic, dds::tool_stream_qos().get(), nullptr),
+      dds_create_writer(participant, topics.feedback, dds::tool_stream_qos().get(), nullptr),
       "creating the tool feedback writer"));
   event_writer_ = dds::Entity(
-      dds::check(dds_create_writer(participant, event_topic, dds::tool_event_qos().get(), nullptr),
+      dds::check(dds_create_writer(participant, topics.event, dds::tool_event_qos().get(), nullptr),
                  "creating the tool event writer"));
+  notice_writer_ = dds::Entity(dds::check(
+      dds_create_writer(participant, topics.notice, dds::tool_notice_qos().get(), nullptr),
+      "creating the tool notice writer"));
   listening_.store(true, std::memory_order_release);
-  dds_listener_t* listener = dds_create_listener(this);
-  dds_lset_data_available(listener, &ToolServer::on_poses);
-  const dds_entity_t reader =
-      dds_create_reader(participant, pose_topic, dds::tool_stream_qos().get(), listener);
-  dds_delete_listener(listener);
-  reader_ = dds::Entity(dds::check(reader, "creating the tool pose reader"));
+  auto reader = [&](dds_entity_t topic, const dds::Qos& qos, dds_on_data_available_fn on_data,
+                    const char* what) {
+    dds_listener_t* listener = dds_create_listener(this);
+    dds_lset_data_available(listener, on_data);
+    const dds_entity_t created = dds_create_reader(participant, topic, qos.get(), listener);
+    dds_delete_listener(listener);
+    return dds::Entity(dds::check(created, what));
+  };
+  command_reader_ = reader(topics.command, dds::tool_command_qos(), &ToolServer::on_commands,
+                           "creating the tool command reader");
+  reader_ = reader(topics.pose, dds::tool_stream_qos(), &ToolServer::on_poses,
+                   "creating the tool pose reader");
 }
 
-void ToolServer::stop() { reader_.reset(); }
+void ToolServer::stop() {
+  reader_.reset();
+  command_reader_.reset();
+}
 
 // Takes from the reader Cyclone names (RequestServer::on_requests says why).
 void ToolServer::on_poses(dds_entity_t reader, void* arg) {
@@ -50,6 +65,16 @@ void ToolServer::on_poses(dds_entity_t reader, void* arg) {
     server.serve(reader);
   } catch (const std::exception& e) {
     spdlog::error("event=poses_failed error=\"{}\"", e.what());
+  }
+}
+
+void ToolServer::on_commands(dds_entity_t reader, void* arg) {
+  try {
+    ToolServer& server = *static_cast<ToolServer*>(arg);
+    (void)server.listening_.load(std::memory_order_acquire);
+    server.serve_commands(reader);
+  } catch (const std::exception& e) {
+    spdlog::error("event=tool_commands_failed error=\"{}\"", e.what());
   }
 }
 
@@ -76,6 +101,9 @@ void ToolServer::take(const palpate_ToolPose& pose) {
                    "event=pose_ignored tool=\"{}\" model=\"{}\" reason=unknown_model "
                    "served=\"{}\"",
                    tool_id, model_id, served_ids_);
+    refuse(
+        pose, PoseProblem::kUnknownModel,
+        format_message("model '{}' is not served by palpated; served: {}", model_id, served_ids_));
     return;
   }
   ToolContactEngine& engine = *served->tools.engine;
@@ -86,17 +114,22 @@ void ToolServer::take(const palpate_ToolPose& pose) {
                    "event=pose_ignored tool=\"{}\" model={} reason=unknown_tool "
                    "hint=\"tools are configured in [[tools]]\"",
                    tool_id, model_id);
+    refuse(pose, PoseProblem::kUnknownTool,
+           format_message("tool '{}' is not one of palpated's tools on model '{}': {} (its "
+                          "[[tools]] configuration)",
+                          tool_id, model_id, served->tools.ids));
     return;
   }
   ToolPoseInput input = wire::from_idl(pose);
   const std::lock_guard lock(served->tools.mutex);
   if (const PoseProblem problem = engine.check(tool, input); problem != PoseProblem::kNone) {
     stats_.count_error();
-    warnings_.warn(kBadPose + static_cast<int>(problem) * 4,
+    warnings_.warn(kBadPose + static_cast<int>(problem),
                    "event=pose_ignored tool={} model={} sequence={} reason={} "
                    "position=[{:g},{:g},{:g}] jaw_angle={:g}",
                    tool_id, model_id, pose.pose_sequence, pose_problem_name(problem),
                    pose.position[0], pose.position[1], pose.position[2], pose.jaw_angle);
+    refuse(pose, problem, engine.problem_message());
     return;
   }
   const RequestStatus status = engine.update(tool, input, clock_.seconds());
@@ -110,6 +143,68 @@ void ToolServer::take(const palpate_ToolPose& pose) {
               std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count()));
 }
 
+void ToolServer::refuse(const palpate_ToolPose& pose, PoseProblem reason,
+                        std::string_view message) {
+  const std::string_view tool_id = wire::bounded(pose.tool_id);
+  const std::string_view model_id = wire::bounded(pose.model_id);
+  const std::size_t slot =
+      (std::hash<std::string_view>{}(tool_id) ^ std::hash<std::string_view>{}(model_id)*31) %
+      kNoticeSlots;
+  const auto kind = static_cast<std::size_t>(reason) % noticed_[slot].size();
+  const auto now = Clock::now();
+  if (noticed_[slot][kind] && now - last_notice_[slot][kind] < std::chrono::seconds(1)) return;
+  noticed_[slot][kind] = true;
+  last_notice_[slot][kind] = now;
+  wire::to_idl(reason, pose.pose_sequence, message, tool_id, model_id, notice_);
+  if (const dds_return_t rc = dds_write(notice_writer_.get(), &notice_); rc < 0)
+    spdlog::error("event=dds_error what=\"writing a tool notice\" tool={} error={}", tool_id,
+                  dds_strretcode(rc));
+}
+
+void ToolServer::serve_commands(dds_entity_t reader) {
+  constexpr int kCommands = 4;
+  palpate_ToolCommand commands[kCommands];
+  void* pointers[kCommands];
+  dds_sample_info_t infos[kCommands];
+  for (int i = 0; i < kCommands; ++i) pointers[i] = &commands[i];
+  for (;;) {
+    const dds_return_t n = dds_take(reader, pointers, infos, kCommands, kCommands);
+    if (n < 0) throw SystemError(std::string("taking tool commands: ") + dds_strretcode(n));
+    for (dds_return_t i = 0; i < n; ++i)
+      if (infos[i].valid_data) take(commands[i]);
+    if (n < kCommands) return;
+  }
+}
+
+void ToolServer::take(const palpate_ToolCommand& command) {
+  const std::string_view tool_id = wire::bounded(command.tool_id);
+  const std::string_view model_id = wire::bounded(command.model_id);
+  std::int32_t kind = 0;
+  std::memcpy(&kind, &command.kind, sizeof kind);  // any number a sender wrote
+  if (kind != palpate_TOOL_COMMAND_END) {
+    spdlog::warn(
+        "event=tool_command_ignored tool=\"{}\" model=\"{}\" reason=unknown_kind "
+        "kind={}",
+        tool_id, model_id, kind);
+    return;
+  }
+  for (const auto& served : models_) {
+    if (served->model.id != model_id) continue;
+    ToolContactEngine& engine = *served->tools.engine;
+    const int tool = engine.tool_index(tool_id);
+    if (tool < 0) break;
+    const std::lock_guard lock(served->tools.mutex);
+    if (engine.end(tool, clock_.seconds())) {
+      spdlog::info("event=tool_session_ended tool={} model={} last_sequence={}", tool_id, model_id,
+                   command.pose_sequence);
+      publish(*served, tool, 0);
+    }
+    return;
+  }
+  spdlog::warn("event=tool_command_ignored tool=\"{}\" model=\"{}\" reason=unknown_tool", tool_id,
+               model_id);
+}
+
 void ToolServer::publish(ServedModel& served, int tool, std::uint64_t compute_ns) {
   const ToolContactEngine& engine = *served.tools.engine;
   const ToolOutput& out = engine.output(tool);
@@ -119,8 +214,12 @@ void ToolServer::publish(ServedModel& served, int tool, std::uint64_t compute_ns
   if (const dds_return_t rc = dds_write(feedback_writer_.get(), &feedback); rc < 0)
     spdlog::error("event=dds_error what=\"writing tool feedback\" tool={} error={}", tool_id,
                   dds_strretcode(rc));
-  const double compute_us = static_cast<double>(compute_ns) * 1e-3;
-  stats_.latencies().record(compute_us, compute_us);
+  // Ticks of a pose only: the watchdog's and an END's (compute_ns 0) would
+  // pull the percentiles down.
+  if (compute_ns > 0) {
+    const double compute_us = static_cast<double>(compute_ns) * 1e-3;
+    stats_.latencies().record(compute_us, compute_us);
+  }
 
   for (int e = 0; e < out.event_count; ++e) {
     const ToolEventKind kind = out.events[static_cast<std::size_t>(e)];

@@ -4,6 +4,7 @@
 
 #include <dds/dds.h>
 
+#include <array>
 #include <atomic>
 #include <memory>
 #include <string>
@@ -20,8 +21,11 @@ namespace palpate::daemon {
 /// receive thread, as RequestServer serves requests: take the pose, check
 /// it, update the model's ToolContactEngine (every tool solved together),
 /// write the tool's feedback and events, show the contacts, record the tick.
-/// The watchdog runs on the stream thread; the two take turns under each
-/// model's tools.mutex. Allocation-free after construction.
+/// A refused pose is answered with a ToolNotice (its reason in one line; the
+/// first of a tool and reason, then at most one a second). A client's END
+/// command ends its tool's session at once (ToolContactEngine::end). The
+/// watchdog runs on the stream thread; the three take turns under each
+/// model's tools.mutex. Allocation-free after construction on the pose path.
 class ToolServer {
  public:
   ToolServer(const std::vector<std::unique_ptr<ServedModel>>& models, std::string served_ids,
@@ -30,11 +34,15 @@ class ToolServer {
   ToolServer(const ToolServer&) = delete;
   ToolServer& operator=(const ToolServer&) = delete;
 
-  /// Creates the feedback and event writers, then the pose reader with its
-  /// listener: poses are served from then on (possibly before this returns).
-  void listen(dds_entity_t participant, dds_entity_t pose_topic, dds_entity_t feedback_topic,
-              dds_entity_t event_topic);
-  /// Deletes the pose reader: no listener call after this returns.
+  /// The tool topics, created by the caller.
+  struct Topics {
+    dds_entity_t pose, feedback, event, command, notice;
+  };
+  /// Creates the feedback, event and notice writers, then the pose and
+  /// command readers with their listeners: poses are served from then on
+  /// (possibly before this returns).
+  void listen(dds_entity_t participant, const Topics& topics);
+  /// Deletes the readers: no listener call after this returns.
   void stop();
 
   /// Ramps out tools whose poses stopped, and sends their feedback.
@@ -49,8 +57,21 @@ class ToolServer {
  private:
   static constexpr int kBatch = 8;  // poses taken per dds_take
   static void on_poses(dds_entity_t reader, void* arg);
+  static void on_commands(dds_entity_t reader, void* arg);
   void serve(dds_entity_t reader);
   void take(const palpate_ToolPose& pose);
+  void serve_commands(dds_entity_t reader);
+  void take(const palpate_ToolCommand& command);
+  /// Formats a refusal's message into message_ (cut to fit; no allocation).
+  template <typename... Args>
+  std::string_view format_message(fmt::format_string<Args...> format, Args&&... args) {
+    const auto written =
+        fmt::format_to_n(message_, sizeof message_ - 1, format, std::forward<Args>(args)...);
+    *written.out = '\0';
+    return {message_, static_cast<std::size_t>(written.out - message_)};
+  }
+  /// Tells the pose's client why it was refused (rate limited per tool and reason).
+  void refuse(const palpate_ToolPose& pose, PoseProblem reason, std::string_view message);
   /// Feedback, events, shown state and recording of tool @p tool after a
   /// tick (with served.tools.mutex held).
   void publish(ServedModel& served, int tool, std::uint64_t compute_ns);
@@ -59,14 +80,21 @@ class ToolServer {
   const std::vector<std::unique_ptr<ServedModel>>& models_;
   std::string served_ids_;
   const DaemonClock& clock_;
-  dds::Entity reader_, feedback_writer_, event_writer_;
+  dds::Entity reader_, command_reader_, feedback_writer_, event_writer_, notice_writer_;
   std::atomic<bool> listening_{false};  // as RequestServer::listening_
 
   palpate_ToolPose samples_[kBatch];
   void* sample_pointers_[kBatch] = {};
   dds_sample_info_t infos_[kBatch];
 
-  WarningLimiter warnings_;  // the listener's only: Cyclone calls it from one thread at a time
+  WarningLimiter warnings_;  // the pose listener's only: Cyclone calls it from one thread at a time
+  // When the last notice went, per (tool and model ids hashed, reason): the
+  // pose listener's only.
+  static constexpr std::size_t kNoticeSlots = 64;
+  std::array<std::array<Clock::time_point, 8>, kNoticeSlots> last_notice_{};
+  std::array<std::array<bool, 8>, kNoticeSlots> noticed_{};
+  palpate_ToolNotice notice_{};
+  char message_[256] = {};
   ServerStats stats_;
 };
 

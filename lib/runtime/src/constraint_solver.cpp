@@ -149,6 +149,21 @@ RequestStatus ConstraintSolver::add(std::uint32_t vertex_id, std::int32_t kind, 
                   "constraint {} (vertex {}): value[{}] is {:g}; finite numbers "
                   "only",
                   j, vertex_id, d, value[d]);
+  // A value a request could not mean for this organ: a displacement longer
+  // than the model's bound (mm typed as m), a force beyond any tool's.
+  const double magnitude =  // hypot: 1e308 stays 1e308, not inf
+      uses_normal ? std::abs(value[0]) : std::hypot(value[0], value[1], value[2]);
+  if (k != ConstraintKind::kForce && magnitude > limits_.max_displacement_m)
+    return fail(message_, RequestStatus::kDisplacementTooLarge,
+                "constraint {} (vertex {}): a displacement of {:.4g} m is larger than model "
+                "'{}' accepts ({:.4g} m, limits.max_displacement_fraction of its size); give "
+                "displacements in metres",
+                j, vertex_id, magnitude, model_.id, limits_.max_displacement_m);
+  if (k == ConstraintKind::kForce && magnitude > limits_.max_force_n)
+    return fail(message_, RequestStatus::kForceTooLarge,
+                "constraint {} (vertex {}): a force of {:.4g} N is larger than accepted "
+                "({:.4g} N, limits.max_force_n); give forces in newtons",
+                j, vertex_id, magnitude, limits_.max_force_n);
   double* n = &normal_[3 * static_cast<std::size_t>(j)];
   if (uses_normal) {
     for (int d = 0; d < 3; ++d)

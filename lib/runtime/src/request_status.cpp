@@ -26,6 +26,10 @@ const char* status_name(RequestStatus status) {
       return "ill_conditioned";
     case RequestStatus::kInternalError:
       return "internal_error";
+    case RequestStatus::kDisplacementTooLarge:
+      return "displacement_too_large";
+    case RequestStatus::kForceTooLarge:
+      return "force_too_large";
   }
   return "unknown_status";
 }

@@ -338,7 +338,7 @@ struct EventStream {
         kind(group, "kind", 1, kEventChunk),
         pose_sequence(group, "pose_sequence", 1, kEventChunk) {
     std::vector<std::string> names;
-    for (int k = 0; k <= static_cast<int>(ToolEventKind::kResumed); ++k)
+    for (int k = 0; k <= static_cast<int>(kLastToolEventKind); ++k)
       names.emplace_back(tool_event_name(static_cast<ToolEventKind>(k)));
     write_strings_attribute(kind.id(), "names", names);
   }

@@ -1,5 +1,7 @@
 #include "palpate/runtime/tool_contact.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -92,6 +94,15 @@ struct ToolContactEngine::Impl {
   double max_displacement = 0;    // over the constraints, m
   std::uint64_t solve_count = 0;
   char message[256] = {};
+  mutable char problem[256] = {};  // why check() refused the last pose it refused
+
+  /// Writes the reason for a refused pose into `problem` (cut to fit).
+  template <typename... Args>
+  void explain(fmt::format_string<Args...> format, Args&&... args) const {
+    const auto written =
+        fmt::format_to_n(problem, sizeof problem - 1, format, std::forward<Args>(args)...);
+    *written.out = '\0';
+  }
 
   // The constraint set being built.
   int building = 0;
@@ -523,25 +534,52 @@ const ToolGeometry& ToolContactEngine::tool(int index) const {
 }
 
 PoseProblem ToolContactEngine::check(int t, ToolPoseInput& pose) const {
-  const auto& tool = impl_->tools.at(static_cast<std::size_t>(t));
+  const Impl& s = *impl_;
+  const auto& tool = s.tools.at(static_cast<std::size_t>(t));
+  const std::string& id = tool.geometry.id;
   const auto& q = pose.orientation.coeffs();
-  if (!pose.position_m.allFinite() || !q.allFinite() || !std::isfinite(pose.jaw_angle_rad))
+  if (!pose.position_m.allFinite() || !q.allFinite() || !std::isfinite(pose.jaw_angle_rad)) {
+    s.explain("pose of tool '{}' has a non-finite position, orientation or jaw angle", id);
     return PoseProblem::kNonFinite;
+  }
   const double norm = q.norm();
-  if (!(norm > 0.9 && norm < 1.1)) return PoseProblem::kBadQuaternion;
+  if (!(norm > 0.9 && norm < 1.1)) {
+    s.explain(
+        "orientation of tool '{}' is a quaternion of norm {:.3g}; accepted: a unit "
+        "quaternion (norm within 0.9-1.1, normalized here)",
+        id, norm);
+    return PoseProblem::kBadQuaternion;
+  }
   pose.orientation.normalize();
-  if (!(pose.jaw_angle_rad >= 0 && pose.jaw_angle_rad <= tool.geometry.max_jaw_angle_rad + 1e-9))
+  const double max_jaw = tool.geometry.max_jaw_angle_rad;
+  if (!(pose.jaw_angle_rad >= 0 && pose.jaw_angle_rad <= max_jaw + 1e-9)) {
+    s.explain("jaw angle {:.4g}° of tool '{}' is {} its limit; accepted: 0° to {:.4g}°",
+              in_degrees(pose.jaw_angle_rad), id, pose.jaw_angle_rad < 0 ? "under" : "over",
+              in_degrees(max_jaw));
     return PoseProblem::kBadJawAngle;
-  const Eigen::Vector3d margin = Eigen::Vector3d::Constant(impl_->settings.workspace_margin_m);
-  if ((pose.position_m.array() < (impl_->box_min - margin).array()).any() ||
-      (pose.position_m.array() > (impl_->box_max + margin).array()).any())
+  }
+  const double margin_m = s.settings.workspace_margin_m;
+  const Eigen::Vector3d margin = Eigen::Vector3d::Constant(margin_m);
+  if ((pose.position_m.array() < (s.box_min - margin).array()).any() ||
+      (pose.position_m.array() > (s.box_max + margin).array()).any()) {
+    s.explain(
+        "tool '{}' at ({:.4g}, {:.4g}, {:.4g}) m is more than {:.4g} m outside the "
+        "organ's box ({:.4g}, {:.4g}, {:.4g})-({:.4g}, {:.4g}, {:.4g}) m",
+        id, pose.position_m.x(), pose.position_m.y(), pose.position_m.z(), margin_m, s.box_min.x(),
+        s.box_min.y(), s.box_min.z(), s.box_max.x(), s.box_max.y(), s.box_max.z());
     return PoseProblem::kOutOfWorkspace;
+  }
   // A pose not newer than the last one is stale, unless the watchdog fired
   // since (a restarted client counts again from 1).
-  if (tool.alive && !tool.in_watchdog && tool.has_sequence && pose.sequence <= tool.pose.sequence)
+  if (tool.alive && !tool.in_watchdog && tool.has_sequence && pose.sequence <= tool.pose.sequence) {
+    s.explain("pose {} of tool '{}' is not newer than pose {} already taken", pose.sequence, id,
+              tool.pose.sequence);
     return PoseProblem::kStale;
+  }
   return PoseProblem::kNone;
 }
+
+const char* ToolContactEngine::problem_message() const { return impl_->problem; }
 
 RequestStatus ToolContactEngine::update(int t, const ToolPoseInput& pose, double now_s) {
   Impl& s = *impl_;
@@ -593,6 +631,26 @@ std::uint64_t ToolContactEngine::watchdog(double now_s) {
   for (int t = 0; t < static_cast<int>(s.tools.size()); ++t)
     if (changed >> t & 1) s.make_output(t, now_s, outs[static_cast<std::size_t>(t)]);
   return changed;
+}
+
+bool ToolContactEngine::end(int t, double now_s) {
+  Impl& s = *impl_;
+  auto& tool = s.tools.at(static_cast<std::size_t>(t));
+  if (!tool.alive && !tool.has_sequence) return false;
+  const bool had_contacts = tool.alive && (tool.contacts > 0 || !tool.held.empty());
+  tool.held.clear();
+  tool.alive = false;
+  tool.in_watchdog = false;
+  tool.scale = 1;
+  tool.has_sequence = false;  // its next pose starts a new session, not a resumed one
+  tool.has_previous_jaw = false;
+  tool.tip_count = 0;
+  // The others feel the tissue it let go of.
+  if (had_contacts) s.find_contacts_and_solve();
+  ToolOutput out;
+  s.make_output(t, now_s, out);                       // a touching tool leaves first,
+  Impl::push_event(tool.out, ToolEventKind::kEnded);  // then its session ends
+  return true;
 }
 
 const ToolOutput& ToolContactEngine::output(int t) const {

@@ -28,6 +28,8 @@ const char* tool_event_name(ToolEventKind kind) {
       return "watchdog";
     case ToolEventKind::kResumed:
       return "resumed";
+    case ToolEventKind::kEnded:
+      return "ended";
   }
   return "unknown";
 }
@@ -46,6 +48,10 @@ const char* pose_problem_name(PoseProblem problem) {
       return "out_of_workspace";
     case PoseProblem::kStale:
       return "stale";
+    case PoseProblem::kUnknownModel:
+      return "unknown_model";
+    case PoseProblem::kUnknownTool:
+      return "unknown_tool";
   }
   return "unknown";
 }

@@ -93,8 +93,10 @@ bool Client::wait_for_service(std::chrono::milliseconds timeout) {
 
 std::optional<ModelInfo> Client::wait_for_model(const std::string& model_id,
                                                 std::chrono::milliseconds timeout) {
-  return impl_->models.wait_for(model_id, Clock::now() + timeout);
+  return impl_->models.wait_for(model_id, Clock::now() + timeout, &impl_->watch);
 }
+
+std::vector<std::string> Client::models_seen() const { return impl_->models.known_ids(); }
 
 std::uint64_t Client::send(const std::string& model_id, std::span<const ConstraintSpec> constraints,
                            bool want_surface, bool update_state) {

@@ -78,51 +78,6 @@ struct WaitableReader {
   }
 };
 
-/// The model descriptions a client has seen (palpate_model: reliable,
-/// transient-local, so a late joiner gets every served model).
-class ModelDescriptions {
- public:
-  ModelDescriptions() = default;
-  /// Creates the topic and the reader in @p participant.
-  explicit ModelDescriptions(dds_entity_t participant) {
-    const dds_entity_t topic =
-        dds::check(dds_create_topic(participant, &palpate_ModelDescription_desc, dds::kModelTopic,
-                                    nullptr, nullptr),
-                   "creating topic palpate_model");
-    reader_ = WaitableReader(participant, participant, topic, dds::model_qos().get(),
-                             "creating the model reader");
-  }
-
-  /// The description of @p model_id, waiting for it until @p deadline;
-  /// std::nullopt if it did not come. Every description taken on the way is kept.
-  std::optional<ModelInfo> wait_for(const std::string& model_id, ClientClock::time_point deadline) {
-    if (auto m = find(model_id)) return m;
-    reader_.take_until<palpate_ModelDescription>(deadline, [&](const palpate_ModelDescription& d) {
-      ModelInfo info = wire::from_idl(d);
-      const bool wanted = info.model_id == model_id;
-      known_[info.model_id] = std::move(info);
-      return wanted;
-    });
-    return find(model_id);
-  }
-
-  /// Ids of the models whose description has been taken, sorted.
-  std::vector<std::string> known_ids() const {
-    std::vector<std::string> ids;
-    for (const auto& [id, info] : known_) ids.push_back(id);
-    return ids;
-  }
-
- private:
-  std::optional<ModelInfo> find(const std::string& model_id) const {
-    if (auto it = known_.find(model_id); it != known_.end()) return it->second;
-    return std::nullopt;
-  }
-
-  WaitableReader reader_;
-  std::map<std::string, ModelInfo> known_;
-};
-
 /// palpated's presence from its status heartbeat (DaemonPresence, docs/faults.md).
 /// poll() takes the heartbeats that came and allocates nothing. A heartbeat's
 /// time is when it arrived (the reader's listener stamps it), not when it was
@@ -142,6 +97,15 @@ class DaemonWatch {
         dds_create_reader(participant, status_topic, dds::status_qos().get(), listener);
     dds_delete_listener(listener);
     reader_ = dds::Entity(dds::check(reader, "creating the status reader"));
+  }
+
+  /// How many models the daemons heard so far serve, in all (from their
+  /// last heartbeats); none before the first heartbeat.
+  std::optional<std::size_t> models_served() const {
+    if (!state_ || state_->daemons == 0) return std::nullopt;
+    std::size_t total = 0;
+    for (int i = 0; i < state_->daemons; ++i) total += state_->models[static_cast<std::size_t>(i)];
+    return total;
   }
 
   const DaemonPresence& poll(ClientClock::time_point now) {
@@ -184,6 +148,11 @@ class DaemonWatch {
     char daemon_id[64] = {};
     std::uint64_t last_uptime_ns = 0, period_ns = 0;
     DaemonPresence presence;
+    // The models each daemon heard serves (fixed capacity: no allocation).
+    static constexpr int kDaemons = 8;
+    int daemons = 0;
+    std::array<std::array<char, 64>, kDaemons> ids{};
+    std::array<std::uint32_t, kDaemons> models{};
   };
 
   static void on_heartbeat(dds_entity_t, void* arg) {
@@ -194,6 +163,15 @@ class DaemonWatch {
 
   void heard(const palpate_DaemonStatus& status) {
     State& s = *state_;
+    int slot = 0;
+    while (slot < s.daemons &&
+           std::strncmp(s.ids[static_cast<std::size_t>(slot)].data(), status.daemon_id, 64) != 0)
+      ++slot;
+    if (slot == s.daemons && s.daemons < State::kDaemons) {
+      std::memcpy(s.ids[static_cast<std::size_t>(slot)].data(), status.daemon_id, 64);
+      ++s.daemons;
+    }
+    if (slot < s.daemons) s.models[static_cast<std::size_t>(slot)] = status.models;
     const bool same =
         s.heard_any && std::strncmp(status.daemon_id, s.daemon_id, sizeof s.daemon_id) == 0;
     if (!same) {
@@ -217,6 +195,66 @@ class DaemonWatch {
 
   std::unique_ptr<State> state_;  // its address is the listener's argument
   dds::Entity reader_;            // declared after state_: deleted first
+};
+
+/// The model descriptions a client has seen (palpate_model: reliable,
+/// transient-local, so a late joiner gets every served model).
+class ModelDescriptions {
+ public:
+  ModelDescriptions() = default;
+  /// Creates the topic and the reader in @p participant.
+  explicit ModelDescriptions(dds_entity_t participant) {
+    const dds_entity_t topic =
+        dds::check(dds_create_topic(participant, &palpate_ModelDescription_desc, dds::kModelTopic,
+                                    nullptr, nullptr),
+                   "creating topic palpate_model");
+    reader_ = WaitableReader(participant, participant, topic, dds::model_qos().get(),
+                             "creating the model reader");
+  }
+
+  /// The description of @p model_id, waiting for it until @p deadline;
+  /// std::nullopt if it did not come. Every description taken on the way is
+  /// kept. With @p watch, the wait ends early once every model the daemons
+  /// heard say they serve has been described and none is @p model_id: an
+  /// unknown model is answered within about one heartbeat, not at the
+  /// deadline.
+  std::optional<ModelInfo> wait_for(const std::string& model_id, ClientClock::time_point deadline,
+                                    DaemonWatch* watch = nullptr) {
+    if (auto m = find(model_id)) return m;
+    for (;;) {
+      const auto now = ClientClock::now();
+      const auto slice = watch ? std::min(deadline, now + std::chrono::milliseconds(50)) : deadline;
+      const bool found = reader_.take_until<palpate_ModelDescription>(
+          slice, [&](const palpate_ModelDescription& d) {
+            ModelInfo info = wire::from_idl(d);
+            const bool wanted = info.model_id == model_id;
+            known_[info.model_id] = std::move(info);
+            return wanted;
+          });
+      if (found || ClientClock::now() >= deadline) return find(model_id);
+      if (watch) {
+        watch->poll(ClientClock::now());
+        if (const auto served = watch->models_served(); served && known_.size() >= *served)
+          return std::nullopt;  // all described, and not this one
+      }
+    }
+  }
+
+  /// Ids of the models whose description has been taken, sorted.
+  std::vector<std::string> known_ids() const {
+    std::vector<std::string> ids;
+    for (const auto& [id, info] : known_) ids.push_back(id);
+    return ids;
+  }
+
+ private:
+  std::optional<ModelInfo> find(const std::string& model_id) const {
+    if (auto it = known_.find(model_id); it != known_.end()) return it->second;
+    return std::nullopt;
+  }
+
+  WaitableReader reader_;
+  std::map<std::string, ModelInfo> known_;
 };
 
 }  // namespace palpate::detail

@@ -111,5 +111,7 @@ Qos tool_stream_qos() {
   return qos;
 }
 Qos tool_event_qos() { return make_qos(DDS_DURABILITY_VOLATILE, 64); }
+Qos tool_command_qos() { return make_qos(DDS_DURABILITY_VOLATILE, 8); }
+Qos tool_notice_qos() { return make_qos(DDS_DURABILITY_VOLATILE, 16); }
 
 }  // namespace palpate::dds

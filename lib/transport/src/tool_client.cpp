@@ -47,6 +47,7 @@ class Ring {
 struct ToolSlot {
   char id[64] = {};
   std::size_t id_length = 0;
+  std::uint64_t last_sent = 0;  // the sequence of the last pose sent
   /// Highest sequence whose wait has ended (answered or timed out): feedback
   /// at or below it is late.
   std::uint64_t done = 0;
@@ -82,8 +83,8 @@ struct ToolClient::Impl {
   ToolClientOptions options;
   dds::Participant participant;
   detail::ModelDescriptions models;
-  dds_entity_t pose_writer = 0;
-  WaitableReader feedback, events;
+  dds_entity_t pose_writer = 0, command_writer = 0;
+  WaitableReader feedback, events, notices;
   detail::DaemonWatch watch;
   palpate_ToolPose pose{};
   std::array<ToolSlot, kMaxTools> tools;
@@ -120,6 +121,12 @@ ToolClient::ToolClient(const ToolClientOptions& options) : impl_(std::make_uniqu
   c.feedback.busy_wait = options.busy_wait;
   c.events = WaitableReader(p, p, topic(&palpate_ToolEvent_desc, dds::kToolEventTopic),
                             dds::tool_event_qos().get(), "creating the tool event reader");
+  c.notices = WaitableReader(p, p, topic(&palpate_ToolNotice_desc, dds::kToolNoticeTopic),
+                             dds::tool_notice_qos().get(), "creating the tool notice reader");
+  c.command_writer =
+      dds::check(dds_create_writer(p, topic(&palpate_ToolCommand_desc, dds::kToolCommandTopic),
+                                   dds::tool_command_qos().get(), nullptr),
+                 "creating the tool command writer");
   c.watch = detail::DaemonWatch(p, topic(&palpate_DaemonStatus_desc, dds::kStatusTopic),
                                 options.daemon_timeout);
 }
@@ -133,7 +140,7 @@ std::int64_t ToolClient::now_ns() {
 
 std::optional<ModelInfo> ToolClient::wait_for_model(const std::string& model_id,
                                                     std::chrono::milliseconds timeout) {
-  return impl_->models.wait_for(model_id, Clock::now() + timeout);
+  return impl_->models.wait_for(model_id, Clock::now() + timeout, &impl_->watch);
 }
 
 std::vector<std::string> ToolClient::models_seen() const { return impl_->models.known_ids(); }
@@ -141,15 +148,21 @@ std::vector<std::string> ToolClient::models_seen() const { return impl_->models.
 bool ToolClient::wait_for_daemon(std::chrono::milliseconds timeout) {
   const auto deadline = Clock::now() + timeout;
   for (;;) {
-    dds_publication_matched_status_t poses{};
-    dds_subscription_matched_status_t feedback{}, events{};
-    dds::check(dds_get_publication_matched_status(impl_->pose_writer, &poses),
-               "reading the pose writer's matched status");
-    dds::check(dds_get_subscription_matched_status(impl_->feedback.reader.get(), &feedback),
-               "reading the feedback reader's matched status");
-    dds::check(dds_get_subscription_matched_status(impl_->events.reader.get(), &events),
-               "reading the event reader's matched status");
-    if (poses.current_count > 0 && feedback.current_count > 0 && events.current_count > 0)
+    auto writer_matched = [](dds_entity_t writer, const char* what) {
+      dds_publication_matched_status_t status{};
+      dds::check(dds_get_publication_matched_status(writer, &status), what);
+      return status.current_count > 0;
+    };
+    auto reader_matched = [](const WaitableReader& reader, const char* what) {
+      dds_subscription_matched_status_t status{};
+      dds::check(dds_get_subscription_matched_status(reader.reader.get(), &status), what);
+      return status.current_count > 0;
+    };
+    if (writer_matched(impl_->pose_writer, "reading the pose writer's matched status") &&
+        writer_matched(impl_->command_writer, "reading the command writer's matched status") &&
+        reader_matched(impl_->feedback, "reading the feedback reader's matched status") &&
+        reader_matched(impl_->events, "reading the event reader's matched status") &&
+        reader_matched(impl_->notices, "reading the notice reader's matched status"))
       return true;
     if (Clock::now() >= deadline) return false;
     dds_sleepfor(DDS_MSECS(5));
@@ -177,6 +190,7 @@ std::int64_t ToolClient::send_pose(std::string_view tool_id, std::string_view mo
   if (!is_valid_id(model_id))
     throw InputError(fmt::format(
         "model id '{}': expected 1 to 63 characters among A-Z a-z 0-9 _ - .", model_id));
+  c.find(tool_id)->last_sent = sequence;
   wire::to_idl(tool_id, model_id, sequence, position_m, orientation_wxyz, jaw_angle_rad, pose);
   // Stamped last, as close to the write as possible.
   pose.send_time_ns = now_ns();
@@ -250,6 +264,29 @@ std::vector<ToolEventSample> ToolClient::take_events() {
     return false;
   });
   return events;
+}
+
+std::vector<ToolNoticeSample> ToolClient::take_notices() {
+  std::vector<ToolNoticeSample> notices;
+  impl_->notices.take_until<palpate_ToolNotice>(
+      Clock::time_point{}, [&](const palpate_ToolNotice& n) {
+        if (impl_->find(wire::bounded(n.tool_id)) != nullptr)
+          notices.push_back(wire::from_idl(n, now_ns()));
+        return false;
+      });
+  return notices;
+}
+
+bool ToolClient::end_session(std::string_view tool_id, std::string_view model_id,
+                             std::chrono::milliseconds timeout) {
+  const ToolSlot* const slot = impl_->find(tool_id);
+  if (slot == nullptr)
+    throw InputError(fmt::format("tool '{}': no pose sent, no session to end", tool_id));
+  palpate_ToolCommand command{};
+  wire::to_idl_end(tool_id, model_id, slot->last_sent, command);
+  dds::check(dds_write(impl_->command_writer, &command), "sending the end of a tool's session");
+  return dds_wait_for_acks(impl_->command_writer,
+                           DDS_MSECS(std::max<std::int64_t>(0, timeout.count()))) == DDS_RETCODE_OK;
 }
 
 DaemonPresence ToolClient::daemon_presence() { return impl_->watch.poll(Clock::now()); }

@@ -12,6 +12,9 @@ static_assert(static_cast<int>(RequestStatus::kOk) == palpate_STATUS_OK);
 static_assert(static_cast<int>(RequestStatus::kUnknownModel) == palpate_STATUS_UNKNOWN_MODEL);
 static_assert(static_cast<int>(RequestStatus::kIllConditioned) == palpate_STATUS_ILL_CONDITIONED);
 static_assert(static_cast<int>(RequestStatus::kInternalError) == palpate_STATUS_INTERNAL_ERROR);
+static_assert(static_cast<int>(RequestStatus::kDisplacementTooLarge) ==
+              palpate_STATUS_DISPLACEMENT_TOO_LARGE);
+static_assert(static_cast<int>(RequestStatus::kForceTooLarge) == palpate_STATUS_FORCE_TOO_LARGE);
 static_assert(static_cast<int>(ConstraintKind::kForce) == palpate_CONSTRAINT_FORCE);
 static_assert(static_cast<int>(ConstraintKind::kNormalDisplacement) ==
               palpate_CONSTRAINT_NORMAL_DISPLACEMENT);
@@ -19,6 +22,7 @@ static_assert(static_cast<int>(ToolState::kFree) == palpate_TOOL_FREE);
 static_assert(static_cast<int>(ToolState::kGrasping) == palpate_TOOL_GRASPING);
 static_assert(static_cast<int>(ToolEventKind::kTouch) == palpate_TOOL_EVENT_TOUCH);
 static_assert(static_cast<int>(ToolEventKind::kResumed) == palpate_TOOL_EVENT_RESUMED);
+static_assert(static_cast<int>(ToolEventKind::kEnded) == palpate_TOOL_EVENT_ENDED);
 
 namespace {
 
@@ -47,7 +51,8 @@ auto to_vector(const Sequence& sequence) {
 
 }  // namespace
 
-palpate_ModelDescription describe(const SurfaceModel& model) {
+palpate_ModelDescription describe(const SurfaceModel& model, double max_displacement_m,
+                                  double max_force_n) {
   palpate_ModelDescription d{};
   copy_bounded(d.model_id, model.id);
   copy_bounded(d.units, "m, N (SI)");
@@ -57,6 +62,8 @@ palpate_ModelDescription describe(const SurfaceModel& model) {
   view(d.vertex_ids, std::span(model.surface.vertex_ids));
   view(d.rest_positions, std::span(model.surface.rest_positions_m));
   view(d.triangles, std::span(model.surface.triangles));
+  d.max_displacement = max_displacement_m;
+  d.max_force = max_force_n;
   return d;
 }
 
@@ -70,6 +77,8 @@ ModelInfo from_idl(const palpate_ModelDescription& d) {
   info.surface.vertex_ids = to_vector(d.vertex_ids);
   info.surface.rest_positions_m = to_vector(d.rest_positions);
   info.surface.triangles = to_vector(d.triangles);
+  info.max_displacement_m = d.max_displacement;
+  info.max_force_n = d.max_force;
   return info;
 }
 
@@ -256,6 +265,38 @@ ToolEventSample from_idl(const palpate_ToolEvent& e, std::int64_t receive_time_n
   s.pose_sequence = e.pose_sequence;
   s.held_vertices = e.held_vertices;
   s.daemon_time_ns = e.daemon_time_ns;
+  s.receive_time_ns = receive_time_ns;
+  return s;
+}
+
+void to_idl_end(std::string_view tool_id, std::string_view model_id, std::uint64_t last_sequence,
+                palpate_ToolCommand& out) {
+  copy_bounded(out.tool_id, tool_id);
+  copy_bounded(out.model_id, model_id);
+  out.kind = palpate_TOOL_COMMAND_END;
+  out.pose_sequence = last_sequence;
+}
+
+void to_idl(PoseProblem reason, std::uint64_t pose_sequence, std::string_view message,
+            std::string_view tool_id, std::string_view model_id, palpate_ToolNotice& out) {
+  copy_bounded(out.tool_id, tool_id);
+  copy_bounded(out.model_id, model_id);
+  copy_bounded(out.message, message);
+  out.kind = palpate_TOOL_NOTICE_POSE_REFUSED;
+  out.pose_sequence = pose_sequence;
+  out.reason = static_cast<std::int32_t>(reason);
+}
+
+ToolNoticeSample from_idl(const palpate_ToolNotice& n, std::int64_t receive_time_ns) {
+  ToolNoticeSample s;
+  s.tool_id = bounded(n.tool_id);
+  s.model_id = bounded(n.model_id);
+  // A reason this build does not know reads as kNone; the message still says.
+  const bool known =
+      n.reason > 0 && n.reason <= static_cast<std::int32_t>(PoseProblem::kUnknownTool);
+  s.reason = known ? static_cast<PoseProblem>(n.reason) : PoseProblem::kNone;
+  s.pose_sequence = n.pose_sequence;
+  s.message = bounded(n.message);
   s.receive_time_ns = receive_time_ns;
   return s;
 }

@@ -31,6 +31,12 @@ struct DaemonConfig {
   /// Constraints per request, cache, condition; the surface field of replies
   /// on two threads when the machine has two cores or more.
   SolverLimits limits{.surface_threads = std::thread::hardware_concurrency() >= 2 ? 2 : 1};
+  /// Requests only (not tools): an imposed displacement longer than this
+  /// fraction of the organ's size (its bounding-box diagonal) is refused
+  /// (displacement_too_large); a given force above max_force_n
+  /// (force_too_large). Both appear in the model description.
+  double max_displacement_fraction = 0.1;
+  double max_force_n = 50;
   int max_clients = 64;  ///< reply writers kept at once
   std::vector<ModelEntry> models;
   /// Haptic tools ([[tools]]); "left" and "right" with the default geometry

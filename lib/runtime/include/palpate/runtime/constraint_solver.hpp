@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <vector>
@@ -25,6 +26,12 @@ struct SolverLimits {
   double max_condition = 1e12;  ///< 1-norm condition estimate above which a system is refused
   int surface_threads =
       1;  ///< 1, or 2: the surface field split over two cores (SplitSurfaceProduct)
+  /// Bounds on what a request may give (palpated sets them for requests, not
+  /// for its tools): an imposed displacement longer than this is refused
+  /// (kDisplacementTooLarge), m; a given force larger than max_force_n
+  /// (kForceTooLarge), N. Infinite: no bound.
+  double max_displacement_m = std::numeric_limits<double>::infinity();
+  double max_force_n = std::numeric_limits<double>::infinity();
 };
 
 /// Solves constraint sets on one model. One instance per model and thread.

@@ -29,6 +29,8 @@ enum class RequestStatus : std::int32_t {
   kTooManyConstraints,
   kIllConditioned,
   kInternalError,
+  kDisplacementTooLarge,  ///< longer than the model's bound (SolverLimits::max_displacement_m)
+  kForceTooLarge,         ///< larger than the bound (SolverLimits::max_force_n)
 };
 
 /// Stable lower-case name of a status ("vertex_fixed"), for logs and docs.

@@ -67,6 +67,9 @@ class ToolContactEngine {
 
   /// Checks a pose of tool @p tool before update(); normalizes its quaternion.
   PoseProblem check(int tool, ToolPoseInput& pose) const;
+  /// Why check() refused the last pose it refused, one line: what, and what
+  /// is accepted ("jaw angle 90° is over tool 'right''s limit of 75°").
+  const char* problem_message() const;
   /// Takes a checked pose of @p tool received at @p now_s (seconds, any
   /// monotonic origin), solves every tool's contacts together and returns
   /// what tool @p tool feels. The RequestStatus is kOk unless the solve
@@ -76,6 +79,12 @@ class ToolContactEngine {
   /// Ramps out tools whose poses stopped. @returns the tools whose output
   /// changed (their feedback should be sent), as a bit mask.
   std::uint64_t watchdog(double now_s);
+  /// Ends tool @p tool's session at its client's word: it lets go of
+  /// everything at once (no watchdog ramp), every other tool is solved
+  /// again, and its output (no force) carries ToolEventKind::kEnded. Its
+  /// next pose starts afresh (no kResumed). @returns false if the tool had
+  /// no session (then nothing changed).
+  bool end(int tool, double now_s);
 
   const ToolOutput& output(int tool) const;
   /// The last pose taken of @p tool.

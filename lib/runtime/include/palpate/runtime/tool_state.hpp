@@ -21,7 +21,10 @@ enum class ToolEventKind : std::int32_t {
   kRelease,
   kWatchdog,
   kResumed,
+  kEnded,  ///< the client ended the tool's session (ToolContactEngine::end)
 };
+/// The last ToolEventKind: the kinds are 0 to it.
+inline constexpr ToolEventKind kLastToolEventKind = ToolEventKind::kEnded;
 const char* tool_state_name(ToolState state);
 const char* tool_event_name(ToolEventKind kind);
 
@@ -33,6 +36,8 @@ enum class PoseProblem : std::int8_t {
   kBadJawAngle,     ///< outside [0, max_jaw_angle]
   kOutOfWorkspace,  ///< farther than workspace_margin from the organ
   kStale,           ///< sequence not above the last one taken
+  kUnknownModel,    ///< the pose names a model palpated does not serve
+  kUnknownTool,     ///< the pose names a tool palpated does not have
 };
 const char* pose_problem_name(PoseProblem problem);
 

@@ -49,9 +49,14 @@ class Client {
   /// Waits until a daemon reads this client's requests and writes its replies.
   /// Requests sent before may be lost. @returns false on timeout.
   bool wait_for_service(std::chrono::milliseconds timeout);
-  /// The description of @p model_id (late joiners get it too). std::nullopt on timeout.
+  /// The description of @p model_id (late joiners get it too). std::nullopt
+  /// on timeout, or as soon as palpated's heartbeat says every model it
+  /// serves was described and none is @p model_id (within about a second):
+  /// models_seen() then lists the served ones.
   std::optional<ModelInfo> wait_for_model(const std::string& model_id,
                                           std::chrono::milliseconds timeout);
+  /// Ids of every model whose description came so far, sorted.
+  std::vector<std::string> models_seen() const;
 
   /// Sends a request; returns its id.
   std::uint64_t send(const std::string& model_id, std::span<const ConstraintSpec> constraints,

@@ -106,6 +106,8 @@ inline constexpr const char* kStatusTopic = "palpate_status";
 inline constexpr const char* kToolPoseTopic = "palpate_tool_pose";
 inline constexpr const char* kToolFeedbackTopic = "palpate_tool_feedback";
 inline constexpr const char* kToolEventTopic = "palpate_tool_event";
+inline constexpr const char* kToolCommandTopic = "palpate_tool_command";
+inline constexpr const char* kToolNoticeTopic = "palpate_tool_notice";
 
 /// Partition of the replies to client @p client_id.
 std::string reply_partition(std::string_view client_id);
@@ -124,5 +126,9 @@ Qos status_qos();
 Qos tool_stream_qos();
 /// Tool events (grasp, release, ...): reliable, volatile, keep-last 64 per tool.
 Qos tool_event_qos();
+/// Tool commands (end of a session): reliable, volatile, keep-last 8 per tool.
+Qos tool_command_qos();
+/// Tool notices (a refused pose and why): reliable, volatile, keep-last 16 per tool.
+Qos tool_notice_qos();
 
 }  // namespace palpate::dds

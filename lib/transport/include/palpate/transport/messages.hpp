@@ -20,6 +20,9 @@ namespace palpate {
 struct ModelInfo {
   std::string model_id, units, material_summary, input_hash;
   DrawnSurface surface;  ///< vertex_ids, rest_positions, triangles, compliance_vertex_count
+  /// What a request may give on this model; larger is refused. 0 from a
+  /// palpated older than these fields (unknown).
+  double max_displacement_m = 0, max_force_n = 0;
 };
 
 /// One constraint of a request (see ConstraintKind).
@@ -109,6 +112,15 @@ struct ToolEventSample {
   std::uint64_t pose_sequence = 0;   ///< the pose that caused it (the last one for the watchdog)
   std::uint32_t held_vertices = 0;   ///< vertices held by the jaws (grasp)
   std::int64_t daemon_time_ns = 0;   ///< palpated's UTC clock
+  std::int64_t receive_time_ns = 0;  ///< when this client took it, steady clock
+};
+
+/// One ToolNotice sample: why palpated did not take a pose of a tool.
+struct ToolNoticeSample {
+  std::string tool_id, model_id;
+  PoseProblem reason = PoseProblem::kNone;
+  std::uint64_t pose_sequence = 0;   ///< the refused pose
+  std::string message;               ///< one line: what, and what is accepted
   std::int64_t receive_time_ns = 0;  ///< when this client took it, steady clock
 };
 

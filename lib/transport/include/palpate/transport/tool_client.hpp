@@ -4,8 +4,10 @@
 /// a device publishes its tool's pose at 1 kHz on palpate_tool_pose and
 /// reads, for each pose, the ToolFeedback palpated answers on
 /// palpate_tool_feedback; state changes (touch, grasp, ...) come reliably on
-/// palpate_tool_event. Used by palpate-pliers; a device may use it or speak
-/// the IDL types directly.
+/// palpate_tool_event, and the reason of a refused pose on
+/// palpate_tool_notice. A client ends a tool's session with end_session()
+/// (palpate_tool_command). Used by palpate-pliers; a device may use it or
+/// speak the IDL types directly.
 ///
 /// Clock: send_pose() stamps ToolPose.send_time_ns with the steady clock
 /// (std::chrono::steady_clock, CLOCK_MONOTONIC on Linux: nanoseconds since
@@ -66,16 +68,17 @@ class ToolClient {
   /// The steady clock in ns: the clock of send_time_ns and receive_time_ns.
   static std::int64_t now_ns();
 
-  /// The description of @p model_id (as Client::wait_for_model). std::nullopt on timeout.
+  /// The description of @p model_id (as Client::wait_for_model: an unknown
+  /// model is answered within about a second). std::nullopt if it is not served.
   std::optional<ModelInfo> wait_for_model(const std::string& model_id,
                                           std::chrono::milliseconds timeout);
   /// Ids of every model whose description came so far (to say which are
   /// served when the wanted one is not).
   std::vector<std::string> models_seen() const;
 
-  /// Waits until a daemon reads the pose topic and writes the feedback and
-  /// event topics (all volatile: poses sent, feedback or events written
-  /// before the match are lost). @returns false on timeout.
+  /// Waits until a daemon reads the pose and command topics and writes the
+  /// feedback, event and notice topics (all volatile: samples written before
+  /// the match are lost). @returns false on timeout.
   bool wait_for_daemon(std::chrono::milliseconds timeout);
 
   /// Publishes one pose of tool @p tool_id (1..63 characters) on @p model_id:
@@ -111,6 +114,20 @@ class ToolClient {
   /// Every tool event received since the last call (any tool, this client's
   /// or not), in arrival order. Allocates only when there are events.
   std::vector<ToolEventSample> take_events();
+
+  /// Why palpated refused poses of this client's tools, received since the
+  /// last call, in arrival order: palpated sends the first refusal of each
+  /// tool and reason, then at most one a second. Allocates only when there
+  /// are notices.
+  std::vector<ToolNoticeSample> take_notices();
+
+  /// Ends the session of tool @p tool_id on @p model_id: palpated lets go at
+  /// once (no watchdog ramp) and sends an `ended` event; the tool's next
+  /// pose starts afresh. Waits up to @p timeout for palpated to acknowledge
+  /// the command. @returns false if it was not acknowledged in time.
+  /// @throws InputError for a tool that never sent a pose.
+  bool end_session(std::string_view tool_id, std::string_view model_id,
+                   std::chrono::milliseconds timeout);
 
   /// palpated's presence from its status heartbeat (Client::daemon_presence()).
   /// While it is lost, poses get no feedback; once it is back (the same

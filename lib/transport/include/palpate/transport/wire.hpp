@@ -58,9 +58,11 @@ void view(Sequence& sequence, std::span<T> values) {
 
 // ---- palpate_model -----------------------------------------------------------
 
-/// The description of @p model; its sequences are views of the model's
-/// surface (valid while @p model lives).
-palpate_ModelDescription describe(const SurfaceModel& model);
+/// The description of @p model, with the bounds on a request's values there
+/// (m, N); its sequences are views of the model's surface (valid while
+/// @p model lives).
+palpate_ModelDescription describe(const SurfaceModel& model, double max_displacement_m,
+                                  double max_force_n);
 ModelInfo from_idl(const palpate_ModelDescription& description);
 
 // ---- palpate_request, palpate_reply --------------------------------------------
@@ -108,5 +110,16 @@ ToolFeedbackSample from_idl(const palpate_ToolFeedback& feedback, std::int64_t r
 void to_idl(ToolEventKind kind, const ToolOutput& output, std::string_view tool_id,
             std::string_view model_id, std::int64_t daemon_time_ns, palpate_ToolEvent& out);
 ToolEventSample from_idl(const palpate_ToolEvent& event, std::int64_t receive_time_ns);
+
+// ---- palpate_tool_command, palpate_tool_notice -----------------------------------
+
+/// The end of tool @p tool_id's session, after pose @p last_sequence.
+void to_idl_end(std::string_view tool_id, std::string_view model_id, std::uint64_t last_sequence,
+                palpate_ToolCommand& out);
+/// A refused pose of @p tool_id: @p reason and its one-line @p message
+/// (cut to the field's 255 characters).
+void to_idl(PoseProblem reason, std::uint64_t pose_sequence, std::string_view message,
+            std::string_view tool_id, std::string_view model_id, palpate_ToolNotice& out);
+ToolNoticeSample from_idl(const palpate_ToolNotice& notice, std::int64_t receive_time_ns);
 
 }  // namespace palpate::wire
