@@ -5,9 +5,10 @@ Reads a file written by palpated's session recorder (docs/session-recording.md,
 section "Plots") and writes three PNGs:
   <stem>-force.png     per tool, the force sent to the device (|f| and x, y, z)
                        against time, the tool's events (touch, grasp...) marked;
-  <stem>-latency.png   histogram of the daemon's compute latency per tick
-                       (pose taken -> feedback written, `compute_ns`), µs, per
-                       tool, with its p50 and p99 marked;
+  <stem>-latency.png   cumulative distribution of the daemon's compute latency
+                       per tick (pose taken -> feedback written, `compute_ns`),
+                       µs on a log axis, per tool, with its p50, p99 and max
+                       marked;
   <stem>-contacts.png  per tool, contacts per tick against time, events marked.
 <stem> is the file name without ".h5" ("-partial" appended for a "<file>.partial"
 left by a crash, which is plotted up to its last flush). Each PNG is written
@@ -34,7 +35,9 @@ PROGRAM = "session_plots"
 US_PER_NS = 1e-3  # compute_ns is stored in ns, plotted in µs
 
 # Event kinds (the /events/kind `names`) as colour and line style; an unknown
-# name (a newer recorder) is drawn grey.
+# name (a newer recorder) is drawn with UNKNOWN_EVENT_STYLE and its name in
+# the legend. "ended" (the client ended the session normally) is dashed like
+# the watchdog, whose normal counterpart it is, and green like leave.
 EVENT_STYLE = {
     "touch": ("tab:green", "-"),
     "leave": ("tab:green", ":"),
@@ -42,11 +45,15 @@ EVENT_STYLE = {
     "release": ("tab:red", ":"),
     "watchdog": ("black", "--"),
     "resumed": ("black", ":"),
+    "ended": ("darkgreen", "--"),
 }
+UNKNOWN_EVENT_STYLE = ("grey", "-.")
 FORCE_COMPONENTS = (("x", "tab:blue"), ("y", "tab:orange"), ("z", "tab:purple"))
 TOOL_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
 # Figure sizes, inches at DPI: force and contacts 1 + 2.6 per tool high, latency 5.
 WIDTH_IN, TITLE_HEIGHT_IN, ROW_HEIGHT_IN, LATENCY_HEIGHT_IN, DPI = 10.0, 1.0, 2.6, 5.0, 100
+# The latency axis reaches this factor beyond the fastest and slowest ticks.
+LATENCY_MARGIN = 1.25
 
 
 def new_figure(width_in, height_in):
@@ -83,6 +90,7 @@ class ToolSeries:
     latency_us: np.ndarray         # [n] µs, compute_ns converted
     latency_p50_us: float
     latency_p99_us: float
+    latency_max_us: float
     events: list = field(default_factory=list)  # [(time_s, kind name)] of this tool
 
 
@@ -127,6 +135,7 @@ def read_series(path):
                     latency_us=latency_us,
                     latency_p50_us=nearest_rank(latency_us, 0.50),
                     latency_p99_us=nearest_rank(latency_us, 0.99),
+                    latency_max_us=float(latency_us.max()) if len(latency_us) else 0.0,
                     events=events))
         except (KeyError, ValueError, IndexError, OSError) as e:
             raise Refused(f"{path}: damaged or incomplete palpate session recording ({e})")
@@ -156,7 +165,7 @@ def tool_rows(session, what):
 def mark_events(ax, tool):
     seen = set()
     for time_s, kind in tool.events:
-        color, style = EVENT_STYLE.get(kind, ("grey", "-."))
+        color, style = EVENT_STYLE.get(kind, UNKNOWN_EVENT_STYLE)
         ax.axvline(time_s, color=color, linestyle=style, linewidth=1.0, alpha=0.8,
                    label=None if kind in seen else f"event: {kind}")
         seen.add(kind)
@@ -211,43 +220,70 @@ def contacts_figure(session):
     return fig
 
 
-def latency_histograms(session, bins=100):
-    """The latency histograms the plot shows: (edges, counts). edges [bins + 1]
-    µs, shared by every tool: equal bins from the smallest to the largest
-    latency of the session (at least 1 µs wide, never below 0); counts
-    {tool id: [bins] ticks per bin} for the tools with ticks, the last bin
-    closed (np.histogram)."""
+def latency_cdf(latency_us):
+    """The empirical cumulative distribution of one tool's latencies:
+    (x, y) with x [n] µs the latencies sorted ascending and y [n] = (i + 1) / n
+    the fraction of ticks at or below x[i]; drawn as steps ("steps-post")."""
+    x = np.sort(np.asarray(latency_us, dtype=np.float64))
+    y = np.arange(1, len(x) + 1, dtype=np.float64) / max(len(x), 1)
+    return x, y
+
+
+def label_log_axis(axis):
+    """Plain numbers at 1, 2 and 5 of every decade: a session's latencies
+    often span less than one decade, where powers of ten alone label nothing."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+    axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    axis.set_minor_formatter(NullFormatter())
+
+
+def fraction_at_or_below(sorted_values, value):
+    """The CDF at value: the share of sorted_values that are <= value."""
+    return float(np.searchsorted(sorted_values, value, side="right")) / len(sorted_values)
+
+
+def latency_axis_limits(session):
+    """(left, right) µs of the log latency axis: a little beyond the fastest
+    and slowest tick of the session. Ticks of 0 µs (below the clock's
+    resolution) cannot sit on a log axis; they are clipped to its left edge,
+    which is then at most 0.1 µs."""
     values = np.concatenate([t.latency_us for t in session.tools])
-    lo, hi = float(values.min()), float(values.max())
-    if hi - lo < 1.0:
-        lo = max(0.0, (lo + hi) / 2 - 0.5)
-        hi = lo + 1.0
-    edges = np.linspace(lo, hi, bins + 1)
-    counts = {t.id: np.histogram(t.latency_us, bins=edges)[0]
-              for t in session.tools if len(t.latency_us)}
-    return edges, counts
+    positive = values[values > 0]
+    lo = float(positive.min()) if len(positive) else 0.1
+    if len(positive) < len(values):
+        lo = min(lo, 0.1)
+    hi = max(float(values.max()), lo)
+    return lo / LATENCY_MARGIN, hi * LATENCY_MARGIN
 
 
 def latency_figure(session):
+    # A CDF on a log axis: the bulk (tens of µs) and a tail of slow ticks
+    # (ms) both get room; on a linear axis the bulk is one sliver at the left.
     fig = new_figure(WIDTH_IN, LATENCY_HEIGHT_IN)
     ax = fig.subplots()
-    fig.suptitle(title(session, "Daemon compute latency per tick (pose taken → feedback written)"))
-    edges, counts = latency_histograms(session)
+    fig.suptitle(title(session, "Daemon compute latency per tick (pose taken → feedback written), "
+                                "cumulative distribution"))
     for i, tool in enumerate(session.tools):
-        if tool.id not in counts:
+        if len(tool.latency_us) == 0:
             continue
         color = TOOL_COLORS[i % len(TOOL_COLORS)]
-        ax.stairs(counts[tool.id], edges, linewidth=1.5, color=color,
-                  label=f"tool {tool.id} ({len(tool.latency_us)} ticks)")
-        ax.axvline(tool.latency_p50_us, color=color, linestyle="--", linewidth=1.0,
-                   label=f"tool {tool.id} p50 {tool.latency_p50_us:.1f} µs")
-        ax.axvline(tool.latency_p99_us, color=color, linestyle=":", linewidth=1.5,
-                   label=f"tool {tool.id} p99 {tool.latency_p99_us:.1f} µs")
-    ax.set_yscale("log")  # the tail (a few slow ticks) stays visible next to the bulk
-    ax.set_ylim(bottom=0.7)
-    ax.set_xlabel(f"compute latency (µs), {len(edges) - 1} bins of {edges[1] - edges[0]:.3g} µs")
-    ax.set_ylabel("ticks per bin (log scale)")
-    ax.grid(True, alpha=0.3)
+        x, y = latency_cdf(tool.latency_us)
+        ax.plot(x, y, drawstyle="steps-post", linewidth=1.5, color=color,
+                label=f"tool {tool.id} ({len(tool.latency_us)} ticks)")
+        for name, value, marker in (("p50", tool.latency_p50_us, "o"),
+                                    ("p99", tool.latency_p99_us, "s"),
+                                    ("max", tool.latency_max_us, "^")):
+            ax.axvline(value, color=color, linestyle=":", linewidth=1.0, alpha=0.7)
+            ax.plot([value], [fraction_at_or_below(x, value)], marker=marker, color=color,
+                    linestyle="none", label=f"tool {tool.id} {name} {value:.1f} µs")
+    ax.set_xscale("log", nonpositive="clip")
+    ax.set_xlim(*latency_axis_limits(session))
+    label_log_axis(ax.xaxis)
+    ax.set_ylim(0.0, 1.02)
+    ax.set_xlabel("compute latency (µs, log scale)")
+    ax.set_ylabel("fraction of ticks at or below")
+    ax.grid(True, which="both", alpha=0.3)
     legend(ax)
     return fig
 
@@ -297,7 +333,7 @@ def write_pngs(figs, out_dir, stem):
 def main():
     parser = argparse.ArgumentParser(
         prog=PROGRAM, description="PNG plots of a palpate session recording: force and "
-        "contacts against time per tool, compute latency histogram "
+        "contacts against time per tool, compute latency distribution "
         "(docs/session-recording.md, \"Plots\").")
     parser.add_argument("file", help="a session file, or a <file>.partial left by a crash")
     parser.add_argument("--out", metavar="DIR",

@@ -147,20 +147,32 @@ struct Feed::Impl {
     if (thread.joinable()) thread.join();
   }
 
-  /// Takes every sample of reader @p r and hands the valid ones to @p use.
-  template <typename Sample, typename Use>
-  void take_all(Reader r, Use use) {
+  /// Takes every sample of reader @p r and hands the valid ones to @p use,
+  /// and the instances that are no longer alive (their writer disposed them
+  /// or is gone: palpated stopped) to @p gone, as a sample whose key fields
+  /// alone are set.
+  template <typename Sample, typename Use, typename Gone>
+  void take_all(Reader r, Use use, Gone gone) {
     constexpr int kBatch = 16;
     void* samples[kBatch] = {};
     dds_sample_info_t infos[kBatch];
     for (;;) {
       const dds_return_t n = dds_take(readers[r], samples, infos, kBatch, kBatch);
       if (n <= 0) return;
-      for (int i = 0; i < n; ++i)
-        if (infos[i].valid_data) use(*static_cast<const Sample*>(samples[i]));
+      for (int i = 0; i < n; ++i) {
+        const auto& sample = *static_cast<const Sample*>(samples[i]);
+        if (infos[i].valid_data)
+          use(sample);
+        else if (infos[i].instance_state != DDS_IST_ALIVE)
+          gone(sample);
+      }
       dds_return_loan(readers[r], samples, n);
       if (n < kBatch) return;
     }
+  }
+  template <typename Sample, typename Use>
+  void take_all(Reader r, Use use) {
+    take_all<Sample>(r, use, [](const Sample&) {});
   }
 
   void run() {
@@ -178,7 +190,9 @@ struct Feed::Impl {
       dds_waitset_wait(waitset.get(), triggered, kReaderCount + 1, timeout);
       if (stopping.load()) break;
       take_all<palpate_ModelDescription>(kModels, [&](const auto& d) { on_model(d); });
-      take_all<palpate_SurfaceDisplacement>(kSurfaces, [&](const auto& s) { on_surface(s); });
+      take_all<palpate_SurfaceDisplacement>(
+          kSurfaces, [&](const auto& s) { on_surface(s); },
+          [&](const auto& s) { on_surface_ended(s); });
       take_all<palpate_DaemonStatus>(kStatus, [&](const auto& s) { on_status(s); });
       take_all<palpate_ToolPose>(kPoses, [&](const auto& p) { on_pose(p); });
       take_all<palpate_ToolFeedback>(kFeedback, [&](const auto& f) { on_feedback(f); });
@@ -269,6 +283,17 @@ struct Feed::Impl {
     }
     for (std::uint32_t i = 0; i < 3 * nc; ++i) frame.f32(s.constrained_forces_n[i]);
     sink({Message::Kind::kSurface, s.model_id, {}, frame.take()});
+  }
+
+  /// A model's surface stream has no live writer any more (palpated
+  /// stopped, or was lost): its last sample is no longer the model's state,
+  /// and a page that joins later must not draw it.
+  void on_surface_ended(const palpate_SurfaceDisplacement& key_only) {
+    const std::string model_id(wire::bounded(key_only.model_id));
+    sink({Message::Kind::kSurfaceEnded,
+          model_id,
+          json{{"type", "surface_ended"}, {"model_id", model_id}}.dump(),
+          {}});
   }
 
   void on_status(const palpate_DaemonStatus& status) {

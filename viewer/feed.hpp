@@ -24,10 +24,12 @@ struct Message {
     kTools,    ///< every tool's latest pose and feedback: only the newest matters
     kStatus,   ///< daemon status and the bridge's rates: only the newest matters
     kEvent,    ///< a tool event: every one is delivered, in order
+    /// a model's surface stream ended (palpated stopped): replaces its last kSurface
+    kSurfaceEnded,
   };
   Kind kind;
   std::string
-      key;  ///< what a newer message of the same kind replaces (the model id for kModel/kSurface)
+      key;  ///< what a newer message of the same kind replaces (the model id for kModel/kSurface*)
   std::string text;    ///< JSON text frame (may be empty)
   std::string binary;  ///< binary frame sent after the text (may be empty)
 };

@@ -59,7 +59,7 @@ class Hub {
 
  private:
   std::map<std::string, MessagePtr> models_;  // by model id
-  std::map<std::string, MessagePtr> latest_;  // surfaces by model, tools, status
+  std::map<std::string, MessagePtr> latest_;  // surfaces (or their end) by model, tools, status
   std::set<WebSocketSession*> sessions_;
 };
 
@@ -68,6 +68,7 @@ class Hub {
 std::string coalescing_key(const Message& m) {
   switch (m.kind) {
     case Message::Kind::kSurface:
+    case Message::Kind::kSurfaceEnded:  // the end of a stream replaces its last sample
       return "surface:" + m.key;
     case Message::Kind::kTools:
       return "tools";

@@ -5,7 +5,10 @@ palpate_session_writer_for_tests writes a known session (described in
 tests/session_writer_for_tests.cpp), once closed and once killed before
 closing. The series the script plots (session_plots.read_series) are checked
 against the file's datasets and against the session's definition written out
-by hand here; the figures are checked to draw exactly those series; the PNGs
+by hand here; the figures are checked to draw exactly those series (the
+latency as a cumulative distribution on a log axis with p50, p99 and max
+marked; events of the kinds "ended", unknown names and unnamed numbers with a
+style each); the PNGs
 are checked to be PNGs of the expected size. Refused files get one line on
 stderr, exit code 2 and no PNG; a failed write leaves no PNG.
 Usage: session_plots_test.py WRITER SCRIPT
@@ -58,7 +61,7 @@ def left_expected():
               (0.7, "release"), (0.7, "leave")]
     return dict(time_s=k * 1e-3, force_n=force, contact_count=contacts, latency_us=latency_us,
                 # Nearest rank round(q·(n − 1)): ranks 500 and 989 of k-ordered values.
-                p50_us=25.0, p99_us=154.0, max_force_n=5.0, events=events)
+                p50_us=25.0, p99_us=154.0, max_us=164.0, max_force_n=5.0, events=events)
 
 
 def right_expected():
@@ -67,7 +70,8 @@ def right_expected():
     force = np.zeros((500, 3))
     force[touching, 0] = 1.0
     return dict(time_s=k * 2e-3, force_n=force, contact_count=touching.astype(int),
-                latency_us=40.0 + 0.02 * k, p50_us=45.0, p99_us=49.88, max_force_n=1.0,
+                latency_us=40.0 + 0.02 * k, p50_us=45.0, p99_us=49.88, max_us=49.98,
+                max_force_n=1.0,
                 events=[(0.2, "touch"), (0.4, "leave")])
 
 
@@ -107,6 +111,25 @@ def empty_tools(path, tool_ids):
             for name in list(g) + [f"contacts/{n}" for n in g["contacts"]]:
                 if isinstance(g[name], h5py.Dataset):
                     g[name].resize(0, axis=0)
+
+
+def add_events(path, new_names, events):
+    """Appends kinds to /events/kind's `names` and events to a copy of a
+    session, as a recorder that knows more kinds writes them. events:
+    [(time_s, tool index, kind name or a raw kind number)]."""
+    with h5py.File(path, "r+") as f:
+        kind = f["events/kind"]
+        names = [n.decode() if isinstance(n, bytes) else str(n) for n in kind.attrs["names"]]
+        names += [n for n in new_names if n not in names]  # a newer recorder may name them already
+        kind.attrs["names"] = np.array(names, dtype=h5py.string_dtype())
+        n = len(kind)
+        columns = {"time_s": [e[0] for e in events], "tool": [e[1] for e in events],
+                   "kind": [names.index(e[2]) if isinstance(e[2], str) else e[2] for e in events]}
+        for name in f["events"]:
+            d = f["events"][name]
+            d.resize(n + len(events), axis=0)
+            if name in columns:
+                d[n:] = columns[name]
 
 
 class SessionPlots(unittest.TestCase):
@@ -210,21 +233,34 @@ class SessionPlots(unittest.TestCase):
         self.assertEqual(plots.nearest_rank(np.array([3.0, 1.0, 2.0, 4.0]), 0.99), 4.0)
         self.assertEqual(plots.nearest_rank(np.arange(101.0), 0.99), 99.0)
 
-    def test_latency_histograms_hold_every_tick_in_the_right_bins(self):
-        edges, counts = plots.latency_histograms(self.session)
-        # From the fastest tick (left, 20 µs) to the slowest (left, 164 µs).
-        self.assertEqual(len(edges), 101)
-        self.assertAlmostEqual(edges[0], 20.0, delta=LATENCY_ATOL_US)
-        self.assertAlmostEqual(edges[-1], 164.0, delta=LATENCY_ATOL_US)
-        self.assertEqual(sorted(counts), ["left", "right"])
-        self.assertEqual(int(counts["left"].sum()), 1000)
-        self.assertEqual(int(counts["right"].sum()), 500)
-        centres = (edges[:-1] + edges[1:]) / 2
-        # left: 985 ticks in [20, 29.84] µs, the 15 slow ones in [150, 164] µs.
-        self.assertEqual(int(counts["left"][centres < 31.0].sum()), 985)
-        self.assertEqual(int(counts["left"][centres > 149.0].sum()), 15)
-        # right: all 500 in [40, 49.98] µs.
-        self.assertEqual(int(counts["right"][(centres > 39.0) & (centres < 51.0)].sum()), 500)
+    def test_the_latency_cdf_is_every_tick_sorted_with_its_rank(self):
+        for tool in self.session.tools:
+            with self.subTest(tool=tool.id):
+                x, y = plots.latency_cdf(tool.latency_us)
+                expected = np.sort(EXPECTED[tool.id]["latency_us"])
+                np.testing.assert_allclose(x, expected, rtol=0, atol=LATENCY_ATOL_US)
+                n = len(expected)
+                np.testing.assert_allclose(y, np.arange(1, n + 1) / n, rtol=REL, atol=0)
+                # The CDF at p50 and p99 reaches those fractions (nearest rank
+                # round(q·(n − 1)) is the element at index q·(n − 1), 0-based,
+                # so the share at or below it is at least q·(n − 1)/n + 1/n ≥ q
+                # for q ≤ 1).
+                for q, key in ((0.5, "p50_us"), (0.99, "p99_us")):
+                    self.assertGreaterEqual(plots.fraction_at_or_below(x, EXPECTED[tool.id][key]), q)
+                self.assertAlmostEqual(tool.latency_max_us, EXPECTED[tool.id]["max_us"],
+                                       delta=LATENCY_ATOL_US)
+                self.assertEqual(plots.fraction_at_or_below(x, tool.latency_max_us), 1.0)
+
+    def test_the_latency_axis_spans_every_tick_and_clips_zero(self):
+        lo, hi = plots.latency_axis_limits(self.session)
+        # The fastest tick is left's 20 µs, the slowest left's 164 µs.
+        self.assertAlmostEqual(lo, 20.0 / plots.LATENCY_MARGIN, delta=LATENCY_ATOL_US)
+        self.assertAlmostEqual(hi, 164.0 * plots.LATENCY_MARGIN, delta=LATENCY_ATOL_US)
+        session = plots.read_series(self.closed)
+        session.tools[1].latency_us[:3] = 0.0  # below the clock's resolution
+        lo, _ = plots.latency_axis_limits(session)
+        self.assertGreater(lo, 0.0)
+        self.assertLessEqual(lo, 0.1)
 
     # --- the figures draw the series -------------------------------------------
 
@@ -262,24 +298,42 @@ class SessionPlots(unittest.TestCase):
                 self.assertIn(f"max contacts per tick {int(EXPECTED[tool.id]['contact_count'].max())}",
                               ax.get_title())
 
-    def test_the_latency_figure_draws_the_histograms_and_percentiles(self):
+    def test_the_latency_figure_draws_the_cdfs_and_marks_p50_p99_max(self):
         fig = plots.figures(self.session)["latency"]
         (ax,) = fig.axes
-        self.assertEqual(ax.get_yscale(), "log")
-        self.assertIn("(µs)", ax.get_xlabel())
-        edges, counts = plots.latency_histograms(self.session)
-        steps = {p.get_label(): p.get_data() for p in ax.patches}
+        self.assertEqual(ax.get_xscale(), "log")
+        self.assertIn("(µs, log scale)", ax.get_xlabel())
+        self.assertIn("cumulative distribution", fig._suptitle.get_text())
+        self.assertEqual(ax.get_ylim(), (0.0, 1.02))
+        lo, hi = ax.get_xlim()
         lines = lines_by_label(ax)
         for tool in self.session.tools:
             with self.subTest(tool=tool.id):
-                values, step_edges, _ = steps[f"tool {tool.id} ({len(tool.time_s)} ticks)"]
-                np.testing.assert_array_equal(values, counts[tool.id])
-                np.testing.assert_array_equal(step_edges, edges)
-                for q in ("p50", "p99"):
-                    value = EXPECTED[tool.id][f"{q}_us"]
-                    line = lines[f"tool {tool.id} {q} {value:.1f} µs"]
-                    self.assertAlmostEqual(float(line.get_xdata()[0]), value,
-                                           delta=LATENCY_ATOL_US)
+                e = EXPECTED[tool.id]
+                cdf = lines[f"tool {tool.id} ({len(tool.time_s)} ticks)"]
+                self.assertEqual(cdf.get_drawstyle(), "steps-post")
+                x, y = plots.latency_cdf(tool.latency_us)
+                np.testing.assert_array_equal(cdf.get_xdata(), x)
+                np.testing.assert_array_equal(cdf.get_ydata(), y)
+                self.assertLessEqual(lo, x[0])
+                self.assertGreaterEqual(hi, x[-1])
+                for q in ("p50", "p99", "max"):
+                    value = e[f"{q}_us"]
+                    marker = lines[f"tool {tool.id} {q} {value:.1f} µs"]
+                    at = float(marker.get_xdata()[0])
+                    self.assertAlmostEqual(at, value, delta=LATENCY_ATOL_US)
+                    # On the curve: the CDF's value at that latency.
+                    self.assertEqual(float(marker.get_ydata()[0]), plots.fraction_at_or_below(x, at))
+                # A dotted vertical guide at each of the three.
+                guides = vertical_line_positions(ax)
+                for q in ("p50", "p99", "max"):
+                    self.assertTrue(any(abs(g - e[f"{q}_us"]) <= LATENCY_ATOL_US for g in guides),
+                                    (q, guides))
+
+    def test_the_latency_y_axis_is_the_linear_share_of_ticks(self):
+        fig = plots.figures(self.session)["latency"]
+        self.assertEqual(fig.axes[0].get_yscale(), "linear")
+        self.assertIn("fraction of ticks", fig.axes[0].get_ylabel())
 
     # --- other sessions -------------------------------------------------------
 
@@ -312,6 +366,37 @@ class SessionPlots(unittest.TestCase):
         fig = plots.figures(session)["force"]
         self.assertEqual(len(fig.axes[1].get_lines()), 0)
         self.assertIn("no tick recorded", [t.get_text() for t in fig.axes[1].texts])
+
+    def test_ended_and_unknown_event_kinds_are_drawn(self):
+        path = os.path.join(self.scratch("in"), "ended.h5")
+        shutil.copy(self.closed, path)
+        add_events(path, ["ended", "from-the-future"],
+                   [(0.90, 1, "ended"), (0.95, 1, "from-the-future"), (0.97, 1, 42)])
+        out = os.path.join(os.path.dirname(path), "plots")
+        p = run(path, "--out", out)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(len(p.stdout.splitlines()), 3)
+        session = plots.read_series(path)
+        right = session.tools[1]
+        self.assertEqual([k for _, k in right.events],
+                         ["touch", "leave", "ended", "from-the-future", "kind 42"])
+        for name in ("force", "contacts"):
+            with self.subTest(plot=name):
+                ax = plots.figures(session)[name].axes[1]
+                styles = {line.get_label(): (line.get_color(), line.get_linestyle())
+                          for line in ax.get_lines()}
+                # "ended" has a style of its own, neither leave's nor the watchdog's.
+                ended = styles["event: ended"]
+                self.assertEqual(ended, (plots.EVENT_STYLE["ended"][0], "--"))
+                self.assertNotEqual(ended, styles["event: leave"])
+                self.assertNotEqual(ended, plots.EVENT_STYLE["watchdog"])
+                grey = (plots.UNKNOWN_EVENT_STYLE[0], "-.")
+                self.assertEqual(styles["event: from-the-future"], grey)
+                self.assertEqual(styles["event: kind 42"], grey)
+                legend = [t.get_text() for t in ax.get_legend().get_texts()]
+                self.assertIn("event: ended", legend)
+                np.testing.assert_allclose(vertical_line_positions(ax), [0.2, 0.4, 0.9, 0.95, 0.97],
+                                           rtol=REL, atol=0)
 
     # --- refusals and failures --------------------------------------------------
 

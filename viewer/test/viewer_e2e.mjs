@@ -1,14 +1,22 @@
 // End-to-end test of the live viewer in headless Chromium (Debian's package,
 // driven by playwright-core): the page served by palpate-viewer must draw
-// the organ, move it when palpate-pliers presses it, draw the contact, and
-// let it go back to rest when the tool leaves. Screenshots go to --out.
+// the organ at rest first, framed whole with its attachment in sight, say
+// what its legend means, exaggerate the drawn shape by the asked factor (and
+// only the shape), move the organ when palpate-pliers presses it, draw the
+// contact, let it go back to rest when the tool leaves, and show a page that
+// opens after palpated stopped the rest shape, not palpated's last state.
+// Screenshots go to --out.
 //
 // Started by tests/viewer/viewer_e2e.sh inside a private network namespace, with
 // palpated and palpate-viewer already running.
 //
-//   node viewer_e2e.mjs --url URL --pliers PATH --gesture TOML --model ID --out DIR
+//   node viewer_e2e.mjs --url URL --pliers PATH --client PATH --gesture TOML --model ID
+//                       --vertex ID --palpated-pid PID --out DIR
+//
+// --vertex: a free surface vertex (mesh id) for palpate-client's requests;
+// --palpated-pid: the test stops palpated (SIGTERM) at the end.
 
-import { spawn } from 'node:child_process';
+import { execFile, spawn } from 'node:child_process';
 import { mkdirSync } from 'node:fs';
 import { request } from 'node:http';
 import { connect } from 'node:net';
@@ -18,12 +26,12 @@ import { chromium } from 'playwright-core';
 
 const { values: args } = parseArgs({
   options: {
-    url: { type: 'string' }, pliers: { type: 'string' }, gesture: { type: 'string' },
-    model: { type: 'string' }, out: { type: 'string' },
+    url: { type: 'string' }, pliers: { type: 'string' }, client: { type: 'string' }, gesture: { type: 'string' },
+    model: { type: 'string' }, vertex: { type: 'string' }, 'palpated-pid': { type: 'string' }, out: { type: 'string' },
     chromium: { type: 'string', default: process.env.PALPATE_CHROMIUM || '/usr/bin/chromium' },
   },
 });
-for (const key of ['url', 'pliers', 'gesture', 'model', 'out'])
+for (const key of ['url', 'pliers', 'client', 'gesture', 'model', 'vertex', 'palpated-pid', 'out'])
   if (!args[key]) { console.error(`viewer_e2e: --${key} is required`); process.exit(2); }
 mkdirSync(args.out, { recursive: true });
 
@@ -33,6 +41,17 @@ const PRESS_DEPTH_M = 0.001;       // steady-press goes 3-5 mm deep: the drawn o
 const FLOAT32_M = 1e-6;            // positions travel as float32: 1 µm on a 0.1 m organ
 const MIN_CHANGED_PIXELS = 0.005;  // pressing changes at least 0.5 % of the pixels
 const REST_M = 1e-6;               // back at rest: every drawn vertex within 1 µm of its rest position
+const REQUEST_M = 0.002;           // palpate-client imposes 2 mm at --vertex
+const REQUEST_SEEN_M = 0.0015;     // ... so the streamed maximum is at least that (2 mm, less float32)
+// Drawn = rest + factor × displacement, stored as float32: a coordinate of a
+// 0.1 m organ rounds by ≤ 7.5e-9 m, and comparing ×5 with 5 × (×1) adds six
+// such roundings: 1e-7 m bounds it with room, 20 µm below the 4 × 2 mm
+// difference it must tell apart.
+const EXAGGERATED_M = 1e-7;
+const COLOUR = 1e-6;               // same frame, same arithmetic: colours agree to float32 rounding
+const NDC = 1e-9;                  // projected corners: inside [-1, 1] up to double rounding
+const MIN_FILL = 0.5;              // the framed box spans ≥ half the free view along its tighter axis
+const MIN_ATTACHED_FACING = 0.5;   // most attached vertices face the camera: the attachment is in sight
 const TIMEOUT_MS = 20000;
 
 let failures = 0;
@@ -63,6 +82,47 @@ const share = (grey, keep) => grey.filter(keep).length / grey.length;
 async function drawnDisplacement(page) {
   return page.evaluate(() => window.palpateViewer.drawnDisplacement());
 }
+
+// Runs palpate-client request on the model with extra arguments; resolves to its output.
+function clientRequest(...extra) {
+  return new Promise((resolve, reject) => {
+    execFile(args.client, ['request', '--model', args.model, ...extra], (error, stdout, stderr) => {
+      if (error || !/request \d+: ok/.test(stdout)) reject(new Error(`palpate-client request ${extra.join(' ')}: ${stdout}${stderr}`));
+      else resolve(stdout);
+    });
+  });
+}
+const displace = () => clientRequest('--displacement', `${args.vertex}:0,0,${-REQUEST_M}`);
+const restRequest = () => clientRequest();  // no constraint: the organ back at rest
+
+// Until page's state came from palpate-client (not a tool) and shows at least
+// depth, or (depth 0) is back at rest.
+async function waitForRequestState(page, depth) {
+  await page.waitForFunction((d) => {
+    const v = window.palpateViewer;
+    return d > 0 ? v.source !== '' && !v.source.startsWith('tool:') && v.maxDisplacement_m > d
+                 : v.maxDisplacement_m === 0 && v.drawnDisplacement() === 0;
+  }, depth, { timeout: TIMEOUT_MS });
+}
+
+// What a page drew, in one evaluation so that every field is of one frame.
+async function drawnFrame(page) {
+  return page.evaluate(() => {
+    const v = window.palpateViewer;
+    return { sequence: v.lastSequence, factor: v.exaggeration, positions: v.drawnPositions(), rest: v.restPositions(),
+             displacement: v.trueDisplacement(), colours: v.vertexColours(), scale: v.colourScale_m,
+             ns: v.complianceVertexCount, max: v.maxDisplacement_m };
+  });
+}
+
+// The largest |drawn − (rest + factor × displacement)| over the free vertices.
+function exaggerationError(d, factor) {
+  let worst = 0;
+  for (let i = 0; i < 3 * d.ns; ++i)
+    worst = Math.max(worst, Math.abs(d.positions[i] - (d.rest[i] + factor * d.displacement[i])));
+  return worst;
+}
+const largestDifference = (a, b) => a.reduce((m, x, i) => Math.max(m, Math.abs(x - b[i])), a.length === b.length ? 0 : Infinity);
 
 // One raw HTTP request (no URL normalisation): { status, type }.
 function raw(method, path, headers = {}) {
@@ -109,23 +169,33 @@ const browser = await chromium.launch({
          '--no-first-run', '--disable-quic'],
 });
 let pliers = null;
-try {
+const errors = [];
+const query = (extra = '') => `${args.url}?model=${encodeURIComponent(args.model)}&fps=30&follow=0${extra}`;  // a still camera
+async function openPage(url) {
   const page = await browser.newPage({ viewport: { width: 1000, height: 640 } });
-  const errors = [];
   page.on('pageerror', (e) => errors.push(e.message));
   page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  await page.goto(`${args.url}?model=${encodeURIComponent(args.model)}&fps=30&follow=0`);  // a still camera: pixels change only with the scene
-
-  // 1. The organ is drawn, at rest.
+  await page.goto(url);
   await page.waitForFunction(() => {
     const v = window.palpateViewer;
-    return v && v.connected && v.vertexCount > 0 && v.surfacesReceived > 0 && v.framesRendered > 1;
+    return v && v.connected && v.vertexCount > 0 && v.firstOrganFrame !== null && v.framesRendered > 1;
   }, null, { timeout: TIMEOUT_MS });
+  return page;
+}
+const text = (page, selector) => page.evaluate((s) => document.querySelector(s).textContent, selector);
+const shown = (page, selector) => page.evaluate((s) => !document.querySelector(s).hidden, selector);
+
+try {
+  // 1. The organ is drawn, at rest, from its first frame on.
+  const page = await openPage(query());
+  await page.waitForFunction(() => window.palpateViewer.surfacesReceived > 0, null, { timeout: TIMEOUT_MS });
   await page.waitForTimeout(300);
   const rest = await page.evaluate(() => ({ ...window.palpateViewer }));
   check(rest.modelId === args.model, 'the page shows the model', rest.modelId);
   check(rest.triangleCount > 0 && rest.vertexCount >= rest.complianceVertexCount,
     'the description arrived', `${rest.vertexCount} vertices, ${rest.triangleCount} triangles`);
+  check(rest.firstOrganFrame.maxOffset_m <= REST_M, 'the first frame drawn is the rest shape',
+    `${rest.firstOrganFrame.maxOffset_m.toExponential(2)} m off`);
   const restImage = await grab(page);
   const organPixels = share(restImage, (g) => Math.abs(g - BACKGROUND_GREY) > 12);
   check(organPixels > MIN_ORGAN_PIXELS, 'the organ is drawn', `${(100 * organPixels).toFixed(1)} % of the canvas`);
@@ -133,7 +203,67 @@ try {
   check(restDrawn < REST_M, 'at rest before the press', `${restDrawn.toExponential(2)} m`);
   await page.screenshot({ path: join(args.out, 'viewer-rest.png') });
 
-  // 2. A scripted tool presses: the organ moves under it.
+  // 2. The camera holds the whole organ, clear of the panel, not from afar,
+  //    and sees the attachment. The frustum is convex: with the 8 corners of
+  //    the box of every drawn vertex inside it, so is every vertex.
+  const view = await page.evaluate(() => ({ corners: window.palpateViewer.projectedBoxCorners(),
+    left: window.palpateViewer.freeNdcLeft(), facing: window.palpateViewer.attachedFacingCamera(),
+    fixed: window.palpateViewer.fixedMarkers }));
+  const inside = view.corners.every(([x, y, z]) => x >= view.left - NDC && x <= 1 + NDC && Math.abs(y) <= 1 + NDC && Math.abs(z) <= 1 + NDC);
+  check(inside, 'every corner of the organ\'s box is in view, right of the panel',
+    view.corners.map((c) => `(${c.map((v) => v.toFixed(2)).join(', ')})`).join(' '));
+  const centreX = (view.left + 1) / 2, halfX = (1 - view.left) / 2;
+  const fill = Math.max(...view.corners.map(([x, y]) => Math.max(Math.abs(x - centreX) / halfX, Math.abs(y))));
+  check(fill >= MIN_FILL, 'the organ fills the view', `${(100 * fill).toFixed(0)} % of the free half-extent`);
+  check(view.fixed === rest.vertexCount - rest.complianceVertexCount && view.fixed > 0,
+    'every attached vertex has a marker', view.fixed);
+  check(view.facing >= MIN_ATTACHED_FACING, 'the attachment faces the camera', `${(100 * view.facing).toFixed(0)} % of its vertices`);
+
+  // 3. The legend says what its numbers are.
+  const meaning = await text(page, '#legend-meaning');
+  check(/peak-hold/.test(meaning) && /halves every 3 s/.test(meaning) && /"max now" is the largest displacement in the frame/.test(meaning),
+    'the legend explains the peak-hold scale and "max now"', meaning);
+  check((await text(page, '#legend-max')).startsWith('peak-hold '), 'the scale is labelled peak-hold');
+  check((await text(page, '#exaggeration-state')).startsWith('shape true (×1)'), 'the page says the shape is true');
+
+  // 4. A factor that is not offered: ×1, said on the page, and no error.
+  const odd = await openPage(query('&exaggerate=7'));
+  const oddView = await odd.evaluate(() => window.palpateViewer.exaggeration);
+  const warning = await text(odd, '#exaggeration-warning');
+  check(oddView === 1 && (await shown(odd, '#exaggeration-warning')) && warning.includes('exaggerate=7'),
+    '?exaggerate=7 falls back to ×1 with a note', `×${oddView}: ${warning}`);
+  await odd.close();
+
+  // 5. ×5 against ×1 on the same streamed displacement (a static state set
+  //    by one request, so both pages end on the same sample).
+  const five = await openPage(query('&exaggerate=5'));
+  check((await text(five, '#exaggeration-state')).startsWith('shape ×5 exaggerated; colours'), 'the page says the shape is ×5');
+  await displace();
+  await Promise.all([waitForRequestState(page, REQUEST_SEEN_M), waitForRequestState(five, REQUEST_SEEN_M)]);
+  const one = await drawnFrame(page), x5 = await drawnFrame(five);
+  check(one.sequence === x5.sequence && largestDifference(one.displacement, x5.displacement) === 0,
+    'both pages drew the same sample', `${one.sequence} and ${x5.sequence}`);
+  check(exaggerationError(one, 1) <= EXAGGERATED_M, '×1 draws rest + displacement', `${exaggerationError(one, 1).toExponential(2)} m`);
+  check(exaggerationError(x5, 5) <= EXAGGERATED_M, '×5 draws rest + 5 × displacement', `${exaggerationError(x5, 5).toExponential(2)} m`);
+  let worst = 0;
+  for (let i = 0; i < 3 * one.ns; ++i)
+    worst = Math.max(worst, Math.abs((x5.positions[i] - x5.rest[i]) - 5 * (one.positions[i] - one.rest[i])));
+  check(worst <= EXAGGERATED_M, '×5 moves each vertex 5 times as far as ×1', `${worst.toExponential(2)} m`);
+  check(largestDifference(one.colours, x5.colours) <= COLOUR && one.scale === x5.scale && one.max === x5.max,
+    'colours and numbers are the true ones at ×5', `scale ${one.scale} and ${x5.scale} m`);
+  await five.screenshot({ path: join(args.out, 'viewer-x5.png') });
+  await five.close();
+  // The buttons: ×20, then back to ×1, on the same sample.
+  await page.click('#exaggeration button[data-factor="20"]');
+  const x20 = await drawnFrame(page);
+  check(x20.factor === 20 && exaggerationError(x20, 20) <= EXAGGERATED_M && page.url().includes('exaggerate=20'),
+    'the ×20 button draws rest + 20 × displacement', `${exaggerationError(x20, 20).toExponential(2)} m, ${page.url()}`);
+  await page.click('#exaggeration button[data-factor="1"]');
+  check(exaggerationError(await drawnFrame(page), 1) <= EXAGGERATED_M, 'the ×1 button draws the true shape again');
+  await restRequest();
+  await waitForRequestState(page, 0);
+
+  // 6. A scripted tool presses: the organ moves under it.
   pliers = spawn(args.pliers, [args.gesture, '--model', args.model, '--tool', 'left', '-q'],
                  { stdio: ['ignore', 'inherit', 'inherit'] });
   const pliersDone = new Promise((resolve) => pliers.on('exit', (code, signal) => resolve({ code, signal })));
@@ -157,8 +287,7 @@ try {
   check(changed > MIN_CHANGED_PIXELS, 'the picture changes', `${(100 * changed).toFixed(1)} % of the pixels`);
   await page.screenshot({ path: join(args.out, 'viewer-press.png') });
 
-  // 3. The tool goes away (its client is stopped: the daemon's watchdog
-  //    ramps the contact out); the organ returns to rest.
+  // 7. The tool goes away (its client is stopped); the organ returns to rest.
   pliers.kill('SIGTERM');
   await pliersDone;
   pliers = null;
@@ -170,7 +299,27 @@ try {
 
   const status = await page.evaluate(() => window.palpateViewer.status);
   check(status && status.daemon && status.daemon.models === 1, 'the daemon status reaches the page');
-  check(errors.length === 0, 'no errors in the page', errors.join(' | '));
+
+  // 8. palpated stops while the organ is displaced: its last state goes with
+  //    it. The open page returns to rest and says why; a page opened
+  //    afterwards draws the rest shape from its first frame, not that state.
+  await displace();
+  await waitForRequestState(page, REQUEST_SEEN_M);
+  process.kill(Number(args['palpated-pid']), 'SIGTERM');
+  await page.waitForFunction(() => window.palpateViewer.streamEnded, null, { timeout: TIMEOUT_MS }).catch(() => {});
+  const ended = await page.evaluate(() => ({ ended: window.palpateViewer.streamEnded, drawn: window.palpateViewer.drawnDisplacement() }));
+  check(ended.ended && ended.drawn < REST_M && (await shown(page, '#stream-ended')),
+    'the open page draws rest and says palpated stopped', `${ended.drawn.toExponential(2)} m`);
+  const late = await openPage(query());
+  await late.waitForTimeout(300);
+  const lateView = await late.evaluate(() => ({ first: window.palpateViewer.firstOrganFrame,
+    drawn: window.palpateViewer.drawnDisplacement(), surfaces: window.palpateViewer.surfacesReceived }));
+  check(lateView.first.maxOffset_m <= REST_M && lateView.drawn < REST_M && lateView.surfaces === 0,
+    'a page opened after palpated stopped draws the rest shape',
+    `first frame ${lateView.first.maxOffset_m.toExponential(2)} m off, ${lateView.surfaces} surfaces`);
+  await late.screenshot({ path: join(args.out, 'viewer-stopped.png') });
+
+  check(errors.length === 0, 'no errors in the pages', errors.join(' | '));
 } catch (e) {
   console.log(`FAIL ${e.message}`);
   failures += 1;

@@ -2,25 +2,30 @@
 // tools, their contacts and forces, and the rates, from palpate-viewer's
 // WebSocket (/ws). The wire format is in docs/viewer.md. Units: the scene is
 // in metres, as the messages are; the panel converts at display (mm, N).
+//
+// This file holds the organ, the wire and the render loop; camera.js,
+// legend.js, exaggeration.js, tools.js and panel.js one concept each.
 
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { boxOf, fitToFreeArea, frameOrgan, placeCamera, projectCorners, toolsViewpoint } from './camera.js';
+import { EXAGGERATION_PARAMETER, createExaggerationControl, parseExaggeration } from './exaggeration.js';
+import { MIN_SCALE_M, PeakHoldScale, colourAt, drawLegendBar, legendMeaning, mm } from './legend.js';
+import { addEvent, renderModel, renderRates, renderToolTable } from './panel.js';
+import { ToolLayer, arrow, setArrow } from './tools.js';
 
 const GEOMETRY_FRAME = 1;
 const SURFACE_FRAME = 2;
 const NO_VERTEX = 0xffffffff;
-const MM_PER_M = 1000;
-const ARROW_M_PER_N = 0.005;         // force arrows: 5 mm per newton
-const MIN_SCALE_M = 0.0005;          // the colour scale never goes below 0.5 mm
-const SCALE_HALF_LIFE_S = 3;         // then follows the peak, decaying
 const MAX_CONTACTS = 256;
 const FIXED_COLOR = new THREE.Color(0x5a6270);
-const STATE_COLORS = { free: 0xb8c0cc, touching: 0xffb454, grasping: 0xff6b6b };
+const FIXED_MARKER_COLOR = 0x7fdbff;
 
 const parameters = new URLSearchParams(location.search);
 const wantedModel = parameters.get('model');           // ?model=ID: which model (default: the first)
 const maxFps = Number(parameters.get('fps')) || 60;    // ?fps=N: render at most N frames per second
 const followTools = parameters.get('follow') !== '0';  // ?follow=0: the camera stays where it is
+const askedExaggeration = parseExaggeration(parameters.get(EXAGGERATION_PARAMETER));  // ?exaggerate=1|5|20
 
 // What the page shows, for people (the panel) and for tests (window.palpateViewer).
 const view = {
@@ -32,8 +37,13 @@ const view = {
   surfacesReceived: 0,
   lastSequence: 0,
   source: '',
-  maxDisplacement_m: 0,   // of the last surface frame drawn
-  colourScale_m: MIN_SCALE_M,
+  maxDisplacement_m: 0,   // of the last surface frame drawn, true (not exaggerated)
+  colourScale_m: MIN_SCALE_M,  // the legend's peak-hold top value
+  exaggeration: askedExaggeration.factor,
+  exaggerationWarning: askedExaggeration.warning,
+  streamEnded: false,     // palpated stopped serving the model: drawn at rest
+  firstOrganFrame: null,  // { maxOffset_m, surfacesReceived }: the first frame drawn with the organ
+  fixedMarkers: 0,
   contacts: 0,
   tools: {},
   framesRendered: 0,
@@ -41,16 +51,6 @@ const view = {
   status: null,
 };
 window.palpateViewer = view;
-// The largest distance of a drawn free vertex from its rest position, m,
-// read back from the geometry the renderer draws (0 before any model).
-view.drawnDisplacement = () => {
-  if (!organ) return 0;
-  const p = organ.mesh.geometry.attributes.position.array, r = organ.rest;
-  let max = 0;
-  for (let i = 0; i < 3 * organ.ns; i += 3)
-    max = Math.max(max, Math.hypot(p[i] - r[i], p[i + 1] - r[i + 1], p[i + 2] - r[i + 2]));
-  return max;
-};
 
 // ---------------------------------------------------------------- the scene
 const canvas = document.getElementById('scene');
@@ -62,57 +62,53 @@ const camera = new THREE.PerspectiveCamera(40, 1, 0.001, 100);
 camera.up.set(0, 0, 1);
 const controls = new OrbitControls(camera, canvas);
 controls.enableDamping = true;
-let userMovedCamera = false;
+let userMovedCamera = false, framedTools = false;
 controls.addEventListener('start', () => { userMovedCamera = true; });
 scene.add(new THREE.HemisphereLight(0xffffff, 0x30343c, 1.0));
 const sun = new THREE.DirectionalLight(0xffffff, 1.2);
 scene.add(sun);
 scene.add(sun.target);
+const rig = { camera, controls, sun };
 
+const panel = document.getElementById('panel');
+const PANEL_GAP_PX = 8;
 function resize() {
   const w = canvas.clientWidth, h = canvas.clientHeight;
   renderer.setSize(w, h, false);
-  camera.aspect = w / Math.max(h, 1);
-  camera.updateProjectionMatrix();
+  fitToFreeArea(camera, w, h, panel.getBoundingClientRect().right + PANEL_GAP_PX);
+  // A framing fits one aspect ratio: frame again unless someone moved it.
+  if (organ && !userMovedCamera && !framedTools) frameOrgan(rig, organ);
 }
 window.addEventListener('resize', resize);
-resize();
 
-// A perceptual colour map (viridis, 6 stops) for |u| / scale in [0, 1].
-// The stops are sRGB; vertex colours are linear in three.js, so the mesh
-// uses a linearised copy and the legend (a 2D canvas) the sRGB one.
-const VIRIDIS = [[0.267, 0.005, 0.329], [0.254, 0.265, 0.530], [0.164, 0.471, 0.558],
-                 [0.134, 0.659, 0.518], [0.478, 0.821, 0.318], [0.993, 0.906, 0.144]];
-const VIRIDIS_LINEAR = VIRIDIS.map((rgb) => new THREE.Color().setRGB(...rgb, THREE.SRGBColorSpace).toArray());
-function colourAt(t, out, offset, stops = VIRIDIS_LINEAR) {
-  const x = Math.min(Math.max(t, 0), 1) * (stops.length - 1);
-  const i = Math.min(Math.floor(x), stops.length - 2), f = x - i;
-  for (let c = 0; c < 3; ++c) out[offset + c] = stops[i][c] * (1 - f) + stops[i + 1][c] * f;
-}
-(function drawLegend() {
-  const bar = document.getElementById('legend-bar'), g = bar.getContext('2d');
-  const rgb = [0, 0, 0];
-  for (let x = 0; x < bar.width; ++x) {
-    colourAt(x / (bar.width - 1), rgb, 0, VIRIDIS);
-    g.fillStyle = `rgb(${rgb.map((v) => Math.round(255 * v)).join(',')})`;
-    g.fillRect(x, 0, 1, bar.height);
-  }
-})();
+drawLegendBar(document.getElementById('legend-bar'));
+document.getElementById('legend-meaning').textContent = legendMeaning();
+const colourScale = new PeakHoldScale();
+createExaggerationControl({
+  container: document.getElementById('exaggeration'),
+  stateLine: document.getElementById('exaggeration-state'),
+  warningLine: document.getElementById('exaggeration-warning'),
+  initial: askedExaggeration,
+  onChange: (factor) => { view.exaggeration = factor; if (organ) { drawSurface(); dirty = true; } },
+});
 
 // ---------------------------------------------------------------- the organ
-let organ = null;  // { id, mesh, rest, magnitude, nv, ns, radius, centre }
+// { id, mesh, fixedMarkers, rest, restNormal, displacement, magnitude,
+//   contactIndex, contactForce, nv, ns, box, centre, radius }: displacement (3·ns, m) is
+// the last streamed one, true; the mesh draws it exaggerated.
+let organ = null;
 
 function disposeOrgan() {
   if (!organ) return;
-  scene.remove(organ.mesh);
-  organ.mesh.geometry.dispose();
-  organ.mesh.material.dispose();
+  for (const o of [organ.mesh, organ.fixedMarkers]) { scene.remove(o); o.geometry.dispose(); o.material.dispose(); }
   organ = null;
 }
 
 function loadGeometry(id, nv, ns, rest, triangles) {
   disposeOrgan();
   const geometry = new THREE.BufferGeometry();
+  // The rest positions, copied: the first frame drawn is the rest shape
+  // until a surface of this model's current stream arrives.
   geometry.setAttribute('position', new THREE.BufferAttribute(rest.slice(), 3));
   const colours = new Float32Array(3 * nv);
   for (let v = 0; v < nv; ++v) {
@@ -122,68 +118,93 @@ function loadGeometry(id, nv, ns, rest, triangles) {
   geometry.setAttribute('color', new THREE.BufferAttribute(colours, 3));
   geometry.setIndex(new THREE.BufferAttribute(triangles.slice(), 1));
   geometry.computeVertexNormals();
-  geometry.computeBoundingSphere();
   const material = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.55, metalness: 0.0 });
   const mesh = new THREE.Mesh(geometry, material);
   scene.add(mesh);
-  const { center, radius } = geometry.boundingSphere;
-  organ = { id, mesh, rest, magnitude: new Float32Array(ns), nv, ns, radius, centre: center.clone() };
+  const box = boxOf(rest);
+  const centre = box.getCenter(new THREE.Vector3());
+  const radius = box.getSize(new THREE.Vector3()).length() / 2;
+  organ = { id, mesh, rest, nv, ns, box, centre, radius, displacement: new Float32Array(3 * ns),
+            magnitude: new Float32Array(ns), contactIndex: new Uint32Array(0), contactForce: new Float32Array(0) };
+  organ.restNormal = geometry.attributes.normal.array.slice();
+  organ.fixedMarkers = makeFixedMarkers(rest, organ.restNormal, ns, nv, radius);
+  scene.add(organ.fixedMarkers);
   view.modelId = id;
   view.vertexCount = nv;
   view.complianceVertexCount = ns;
   view.triangleCount = triangles.length / 3;
+  view.fixedMarkers = nv - ns;
+  view.firstOrganFrame = null;
+  showStreamEnded(false);
+  colourScale.reset();
+  showContacts();
   userMovedCamera = false;
-  frameCamera(center, new THREE.Vector3(0.2, -1, 0.55), 2.6 * radius);
+  framedTools = false;
+  frameOrgan(rig, organ);
 }
 
-function frameCamera(target, direction, distance) {
-  controls.target.copy(target);
-  camera.position.copy(target).addScaledVector(direction.clone().normalize(), distance);
-  sun.position.copy(camera.position).add(new THREE.Vector3(0, 0, distance));
-  sun.target.position.copy(target);
-  camera.near = distance / 100;
-  camera.far = distance * 20;
-  camera.updateProjectionMatrix();
-  controls.update();
+// A dot on each attached vertex, lifted off the surface along its normal so
+// that the surface does not hide half of it.
+function makeFixedMarkers(rest, normal, ns, nv, radius) {
+  const lift = 0.004 * radius;
+  const at = new Float32Array(3 * (nv - ns));
+  for (let v = ns; v < nv; ++v)
+    for (let c = 0; c < 3; ++c) at[3 * (v - ns) + c] = rest[3 * v + c] + lift * normal[3 * v + c];
+  const markers = new THREE.BufferGeometry();
+  markers.setAttribute('position', new THREE.BufferAttribute(at, 3));
+  return new THREE.Points(markers, new THREE.PointsMaterial({ color: FIXED_MARKER_COLOR, size: 4, sizeAttenuation: false }));
 }
 
-let peak = { value: 0, time: 0 };
-function applySurface(ns, displacement, contactIndex, contactForce) {
-  if (!organ || ns !== organ.ns) return;
-  const position = organ.mesh.geometry.attributes.position;
-  const colour = organ.mesh.geometry.attributes.color;
-  const p = position.array, rest = organ.rest, mag = organ.magnitude;
-  let max = 0;
-  for (let a = 0; a < ns; ++a) {
-    const dx = displacement[3 * a], dy = displacement[3 * a + 1], dz = displacement[3 * a + 2];
-    p[3 * a] = rest[3 * a] + dx;
-    p[3 * a + 1] = rest[3 * a + 1] + dy;
-    p[3 * a + 2] = rest[3 * a + 2] + dz;
-    mag[a] = Math.hypot(dx, dy, dz);
-    if (mag[a] > max) max = mag[a];
-  }
-  // The scale follows the peak up at once and down with a half-life, so a
-  // release fades rather than flashes.
-  const now = performance.now() / 1000;
-  const decayed = peak.value * Math.pow(0.5, (now - peak.time) / SCALE_HALF_LIFE_S);
-  if (max >= decayed) peak = { value: max, time: now };
-  const scale = Math.max(MIN_SCALE_M, max >= decayed ? max : decayed);
-  for (let a = 0; a < ns; ++a) colourAt(mag[a] / scale, colour.array, 3 * a);
+// Free vertex a is drawn at rest + factor × displacement; colours stay true.
+function drawSurface() {
+  const position = organ.mesh.geometry.attributes.position, p = position.array;
+  const rest = organ.rest, u = organ.displacement, factor = view.exaggeration;
+  for (let i = 0; i < 3 * organ.ns; ++i) p[i] = rest[i] + factor * u[i];
   position.needsUpdate = true;
-  colour.needsUpdate = true;
   organ.mesh.geometry.computeVertexNormals();
   organ.mesh.geometry.computeBoundingSphere();
-  view.maxDisplacement_m = max;
-  view.colourScale_m = scale;
-  document.getElementById('legend-max').textContent = `${(scale * MM_PER_M).toFixed(2)} mm`;
-  document.getElementById('displacement').textContent =
-    `max ${(max * MM_PER_M).toFixed(2)} mm · ${contactIndex.length} constrained vertices`;
-  showContacts(contactIndex, contactForce);
+  showContacts();
 }
 
-// Contact points (small spheres on the deformed surface) and the force the
-// tool exerts on the organ at each (red arrows, ARROW_M_PER_N); the force
-// on each tool is the yellow arrow at its tip.
+function applySurface(ns, displacement, contactIndex, contactForce) {
+  if (!organ || ns !== organ.ns) return;
+  const colour = organ.mesh.geometry.attributes.color, mag = organ.magnitude;
+  organ.displacement.set(displacement);
+  let max = 0;
+  for (let a = 0; a < ns; ++a) {
+    mag[a] = Math.hypot(displacement[3 * a], displacement[3 * a + 1], displacement[3 * a + 2]);
+    if (mag[a] > max) max = mag[a];
+  }
+  const scale = colourScale.update(max, performance.now() / 1000);
+  for (let a = 0; a < ns; ++a) colourAt(mag[a] / scale, colour.array, 3 * a);
+  colour.needsUpdate = true;
+  organ.contactIndex = contactIndex;
+  organ.contactForce = contactForce;
+  drawSurface();
+  view.maxDisplacement_m = max;
+  view.colourScale_m = scale;
+  document.getElementById('legend-max').textContent = `peak-hold ${mm(scale)}`;
+  document.getElementById('displacement').textContent =
+    `max now ${mm(max)} · ${contactIndex.length} constrained vertices`;
+}
+
+// palpated stopped serving the model (the bridge's surface_ended): its last
+// state is gone with it, so the organ is drawn at rest, and the page says so.
+function endStream() {
+  applySurface(organ.ns, new Float32Array(3 * organ.ns), new Uint32Array(0), new Float32Array(0));
+  colourScale.reset();
+  view.source = '';
+  showStreamEnded(true);
+}
+
+function showStreamEnded(ended) {
+  view.streamEnded = ended;
+  document.getElementById('stream-ended').hidden = !ended;
+}
+
+// Contact points (small spheres on the drawn surface) and the force the tool
+// exerts on the organ at each (red arrows); the force on each tool is the
+// yellow arrow at its tip.
 const contactMarkers = new THREE.InstancedMesh(
   new THREE.SphereGeometry(1, 12, 8),
   new THREE.MeshBasicMaterial({ color: 0xff3355 }), MAX_CONTACTS);
@@ -192,28 +213,8 @@ contactMarkers.frustumCulled = false;
 scene.add(contactMarkers);
 const contactArrows = [];
 
-// Arrows are drawn over everything: a force on the organ points into it and
-// the force on a tool along its shaft, where both would be hidden.
-function arrow(colour) {
-  const a = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, colour);
-  for (const part of [a.line, a.cone]) { part.material.depthTest = false; part.renderOrder = 10; }
-  a.visible = false;
-  scene.add(a);
-  return a;
-}
-
-function setArrow(a, origin, force, headScale) {
-  const length = force.length() * ARROW_M_PER_N;
-  if (length < 1e-5) { a.visible = false; return; }
-  a.position.copy(origin);
-  a.setDirection(force.clone().normalize());
-  const head = Math.min(0.35 * length, headScale);
-  a.setLength(length, head, 0.5 * head);
-  a.visible = true;
-}
-
-function showContacts(index, force) {
-  const p = organ.mesh.geometry.attributes.position.array;
+function showContacts() {
+  const p = organ.mesh.geometry.attributes.position.array, index = organ.contactIndex, force = organ.contactForce;
   const r = Math.max(organ.radius * 0.006, 0.0008);
   const m = new THREE.Matrix4(), at = new THREE.Vector3(), f = new THREE.Vector3();
   let n = 0;
@@ -223,7 +224,7 @@ function showContacts(index, force) {
     at.set(p[3 * v], p[3 * v + 1], p[3 * v + 2]);
     m.makeScale(r, r, r).setPosition(at);
     contactMarkers.setMatrixAt(n, m);
-    while (contactArrows.length <= n) contactArrows.push(arrow(0xff3355));
+    while (contactArrows.length <= n) contactArrows.push(arrow(scene, 0xff3355));
     f.set(force[3 * c], force[3 * c + 1], force[3 * c + 2]);
     setArrow(contactArrows[n], at, f, 4 * r);
     ++n;
@@ -234,141 +235,65 @@ function showContacts(index, force) {
   view.contacts = n;
 }
 
-// ---------------------------------------------------------------- the tools
-// A grasper in its frame (docs/dds.md, ToolPose): hinge at the origin, shaft
-// along -z, tip (sphere or capsule, the contact shape, translucent) and jaws
-// (opening in the x-z plane) along +z.
-const toolGroups = new Map();
-
-function makeTool(g) {
-  const group = new THREE.Group();
-  const metal = new THREE.MeshStandardMaterial({ color: 0x9aa4b1, roughness: 0.35, metalness: 0.6 });
-  const shaftRadius = Math.max(g.jaw_width, 0.004) / 2;
-  const shaft = new THREE.Mesh(new THREE.CylinderGeometry(shaftRadius, shaftRadius, 0.25, 20), metal);
-  shaft.rotation.x = Math.PI / 2;
-  shaft.position.z = -0.125;
-  group.add(shaft);
-  const tipMaterial = new THREE.MeshStandardMaterial({ color: STATE_COLORS.free, transparent: true, opacity: 0.45 });
-  const tip = g.tip === 'sphere'
-    ? new THREE.Mesh(new THREE.SphereGeometry(g.tip_radius, 24, 16), tipMaterial)
-    : new THREE.Mesh(new THREE.CapsuleGeometry(g.tip_radius, g.tip_length, 8, 20), tipMaterial);
-  if (g.tip !== 'sphere') { tip.rotation.x = Math.PI / 2; tip.position.z = g.tip_length / 2; }
-  group.add(tip);
-  const jaws = [];
-  for (const side of [-1, 1]) {
-    const pivot = new THREE.Group();
-    const jaw = new THREE.Mesh(new THREE.BoxGeometry(0.001, g.jaw_width, g.jaw_length || 0.001), metal);
-    jaw.position.z = (g.jaw_length || 0.001) / 2;
-    pivot.add(jaw);
-    pivot.userData.side = side;
-    group.add(pivot);
-    jaws.push(pivot);
-  }
-  const force = arrow(0xffe14d);
-  scene.add(group);
-  return { group, tipMaterial, jaws, force, geometry: g };
+// ---------------------------------------------------------------- for tests
+// Read back from the geometry the renderer draws; plain arrays, m.
+function largestOffset(count) {
+  if (!organ) return 0;
+  const p = organ.mesh.geometry.attributes.position.array, r = organ.rest;
+  let max = 0;
+  for (let i = 0; i < 3 * count; i += 3)
+    max = Math.max(max, Math.hypot(p[i] - r[i], p[i + 1] - r[i + 1], p[i + 2] - r[i + 2]));
+  return max;
 }
+// The largest distance of a drawn free vertex from its rest position (0 before any model).
+view.drawnDisplacement = () => largestOffset(organ ? organ.ns : 0);
+view.drawnPositions = () => (organ ? Array.from(organ.mesh.geometry.attributes.position.array) : []);
+view.restPositions = () => (organ ? Array.from(organ.rest) : []);
+view.trueDisplacement = () => (organ ? Array.from(organ.displacement) : []);
+view.vertexColours = () => (organ ? Array.from(organ.mesh.geometry.attributes.color.array) : []);
+view.projectedBoxCorners = () => (organ ? projectCorners(camera, organ.box) : []);
+view.freeNdcLeft = () => camera.userData.freeNdcLeft;  // the panel covers x < this
+// The share of attached vertices whose (rest) normal faces the camera.
+view.attachedFacingCamera = () => {
+  if (!organ || organ.nv === organ.ns) return 0;
+  const p = organ.rest, n = organ.restNormal;
+  let facing = 0;
+  for (let v = organ.ns; v < organ.nv; ++v) {
+    const d = [0, 1, 2].map((c) => camera.position.getComponent(c) - p[3 * v + c]);
+    if (d[0] * n[3 * v] + d[1] * n[3 * v + 1] + d[2] * n[3 * v + 2] > 0) ++facing;
+  }
+  return facing / (organ.nv - organ.ns);
+};
+
+// ---------------------------------------------------------------- the tools
+const toolLayer = new ToolLayer(scene);
 
 function updateTools(list) {
-  const seen = new Set();
-  for (const t of list) {
-    seen.add(t.tool_id);
-    let tool = toolGroups.get(t.tool_id);
-    if (!tool) { tool = makeTool(t.geometry); toolGroups.set(t.tool_id, tool); }
-    const visible = organ !== null && t.model_id === organ.id;
-    tool.group.visible = visible;
-    const [w, x, y, z] = t.orientation;
-    tool.group.position.fromArray(t.position);
-    tool.group.quaternion.set(x, y, z, w).normalize();
-    for (const jaw of tool.jaws) jaw.rotation.y = jaw.userData.side * t.jaw_angle / 2;
-    tool.tipMaterial.color.setHex(STATE_COLORS[t.state] ?? STATE_COLORS.free);
-    // The force the organ exerts on the tool, drawn at the tip.
-    const tipCentre = new THREE.Vector3(0, 0, tool.geometry.tip === 'sphere' ? 0 : tool.geometry.tip_length)
-      .applyQuaternion(tool.group.quaternion).add(tool.group.position);
-    setArrow(tool.force, tipCentre, new THREE.Vector3().fromArray(t.force), 0.006);
-    tool.force.visible &&= visible;
-  }
-  for (const [id, tool] of toolGroups)
-    if (!seen.has(id)) { tool.group.visible = false; tool.force.visible = false; }
+  toolLayer.update(list, organ ? organ.id : null);
   view.tools = Object.fromEntries(list.map((t) => [t.tool_id, t]));
   frameTools(list);
   renderToolTable(list);
 }
 
-// Until the user moves the camera, it looks at the tools from beside their
-// shafts once they come near the organ.
-let framedTools = false;
+// Until the user moves the camera, it turns to the tools once they come near the organ.
 function frameTools(list) {
   if (!followTools || framedTools || userMovedCamera || !organ) return;
   const near = list.filter((t) => t.model_id === organ.id && t.state !== 'free');
   if (near.length === 0) return;
-  const target = new THREE.Vector3(), back = new THREE.Vector3(), side = new THREE.Vector3();
-  for (const t of near) {
-    const q = new THREE.Quaternion(t.orientation[1], t.orientation[2], t.orientation[3], t.orientation[0]);
-    target.add(new THREE.Vector3().fromArray(t.position));
-    back.add(new THREE.Vector3(0, 0, -1).applyQuaternion(q));
-    side.add(new THREE.Vector3(0, 1, 0).applyQuaternion(q));
-  }
-  target.divideScalar(near.length);
-  // From outside the organ (back along the shafts and away from its centre),
-  // a little from the side so that the shafts do not hide the tips.
-  const outward = target.clone().sub(organ.centre).normalize();
-  const direction = back.normalize().add(outward).normalize().add(side.normalize().multiplyScalar(0.45));
-  frameCamera(target, direction, 2.0 * organ.radius);
+  const { target, direction } = toolsViewpoint(near, organ.centre);
+  placeCamera(rig, target, direction, 2.0 * organ.radius);
   framedTools = true;
 }
 
 // ---------------------------------------------------------------- the panel
-function cell(text, cls) { const td = document.createElement('td'); td.textContent = text; if (cls) td.className = cls; return td; }
-function row(...cells) { const tr = document.createElement('tr'); tr.append(...cells); return tr; }
-const fixed = (v, digits) => (Number.isFinite(v) ? v.toFixed(digits) : '–');
-
-function renderModel(m) {
-  document.getElementById('model').textContent =
-    `${m.model_id}: ${m.vertex_count} surface vertices (${m.compliance_vertex_count} free), ` +
-    `${m.triangle_count} triangles · ${m.material}`;
-}
-
-function renderToolTable(list) {
-  const body = document.querySelector('#tools tbody');
-  body.replaceChildren(row(cell('tool'), cell('state'), cell('|F| N', 'num'), cell('contacts', 'num'), cell('grip N', 'num')),
-    ...list.map((t) => row(cell(t.tool_id), cell(t.watchdog ? 'watchdog' : t.state, `state-${t.state}`),
-      cell(fixed(Math.hypot(...t.force), 3), 'num'), cell(String(t.contacts), 'num'), cell(fixed(t.grip_force, 2), 'num'))));
-}
-
 const counters = { frames: 0, surfaces: 0, tools: 0, since: performance.now() };
-function renderRates() {
+setInterval(() => {
   const now = performance.now(), dt = (now - counters.since) / 1000;
-  const page = { fps: counters.frames / dt, surfaces: counters.surfaces / dt, tools: counters.tools / dt };
+  view.pageRates = { fps: counters.frames / dt, surfaces: counters.surfaces / dt, tools: counters.tools / dt };
   counters.frames = counters.surfaces = counters.tools = 0;
   counters.since = now;
-  view.pageRates = page;
-  const s = view.status, d = s?.daemon, b = s?.bridge;
-  const rows = [
-    ['page frames / s', fixed(page.fps, 0)],
-    ['surface frames drawn / s', fixed(page.surfaces, 0)],
-    ['tool updates / s', fixed(page.tools, 0)],
-    ['bridge: surfaces / s', fixed(b?.surface_hz, 0)],
-    ['bridge: poses / s', fixed(b?.pose_hz, 0)],
-    ['bridge: feedback / s', fixed(b?.feedback_hz, 0)],
-    ['daemon: surface Hz', fixed(d?.surface_rate_hz, 0)],
-    ['daemon: requests / s', fixed(d?.request_rate_hz, 0)],
-    ['daemon: tool tick p50 / p99 µs', d ? `${fixed(d.tool_compute.p50_us, 0)} / ${fixed(d.tool_compute.p99_us, 0)}` : '–'],
-  ];
-  document.querySelector('#rates tbody').replaceChildren(...rows.map(([k, v]) => row(cell(k), cell(v, 'num'))));
-}
-setInterval(renderRates, 1000);
-
-function addEvent(e) {
-  const text = e.type === 'warning' ? `warning: ${e.message}`
-    : `${e.tool_id}: ${e.kind}${e.kind === 'grasp' ? ` (${e.held_vertices} vertices)` : ''}`;
-  view.events.push(text);
-  const list = document.getElementById('events');
-  const li = document.createElement('li');
-  li.textContent = text;
-  list.prepend(li);
-  while (list.children.length > 8) list.lastChild.remove();
-}
+  renderRates(view.pageRates, view.status);
+}, 1000);
 
 // ---------------------------------------------------------------- the wire
 function readString(data, offset) {
@@ -402,6 +327,7 @@ function onBinary(buffer) {
     const contactIndex = new Uint32Array(buffer, o, nc);
     const contactForce = new Float32Array(buffer, o + 4 * nc, 3 * nc);
     applySurface(ns, displacement, contactIndex, contactForce);
+    showStreamEnded(false);
     view.surfacesReceived += 1;
     view.lastSequence = sequence;
     view.source = source;
@@ -416,9 +342,10 @@ function onText(message) {
       if ((organ && organ.id !== message.model_id) || (!organ && wantedModel && message.model_id !== wantedModel)) return;
       renderModel(message);
       break;
+    case 'surface_ended': if (organ && organ.id === message.model_id) endStream(); break;
     case 'tools': updateTools(message.tools); counters.tools += 1; break;
     case 'status': view.status = message; break;
-    case 'event': case 'warning': addEvent(message); break;
+    case 'event': case 'warning': view.events.push(addEvent(message)); break;
   }
 }
 
@@ -435,14 +362,14 @@ function connect() {
     setTimeout(connect, 1000);
   };
 }
+resize();
 connect();
 
 // Frames are drawn when something changed (a message, the camera, the
 // window), at most maxFps per second: an idle page costs nothing, and a busy
 // one leaves the CPU to palpated's 1 kHz loop on small machines.
 let dirty = true, lastRender = 0;
-function markDirty() { dirty = true; }
-window.addEventListener('resize', markDirty);
+window.addEventListener('resize', () => { dirty = true; });
 function render(now) {
   requestAnimationFrame(render);
   if (now - lastRender < 1000 / maxFps - 1) return;
@@ -453,5 +380,7 @@ function render(now) {
   renderer.render(scene, camera);
   view.framesRendered += 1;
   counters.frames += 1;
+  if (organ && view.firstOrganFrame === null)
+    view.firstOrganFrame = { maxOffset_m: largestOffset(organ.nv), surfacesReceived: view.surfacesReceived };
 }
 requestAnimationFrame(render);
