@@ -6,10 +6,6 @@ find_package(LAPACK REQUIRED)
 find_package(HDF5 REQUIRED COMPONENTS C)
 find_package(OpenSSL REQUIRED COMPONENTS Crypto)
 find_package(tomlplusplus REQUIRED)
-# toml++ 3.3 writes doubles with 17 digits on GCC and Clang (it predates their
-# std::to_chars for floating point, which GCC 11's libstdc++ has): with it, a
-# saved job says 0.45, not 0.45000000000000001, and still reads back the same.
-add_compile_definitions(TOML_FLOAT_CHARCONV=1)
 find_package(spdlog REQUIRED)
 find_package(fmt REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)

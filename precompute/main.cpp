@@ -83,7 +83,7 @@ int run(int argc, char** argv) {
   std::vector<double> box, sphere, half_space;
   double young = 0, poisson = 0, fill_size = 0, tolerance = 0, memory_gb = 0;
   int block_columns = 0;
-  bool json_out = false, quiet = false, xdmf = true, phases = false;
+  bool json_out = false, quiet = false, xdmf = true, phases = false, reuse = false;
 
   app.add_option("-j,--job", job_file, "TOML job file (config/*.toml); flags override it");
   app.add_option("--mesh", mesh,
@@ -125,6 +125,9 @@ int run(int argc, char** argv) {
   app.add_option("--columns", columns,
                  "compute only columns BEGIN:END of G (BEGIN a multiple of --block-columns) into "
                  "a shard file, for merge");
+  app.add_flag("--reuse", reuse,
+               "keep the output if it already holds this problem (same input hash and precision, "
+               "intact) instead of computing it again");
   app.add_flag("--xdmf,!--no-xdmf", xdmf,
                "write (default) or not the XDMF sidecar X.xdmf next to X.h5, for ParaView");
   app.add_option("--save-job", save_job, "write the effective job as TOML (to reproduce the run)");
@@ -269,6 +272,7 @@ int run(int argc, char** argv) {
   if (app.count("--memory-limit-gb")) job.memory_limit_bytes = 1e9 * memory_gb;
   if (!output.empty()) job.output = output;
   if (app.count("--xdmf")) job.write_xdmf = xdmf;  // either spelling
+  job.reuse = reuse;
   if (!shard.empty() && !columns.empty())
     throw palpate::InputError("--shard and --columns both given: use one");
   if (!shard.empty()) palpate::parse_shard(shard, &job.shard);

@@ -13,7 +13,10 @@
 #              PALPATE_DEMO_REPEAT   times the gesture is played (default 2)
 #              PALPATE_DEMO_NETNS    "private" (default) or "host" (below)
 #              PALPATE_BUILD_DIR     the build directory (default build)
-# Outputs: out/demo/ (the script lists them at the end).
+# Outputs: out/demo/ (the script lists them at the end). A second run reuses
+# the compliance file when its input hash shows the same problem
+# (palpate-precompute --reuse) and keeps the earlier sessions' recordings
+# and plots (each session's files are named by its start time).
 #
 # Network: palpated, the pliers and the viewer's DDS side run in a private
 # network namespace whose only interface is loopback (unshare --net, then
@@ -23,6 +26,7 @@
 # with palpate's loopback-only DDS configuration.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+script_start_ns=$(date +%s%N)
 port=${PALPATE_DEMO_PORT:-8080}
 repeat=${PALPATE_DEMO_REPEAT:-2}
 netns_mode=${PALPATE_DEMO_NETNS:-private}
@@ -48,12 +52,15 @@ wait_for() {
 }
 
 scripts/install-deps.sh
+install_ms=$(($(now_ms) - script_start_ns / 1000000))
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$build" -j2 --target palpate-precompute palpated palpate-client palpate-pliers palpate-viewer
+cmake --build "$build" -j2 --target palpate_bin
+build_ms=$(($(now_ms) - script_start_ns / 1000000 - install_ms))
 out=out/demo
-rm -rf "$out/recordings" "$out"/viewer*.png "$out"/*-force.png "$out"/*-latency.png "$out"/*-contacts.png
+# The screenshots are this run's; the recordings and their plots are kept.
+rm -f "$out"/viewer*.png
 mkdir -p "$out/recordings"
-precompute=$build/precompute/palpate-precompute
+precompute=$build/bin/palpate-precompute
 
 # ------------------------------------------------------------- the organ
 job_output() {  # the compliance file a job writes, resolved against the job's folder
@@ -95,8 +102,8 @@ case $input in
 esac
 start=$(now_ms)
 if [ -n "$job" ]; then
-  say "precomputing $job (both methods, cross-checked)"
-  "$precompute" --job "$job"
+  say "precomputing $job (both methods, cross-checked; kept if the file there holds this problem)"
+  "$precompute" --job "$job" --reuse
   compliance=$(job_output "$job")
 else
   # A mesh no job names: guess its unit from its size (the one that makes
@@ -116,7 +123,7 @@ print(unit, 0, 0, f"{z:.6g}", 0, 0, 1)' "$input")
   say "no job in config/ names $input: unit $unit (from its size), fixed: the top 15 % (z ≥ $(echo "$half_space" | cut -d' ' -f3)), E = 85 kPa, ν = 0.45"
   # shellcheck disable=SC2086
   "$precompute" --mesh "$input" --mesh-unit "$unit" --fix-half-space $half_space \
-    -E 85e3 --nu 0.45 --method condensation -o "$compliance"
+    -E 85e3 --nu 0.45 --method condensation -o "$compliance" --reuse
 fi
 model=$(basename "$compliance" .h5)
 precompute_ms=$(($(now_ms) - start))
@@ -150,7 +157,7 @@ else
 fi
 
 say "palpated serves $compliance as model '$model' (DDS: loopback only, network namespace: $netns_mode)"
-"${in_netns[@]}" "$build/server/palpated" --model "$model=$compliance" --record "$out/recordings" 2>"$out/palpated.log" &
+"${in_netns[@]}" "$build/bin/palpated" --model "$model=$compliance" --record "$out/recordings" 2>"$out/palpated.log" &
 daemon=$!
 pids+=("$daemon")
 started+=("$daemon")
@@ -159,7 +166,7 @@ if ! wait_for "$out/palpated.log" 'event=serving' "$daemon" 60; then
   tail -3 "$out/palpated.log" >&2
   exit 5
 fi
-"$build/viewer/palpate-viewer" --listen "127.0.0.1:$port" "${viewer_netns[@]}" >"$out/viewer.log" 2>&1 &
+"$build/bin/palpate-viewer" --listen "127.0.0.1:$port" "${viewer_netns[@]}" >"$out/viewer.log" 2>&1 &
 pids+=($!)
 started+=($!)
 wait_for "$out/viewer.log" 'http://[0-9.]*:[0-9]*/' "$!" 10 || true
@@ -174,7 +181,7 @@ if [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ] && command -v xdg-open >/dev/null; 
 fi
 
 say "palpate-client: requests and replies at 1 kHz (docs/dds.md)"
-"${in_netns[@]}" "$build/clients/palpate-client" demo --model "$model"
+"${in_netns[@]}" "$build/bin/palpate-client" demo --model "$model"
 
 # Headless Chromium takes screenshots while the gesture plays; it renders
 # in software, so it runs niced to leave the cores to palpated's 1 kHz loop.
@@ -192,7 +199,7 @@ wait_for "$out/capture.log" 'capture: ready' "$capture" 30 ||
 
 say "palpate-pliers plays $gesture $repeat time(s) at 1 kHz, two tools (docs/pliers.md)"
 status=0
-"${in_netns[@]}" "$build/clients/palpate-pliers" "$gesture" --model "$model" --repeat "$repeat" \
+"${in_netns[@]}" "$build/bin/palpate-pliers" "$gesture" --model "$model" --repeat "$repeat" \
   --json "$out/pliers.json" || status=$?
 wait "$capture" 2>/dev/null || true
 kill -TERM "$daemon"
@@ -201,6 +208,7 @@ cleanup
 pids=()
 
 recording=$(ls -t "$out"/recordings/*.h5 2>/dev/null | head -1 || true)
+recordings=$(ls "$out"/recordings/*.h5 2>/dev/null | wc -l)
 if [ -n "$recording" ]; then
   say "the recorded session ($recording)"
   /usr/bin/python3 scripts/session_report.py "$recording" || status=$?
@@ -209,13 +217,15 @@ fi
 
 left=0
 for pid in "${started[@]}"; do kill -0 "$pid" 2>/dev/null && left=$((left + 1)); done
-elapsed_ms=$(($(now_ms) - start))
-say "done in $((elapsed_ms / 1000)) s (precompute $((precompute_ms / 1000)).$((precompute_ms % 1000 / 100)) s); processes left running: $left of ${#started[@]} started"
+seconds() { echo "$(($1 / 1000)).$(($1 % 1000 / 100)) s"; }
+total_ms=$(($(now_ms) - script_start_ns / 1000000))
+say "done in $(seconds "$total_ms"): install $(seconds "$install_ms"), build $(seconds "$build_ms"), precompute $(seconds "$precompute_ms"), the rest $(seconds $((total_ms - install_ms - build_ms - precompute_ms))); processes left running: $left of ${#started[@]} started"
 xdmf=${compliance%.h5}.xdmf
 [ -f "$xdmf" ] && xdmf=", $xdmf for ParaView" || xdmf=""
 echo "  compliance file  $compliance$xdmf (docs/compliance-file.md)"
 echo "  viewer           $out/viewer.png (the liveliest of $out/viewer-NN.png); log $out/viewer.log"
 echo "  gesture summary  $out/pliers.json"
-echo "  session          ${recording:-none} and its plots $out/*-force.png, -latency.png, -contacts.png"
+echo "  session          ${recording:-none} and its plots $out/<session>-force.png, -latency.png, -contacts.png"
+echo "                   ($recordings recorded session(s) in $out/recordings, earlier runs' kept)"
 echo "  daemon log       $out/palpated.log"
 exit $status

@@ -5,6 +5,8 @@
 #include "palpate/core/error.hpp"
 #include "palpate/core/system_info.hpp"
 #include "palpate/core/version.hpp"
+#include "palpate/file/compliance_file.hpp"
+#include "palpate/file/xdmf.hpp"
 #include "precompute_steps.hpp"
 
 namespace palpate {
@@ -46,6 +48,43 @@ precompute::ColumnRange columns_of(const PrecomputeJob& job, int m) {
     return {begin, end};
   }
   return {0, m};
+}
+
+/// --reuse: keeps the output when it holds this problem, whole (its digest
+/// checked as it is read), at the job's precision; writes missing sidecars.
+/// @returns true when kept; false (with the reason said) when it must be computed.
+bool reuse_output(const PrecomputeJob& job, const precompute::Problem& problem,
+                  PrecomputeReport& report, const precompute::Say& say) {
+  std::error_code ec;
+  if (!std::filesystem::exists(job.output, ec)) return false;
+  ComplianceModel kept;
+  try {
+    Eigen::MatrixXd G;
+    Eigen::MatrixXf G32;
+    kept = read_compliance_file(job.output, &G, &G32);
+  } catch (const InputError& e) {
+    say.warn(fmt::format("--reuse: computing again: {}", e.what()));
+    return false;
+  }
+  const char* differs = kept.input_hash != problem.model.input_hash ? "another problem"
+                        : kept.precision != job.precision           ? "another precision"
+                                                                    : nullptr;
+  if (differs != nullptr) {
+    say.info(fmt::format("--reuse: {} holds {}: computing it again", job.output.string(), differs));
+    return false;
+  }
+  OutputReport& out = report.output.emplace();
+  out.file = job.output.string();
+  out.precision = to_string(kept.precision);
+  out.bytes = std::filesystem::file_size(job.output);
+  out.reused = true;
+  if (job.write_xdmf) {
+    out.xdmf = xdmf_sidecar_path(job.output).string();
+    if (!std::filesystem::exists(xdmf_sidecar_path(job.output), ec) ||
+        !std::filesystem::exists(xdmf_surface_sidecar_path(job.output), ec))
+      write_xdmf_sidecar(job.output, kept);
+  }
+  return true;
 }
 
 }  // namespace
@@ -92,6 +131,8 @@ PrecomputeReport run_precompute(const PrecomputeJob& job, const PrecomputeHooks&
                                   "core, within the limit",
                                   m, m),
                       limit);
+
+  if (job.reuse && !job.shard.any() && reuse_output(job, problem, report, say)) return report;
 
   assemble_stiffness(problem, phases, say);
   if (streaming)

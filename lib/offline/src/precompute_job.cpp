@@ -202,63 +202,99 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
   return job;
 }
 
+namespace {
+
+/// A TOML number as short as reads back the same (fmt's "{}": 0.45, not
+/// toml++'s 0.45000000000000001), always with a point or an exponent so that
+/// it reads as a float.
+std::string toml_number(double value) {
+  std::string text = fmt::format("{}", value);
+  if (text.find_first_of(".einf") == std::string::npos) text += ".0";
+  return text;
+}
+
+/// A TOML basic string: quotes, backslashes and control characters escaped.
+std::string toml_string(std::string_view text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '"' || c == '\\')
+      out += {'\\', c};
+    else if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+      out += fmt::format("\\u{:04x}", static_cast<unsigned char>(c));
+    else
+      out += c;
+  }
+  return out + "\"";
+}
+
+std::string toml_vector(const Eigen::Vector3d& v, double scale) {
+  return fmt::format("[{}, {}, {}]", toml_number(v.x() / scale), toml_number(v.y() / scale),
+                     toml_number(v.z() / scale));
+}
+
+}  // namespace
+
 std::string to_toml(const PrecomputeJob& job) {
   const double unit = parse_length_unit(job.mesh_unit).to_metres;
-  auto vec = [&](const Eigen::Vector3d& v, double scale) {
-    return toml::array{v.x() / scale, v.y() / scale, v.z() / scale};
-  };
   auto absolute = [](const std::filesystem::path& p) {
-    return p.empty() ? std::string() : std::filesystem::absolute(p).string();
+    return toml_string(std::filesystem::absolute(p).string());
+  };
+  std::string t = "# palpate-precompute job (written by palpate-precompute " PALPATE_VERSION ")\n";
+  auto line = [&t](std::string_view key, const std::string& value) {
+    t += fmt::format("{} = {}\n", key, value);
   };
   // An empty path is left out: `file = ""` would read back as the job's directory.
-  toml::table mesh{{"unit", job.mesh_unit}};
-  if (!job.mesh_file.empty()) mesh.insert("file", absolute(job.mesh_file));
-  if (job.fill_size > 0) mesh.insert("fill_size", job.fill_size);
-  toml::array groups;
-  for (const auto& g : job.group_materials)
-    groups.push_back(toml::table{{"name", g.group},
-                                 {"young_modulus_pa", g.young_modulus_pa},
-                                 {"poisson_ratio", g.poisson_ratio}});
-  toml::table material;
-  if (job.young_modulus_pa) material.insert("young_modulus_pa", *job.young_modulus_pa);
-  if (job.poisson_ratio) material.insert("poisson_ratio", *job.poisson_ratio);
-  if (!groups.empty()) material.insert("group", groups);
-  toml::table attachment;
-  const auto& a = job.attachment;
-  if (!a.groups.empty()) {
-    toml::array g;
-    for (const auto& name : a.groups) g.push_back(name);
-    attachment.insert("groups", g);
+  t += "\n[mesh]\n";
+  if (!job.mesh_file.empty()) line("file", absolute(job.mesh_file));
+  line("unit", toml_string(job.mesh_unit));
+  if (job.fill_size > 0) line("fill_size", toml_number(job.fill_size));
+
+  t += "\n[material]\n";
+  if (job.young_modulus_pa) line("young_modulus_pa", toml_number(*job.young_modulus_pa));
+  if (job.poisson_ratio) line("poisson_ratio", toml_number(*job.poisson_ratio));
+  for (const auto& g : job.group_materials) {
+    t += "\n[[material.group]]\n";
+    line("name", toml_string(g.group));
+    line("young_modulus_pa", toml_number(g.young_modulus_pa));
+    line("poisson_ratio", toml_number(g.poisson_ratio));
   }
-  if (!a.ids_file.empty()) attachment.insert("ids_file", absolute(a.ids_file));
-  toml::array boxes, spheres, half_spaces;
-  for (const auto& b : a.boxes)
-    boxes.push_back(toml::table{{"min", vec(b.min, unit)}, {"max", vec(b.max, unit)}});
-  for (const auto& s : a.spheres)
-    spheres.push_back(toml::table{{"center", vec(s.center, unit)}, {"radius", s.radius / unit}});
-  for (const auto& h : a.half_spaces)
-    half_spaces.push_back(
-        toml::table{{"point", vec(h.point, unit)}, {"normal", vec(h.normal, 1.0)}});
-  if (!boxes.empty()) attachment.insert("boxes", boxes);
-  if (!spheres.empty()) attachment.insert("spheres", spheres);
-  if (!half_spaces.empty()) attachment.insert("half_spaces", half_spaces);
-  toml::table compute{{"method", to_string(job.method)},
-                      {"precision", to_string(job.precision)},
-                      {"block_columns", job.block_columns},
-                      {"tolerance", job.tolerance}};
-  if (job.memory_limit_bytes > 0) compute.insert("memory_limit_gb", job.memory_limit_bytes / 1e9);
-  toml::table output{{"xdmf", job.write_xdmf}};
-  if (!job.output.empty()) output.insert("file", absolute(job.output));
-  toml::table root{{"mesh", mesh},
-                   {"material", material},
-                   {"attachment", attachment},
-                   {"compute", compute},
-                   {"output", output}};
-  std::ostringstream out;
-  out << "# palpate-precompute job (written by "
-      << "palpate-precompute " PALPATE_VERSION << ")\n"
-      << root << "\n";
-  return out.str();
+
+  const auto& a = job.attachment;
+  t += "\n[attachment]\n";
+  if (!a.groups.empty()) {
+    std::string groups;
+    for (const auto& name : a.groups) groups += (groups.empty() ? "" : ", ") + toml_string(name);
+    line("groups", "[" + groups + "]");
+  }
+  if (!a.ids_file.empty()) line("ids_file", absolute(a.ids_file));
+  for (const auto& b : a.boxes) {
+    t += "\n[[attachment.boxes]]\n";
+    line("min", toml_vector(b.min, unit));
+    line("max", toml_vector(b.max, unit));
+  }
+  for (const auto& sphere : a.spheres) {
+    t += "\n[[attachment.spheres]]\n";
+    line("center", toml_vector(sphere.center, unit));
+    line("radius", toml_number(sphere.radius / unit));
+  }
+  for (const auto& h : a.half_spaces) {
+    t += "\n[[attachment.half_spaces]]\n";
+    line("point", toml_vector(h.point, unit));
+    line("normal", toml_vector(h.normal, 1.0));
+  }
+
+  t += "\n[compute]\n";
+  line("method", toml_string(to_string(job.method)));
+  line("precision", toml_string(to_string(job.precision)));
+  line("block_columns", std::to_string(job.block_columns));
+  line("tolerance", toml_number(job.tolerance));
+  if (job.memory_limit_bytes > 0)
+    line("memory_limit_gb", toml_number(job.memory_limit_bytes / 1e9));
+
+  t += "\n[output]\n";
+  if (!job.output.empty()) line("file", absolute(job.output));
+  line("xdmf", job.write_xdmf ? "true" : "false");
+  return t;
 }
 
 void validate_job(const PrecomputeJob& job) {

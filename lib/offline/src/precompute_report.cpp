@@ -126,6 +126,7 @@ json to_json_value(const PrecomputeReport& r) {
                    {"precision", o.precision},
                    {"xdmf", o.xdmf ? json(*o.xdmf) : json(nullptr)}};
     put(j["output"], "bytes", o.bytes);
+    j["output"]["reused"] = o.reused;
   }
   put(j, "peak_rss_bytes", r.peak_rss_bytes);
   if (r.shards) {
@@ -277,6 +278,7 @@ PrecomputeReport from_json_value(const json& j) {
     take(o, "precision", output.precision);
     output.xdmf = get<std::string>(o, "xdmf");
     output.bytes = get<std::uint64_t>(o, "bytes");
+    output.reused = get<bool>(o, "reused").value_or(false);
   }
   r.peak_rss_bytes = get<double>(j, "peak_rss_bytes");
   if (j.contains("shards") && j["shards"].is_array()) {
@@ -316,7 +318,8 @@ PrecomputeReport report_from_json(std::string_view text) {
 
 std::string format_report(const PrecomputeReport& r) {
   std::string s = fmt::format("palpate-precompute report ({})\n", r.producer);
-  if (!r.mesh || !r.dofs || !r.checks) return s;
+  const bool reused = r.output && r.output->reused;
+  if (!r.mesh || !r.dofs || (!r.checks && !reused)) return s;
   const MeshReport& mesh = *r.mesh;
   s += fmt::format("  mesh       {}: {} vertices, {} tetrahedra, {} surface triangles\n", mesh.file,
                    mesh.vertices, mesh.tetrahedra, mesh.surface_triangles);
@@ -327,6 +330,13 @@ std::string format_report(const PrecomputeReport& r) {
     for (const auto& m : *r.materials)
       s += fmt::format("  material   {}: E = {:.4g} Pa, nu = {}\n", m.name, m.young_modulus_pa,
                        m.poisson_ratio);
+  if (reused)  // nothing computed: the problem read, and the file kept
+    return s + fmt::format(
+                   "  output     {} ({}, {}), input hash {}; kept (--reuse): it already "
+                   "holds this problem\n",
+                   r.output->file, r.output->precision,
+                   format_bytes(static_cast<double>(r.output->bytes.value_or(0))),
+                   r.input_hash.value_or("").substr(0, 23));
   s += fmt::format("  BLAS       {}\n", r.blas);
   s += "  phases     time        peak RSS    rate\n";
   for (const auto& p : r.phases) {

@@ -62,6 +62,10 @@ struct PrecomputeJob {
   std::filesystem::path output;
   /// Also write the XDMF sidecar next to the output (xdmf.hpp), for ParaView.
   bool write_xdmf = true;
+  /// Keep an output that already holds this problem (the same input hash,
+  /// the same precision, its content digest intact) instead of computing it
+  /// again (command line only: --reuse).
+  bool reuse = false;
   /// Only some columns, into a shard file (command line only: not in the TOML).
   ColumnShard shard;
 };

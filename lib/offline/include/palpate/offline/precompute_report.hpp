@@ -94,6 +94,7 @@ struct OutputReport {
   std::string precision;               ///< "float64", "float32"
   std::optional<std::string> xdmf;     ///< the sidecar's path; none with --no-xdmf (null in JSON)
   std::optional<std::uint64_t> bytes;  ///< file size, once written
+  bool reused = false;                 ///< --reuse kept the file there, which holds this problem
 };
 
 /// A shard merged into the file.
