@@ -154,6 +154,10 @@ int run(int argc, char** argv) {
       "unit, groups, quality, what G and each method would cost (with --json: as JSON)");
   std::string inspect_mesh;
   inspect->add_option("mesh", inspect_mesh, "the mesh file (as --mesh)")->required();
+  inspect->footer(
+      "Also: --mesh-unit U (m, cm or mm: the unit its quality and box in metres assume), "
+      "--fill-size L (an STL's tetrahedron size, mesh unit), --json (print as JSON); e.g. "
+      "palpate-precompute inspect liver.msh --mesh-unit mm");
 
   auto* merge = app.add_subcommand(
       "merge",
