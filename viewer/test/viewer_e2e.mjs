@@ -226,6 +226,16 @@ try {
   check((await text(page, '#legend-max')).startsWith('peak-hold '), 'the scale is labelled peak-hold');
   check((await text(page, '#exaggeration-state')).startsWith('shape true (×1)'), 'the page says the shape is true');
 
+  // 3b. A model palpated does not serve: the page says so and names the served one.
+  const wrong = await browser.newPage({ viewport: { width: 1000, height: 640 } });
+  await wrong.goto(`${args.url}?model=livr`);
+  await wrong.waitForFunction(() => /not served/.test(document.querySelector('#model').textContent),
+    null, { timeout: TIMEOUT_MS }).catch(() => {});
+  const notServed = await text(wrong, '#model');
+  check(notServed === `model 'livr' is not served by palpated; served: ${args.model} (change ?model= in the address)`,
+    'a model palpated does not serve is named with the served ones', notServed);
+  await wrong.close();
+
   // 4. A factor that is not offered: ×1, said on the page, and no error.
   const odd = await openPage(query('&exaggerate=7'));
   const oddView = await odd.evaluate(() => window.palpateViewer.exaggeration);

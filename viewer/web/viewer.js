@@ -335,11 +335,24 @@ function onBinary(buffer) {
   }
 }
 
+// The models palpated announced, to say which are served when ?model= names
+// another (as palpate-client and palpate-pliers do).
+const announced = new Set();
+function showNotServed() {
+  const section = document.getElementById('model');
+  section.textContent = `model '${wantedModel}' is not served by palpated; served: ` +
+    `${[...announced].join(', ')} (change ?model= in the address)`;
+  section.className = 'warn';
+}
+
 function onText(message) {
   dirty = true;
   switch (message.type) {
     case 'model':
-      if ((organ && organ.id !== message.model_id) || (!organ && wantedModel && message.model_id !== wantedModel)) return;
+      announced.add(message.model_id);
+      if (!organ && wantedModel && message.model_id !== wantedModel) { showNotServed(); return; }
+      if (organ && organ.id !== message.model_id) return;
+      document.getElementById('model').className = '';
       renderModel(message);
       break;
     case 'surface_ended': if (organ && organ.id === message.model_id) endStream(); break;
