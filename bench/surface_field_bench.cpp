@@ -94,8 +94,8 @@ struct Problem {
       std::fprintf(stderr, "palpate_surface_field_bench: solve failed: %s\n", solver.message());
       std::exit(1);
     }
-    indices.assign(solver.indices().begin(), solver.indices().end());
-    forces.assign(solver.forces().begin(), solver.forces().end());
+    indices.assign(solver.load_indices().begin(), solver.load_indices().end());
+    forces.assign(solver.load_forces().begin(), solver.load_forces().end());
     for (int c : indices)
       for (int d = 0; d < 3; ++d) columns.push_back(3 * static_cast<Index>(c) + d);
     reference.resize(model.G.rows());

@@ -10,6 +10,8 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <span>
+#include <string>
 
 #include "palpate/runtime/surface_model.hpp"
 #include "support/allocation_counter.hpp"
@@ -63,7 +65,7 @@ class ConstraintSolverTest : public ::testing::Test {
   static Eigen::VectorXd full_field(const ConstraintSolver& solver) {
     Eigen::VectorXd f = Eigen::VectorXd::Zero(model().G.rows());
     for (int j = 0; j < solver.size(); ++j)
-      f.segment<3>(3 * solver.indices()[j]) = solver.forces().segment<3>(3 * j);
+      f.segment<3>(3 * solver.load_indices()[j]) = solver.forces().segment<3>(3 * j);
     return model().G * f;
   }
 
@@ -176,7 +178,7 @@ TEST_F(ConstraintSolverTest, MixedConstraintsMeetTheirDefinitions) {
   EXPECT_LT((f30 - f30.dot(n2) * n2).norm(), 1e-12 * f30.norm());
   // The reported displacements of the constrained vertices are those of u.
   for (int j : {0, 1, 2, 3})
-    EXPECT_LT((solver.displacements().segment<3>(3 * j) - u_at(solver.indices()[j])).norm(),
+    EXPECT_LT((solver.displacements().segment<3>(3 * j) - u_at(solver.load_indices()[j])).norm(),
               kRelativeTolerance * u.norm());
 }
 
@@ -414,6 +416,155 @@ TEST_F(ConstraintSolverTest, AnEmptyRequestIsTheRestState) {
   solver.surface_displacement(u);
   EXPECT_EQ(u.norm(), 0.0);
   EXPECT_EQ(solver.total_force().norm(), 0.0);
+}
+
+/// A surface triangle of the model by mesh vertex ids: the first whose
+/// vertices are all compliance vertices (@p with_fixed false), or the first
+/// with exactly one fixed vertex.
+std::array<std::uint32_t, 3> surface_triangle(const SurfaceModel& m, bool with_fixed,
+                                              int skip = 0) {
+  const DrawnSurface& s = m.surface;
+  for (int t = 0; t < s.triangle_count(); ++t) {
+    std::array<std::uint32_t, 3> ids{};
+    int fixed = 0;
+    for (int c = 0; c < 3; ++c) {
+      const std::uint32_t v = s.triangles[3 * static_cast<std::size_t>(t) + c];
+      ids[static_cast<std::size_t>(c)] = s.vertex_ids[v];
+      fixed += static_cast<int>(v) >= s.compliance_vertex_count ? 1 : 0;
+    }
+    if (fixed == (with_fixed ? 1 : 0) && skip-- == 0) return ids;
+  }
+  ADD_FAILURE() << "no such triangle";
+  return {};
+}
+
+constexpr double kNoNormal[3] = {0, 0, 0};
+
+TEST_F(ConstraintSolverTest, PointsOnTrianglesMeetTheirDefinitions) {
+  // Against the dense definition: H maps the surface to the points
+  // (u_p = Σ w_i u_{a_i}), the loads are f_S = Hᵀ f_C, u_S = G f_S.
+  const SurfaceModel& m = model();
+  ConstraintSolver solver(m, {});
+  const auto t1 = surface_triangle(m, false, 0);
+  const auto t2 = surface_triangle(m, false, 40);
+  const auto t3 = surface_triangle(m, true);
+  const std::array<double, 3> w1{0.2, 0.3, 0.5}, w2{0.6, 0.1, 0.3}, w3{0.25, 0.25, 0.5};
+  const Eigen::Vector3d d1(0.0005, -0.001, -0.002), n2 = Eigen::Vector3d(0.1, -0.2, 1).normalized();
+  const Eigen::Vector3d f3(0, 0.2, -0.3);
+  ASSERT_EQ(solver.begin(3), RequestStatus::kOk);
+  ASSERT_EQ(solver.add_point(t1, w1, 1, d1.data(), kNoNormal), RequestStatus::kOk)
+      << solver.message();
+  const double normal_value[3] = {-0.0015, 0, 0};
+  ASSERT_EQ(solver.add_point(t2, w2, 2, normal_value, n2.data()), RequestStatus::kOk)
+      << solver.message();
+  ASSERT_EQ(solver.add_point(t3, w3, 0, f3.data(), kNoNormal), RequestStatus::kOk)
+      << solver.message();
+  ASSERT_EQ(solver.solve(), RequestStatus::kOk) << solver.message();
+
+  const Eigen::Index rows = m.G.rows();
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(9, rows);
+  const std::array<std::array<std::uint32_t, 3>, 3> ids{t1, t2, t3};
+  const std::array<std::array<double, 3>, 3> ws{w1, w2, w3};
+  for (int p = 0; p < 3; ++p)
+    for (int i = 0; i < 3; ++i) {
+      const int a = m.compliance_index_of_vertex[ids[p][i]];
+      if (a < 0) continue;  // fixed: no displacement, its share goes to the attachment
+      H.block<3, 3>(3 * p, 3 * a) += ws[p][i] * Eigen::Matrix3d::Identity();
+    }
+  const Eigen::VectorXd f = solver.forces();
+  const Eigen::VectorXd u_S = m.G * (H.transpose() * f);
+  const Eigen::VectorXd u_C = H * u_S;
+  EXPECT_LT((u_C.segment<3>(0) - d1).norm(), kRelativeTolerance * d1.norm());
+  EXPECT_NEAR(n2.dot(u_C.segment<3>(3)), -0.0015, kRelativeTolerance * 0.0015);
+  const Eigen::Vector3d fn = f.segment<3>(3);
+  EXPECT_LT((fn - fn.dot(n2) * n2).norm(), 1e-12 * fn.norm()) << "sliding: along the normal";
+  EXPECT_LT((f.segment<3>(6) - f3).norm(), 1e-15);
+  EXPECT_LT(relative(solver.displacements(), u_C), kRelativeTolerance);
+  Eigen::VectorXd u(rows);
+  solver.surface_displacement(u);
+  EXPECT_LT(relative(u, u_S), kRelativeTolerance);
+  // The loads carry the whole force but the attachment's share.
+  Eigen::Vector3d loads = Eigen::Vector3d::Zero();
+  for (std::size_t l = 0; l < solver.load_indices().size(); ++l)
+    loads += Eigen::Map<const Eigen::Vector3d>(&solver.load_forces()[3 * l]);
+  const int fixed_corner = m.compliance_index_of_vertex[t3[0]] < 0   ? 0
+                           : m.compliance_index_of_vertex[t3[1]] < 0 ? 1
+                                                                     : 2;
+  EXPECT_LT((loads + w3[fixed_corner] * f3 - solver.total_force()).norm(),
+            1e-14 * solver.total_force().norm());
+}
+
+TEST_F(ConstraintSolverTest, APointAtAVertexIsTheVertexBitForBit) {
+  // Weights (1, 0, 0) on a triangle, a one-vertex point and add(): the same
+  // numbers, so that a contact at a vertex feels as it did.
+  const SurfaceModel& m = model();
+  const auto t = surface_triangle(m, false, 3);
+  const Eigen::Vector3d d(0.0005, -0.001, -0.002), zero = Eigen::Vector3d::Zero();
+  const std::uint32_t other = vertex(30);
+  const double push[3] = {-0.001, 0, 0};
+  const Eigen::Vector3d n(0, 0, 1);
+  auto solve = [&](int how, ConstraintSolver& solver) {
+    EXPECT_EQ(solver.begin(2), RequestStatus::kOk);
+    const std::array<double, 3> corner{1, 0, 0};
+    const std::array<double, 1> one{1};
+    RequestStatus s = how == 0 ? solver.add(t[0], 1, d.data(), zero.data())
+                      : how == 1
+                          ? solver.add_point(std::span(t).first(1), one, 1, d.data(), zero.data())
+                          : solver.add_point(t, corner, 1, d.data(), zero.data());
+    EXPECT_EQ(s, RequestStatus::kOk) << solver.message();
+    EXPECT_EQ(solver.add(other, 2, push, n.data()), RequestStatus::kOk);
+    EXPECT_EQ(solver.solve(), RequestStatus::kOk) << solver.message();
+  };
+  ConstraintSolver a(m, {}), b(m, {}), c(m, {});
+  solve(0, a);
+  solve(1, b);
+  solve(2, c);
+  EXPECT_EQ(Eigen::VectorXd(a.forces()), Eigen::VectorXd(b.forces()));
+  EXPECT_EQ(Eigen::VectorXd(a.forces()), Eigen::VectorXd(c.forces()));
+  EXPECT_EQ(Eigen::VectorXd(a.displacements()), Eigen::VectorXd(c.displacements()));
+  Eigen::VectorXd ua(m.G.rows()), uc(m.G.rows());
+  a.surface_displacement(ua);
+  c.surface_displacement(uc);
+  EXPECT_EQ(ua, uc);
+}
+
+TEST_F(ConstraintSolverTest, EveryBadPointGetsItsStatusAndMessage) {
+  const SurfaceModel& m = model();
+  ConstraintSolver solver(m, {});
+  const auto t = surface_triangle(m, false);
+  const double value[3] = {0, 0, -0.001}, none[3] = {0, 0, 0};
+  auto add = [&](std::vector<std::uint32_t> ids, std::vector<double> w) {
+    EXPECT_EQ(solver.begin(1), RequestStatus::kOk);
+    return solver.add_point(ids, w, 1, value, none);
+  };
+  EXPECT_EQ(add({t[0], t[1], t[2]}, {0.5, 0.4, 0.2}), RequestStatus::kBadConstraint);
+  EXPECT_NE(std::string(solver.message()).find("sum to 1.1"), std::string::npos)
+      << solver.message();
+  EXPECT_EQ(add({t[0], t[1], t[2]}, {1.5, -0.5, 0}), RequestStatus::kBadConstraint);
+  EXPECT_EQ(add({t[0], t[1], t[2]}, {0.5, 0.5, std::nan("")}), RequestStatus::kBadConstraint);
+  EXPECT_EQ(add({t[0], t[1]}, {0.5}), RequestStatus::kBadConstraint);
+  EXPECT_EQ(add({}, {}), RequestStatus::kBadConstraint);
+  EXPECT_EQ(add({t[0], t[0], t[2]}, {0.2, 0.3, 0.5}), RequestStatus::kDuplicateVertex);
+  EXPECT_EQ(add({t[0], t[1], m.mesh_vertex_count()}, {0.2, 0.3, 0.5}),
+            RequestStatus::kVertexOutOfRange);
+  // Three surface vertices that are not one triangle.
+  const std::uint32_t far = vertex(m.compliance_vertex_count() - 1);
+  ASSERT_NE(far, t[2]);
+  EXPECT_EQ(add({t[0], t[1], far}, {0.2, 0.3, 0.5}), RequestStatus::kBadConstraint);
+  EXPECT_NE(std::string(solver.message()).find("not a triangle"), std::string::npos)
+      << solver.message();
+  // Every vertex fixed: nothing can move.
+  const DrawnSurface& s = m.surface;
+  for (int tri = 0; tri < s.triangle_count(); ++tri) {
+    const auto* v = &s.triangles[3 * static_cast<std::size_t>(tri)];
+    if (static_cast<int>(std::min({v[0], v[1], v[2]})) < s.compliance_vertex_count) continue;
+    EXPECT_EQ(add({s.vertex_ids[v[0]], s.vertex_ids[v[1]], s.vertex_ids[v[2]]}, {0.2, 0.3, 0.5}),
+              RequestStatus::kVertexFixed);
+    break;
+  }
+  // An edge of the surface is a point too.
+  EXPECT_EQ(add({t[0], t[1]}, {0.25, 0.75}), RequestStatus::kOk) << solver.message();
+  EXPECT_EQ(solver.solve(), RequestStatus::kOk);
 }
 
 }  // namespace

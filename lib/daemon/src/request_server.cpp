@@ -101,9 +101,8 @@ RequestStatus RequestServer::solve(const palpate_ConstraintRequest& request) {
   }
   if (request.update_state) {
     // The latest successful state-changing request defines what the model
-    // shows: its vertices and forces; the stream thread does the big product.
-    const auto k = static_cast<std::size_t>(solver.size());
-    served->shown.show(solver.indices(), {solver.forces().data(), 3 * k}, "",
+    // shows: the vertices it loads and their forces; the stream thread does the big product.
+    served->shown.show(solver.load_indices(), solver.load_forces(), "",
                        wire::bounded(reply_.client_id), request.request_id, reply_.total_force);
   }
   return RequestStatus::kOk;

@@ -59,7 +59,8 @@ bool ShownState::copy_if_newer(std::uint64_t& version, Snapshot& out) {
 }
 
 ServedModel::ServedModel(SurfaceModel loaded, const Options& config)
-    : model(std::move(loaded)), shown(static_cast<std::size_t>(config.limits.max_constraints)) {
+    // A constraint at a point of a triangle loads up to 3 vertices.
+    : model(std::move(loaded)), shown(3 * static_cast<std::size_t>(config.limits.max_constraints)) {
   // The organ's size: the diagonal of its surface's bounding box.
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
   for (int v = 0; v < model.surface.vertex_count(); ++v) {
@@ -70,7 +71,7 @@ ServedModel::ServedModel(SurfaceModel loaded, const Options& config)
   request_limits.max_displacement_m = config.max_displacement_fraction * (hi - lo).norm();
   request_limits.max_force_n = config.max_force_n;
   solver = std::make_unique<ConstraintSolver>(model, request_limits);
-  const auto k = static_cast<std::size_t>(config.limits.max_constraints);
+  const auto k = 3 * static_cast<std::size_t>(config.limits.max_constraints);
   tools.engine =
       std::make_unique<ToolContactEngine>(model, config.tools, config.contact, config.limits);
   tools.record_vertices.resize(k);

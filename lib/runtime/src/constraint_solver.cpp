@@ -34,21 +34,23 @@ RequestStatus fail(std::array<char, 256>& message, RequestStatus status,
 
 }  // namespace
 
-/// One cached factorization: the structure it was built for (vertices, kinds,
-/// normals) and G_CC, G_CC B and the Cholesky factor of Bᵀ G_CC B.
+/// One cached factorization: the structure it was built for (points, kinds,
+/// normals) and P = H G Hᵀ, P B and the Cholesky factor of Bᵀ P B.
 struct ConstraintSolver::Slot {
   bool valid = false;
   std::uint64_t last_used = 0;
   int count = 0;                     // k
   int unknowns = 0;                  // m
-  std::vector<int> index;            // k
+  std::vector<int> point_count;      // k
+  std::vector<int> point_index;      // 3k
+  std::vector<double> point_weight;  // 3k
   std::vector<ConstraintKind> kind;  // k
   std::vector<double> normal;        // 3k
   std::vector<int> unknown_vertex;   // m: which constraint an unknown belongs to
   std::vector<int> unknown_value;    // m: where its prescribed displacement is in value_
   std::vector<double> unknown_dir;   // 3m: its unit direction (a column of B)
-  std::vector<double> G_CC;          // 3k × 3k, column-major
-  std::vector<double> GB;            // 3k × m, column-major: G_CC B
+  std::vector<double> P;             // 3k × 3k, column-major: H G Hᵀ
+  std::vector<double> GB;            // 3k × m, column-major: P B
   std::vector<double> L;             // m × m, Cholesky factor of Bᵀ G_CC B (lower)
   std::vector<double> work;          // 3m for dpocon
   std::vector<int> iwork;            // m
@@ -56,13 +58,15 @@ struct ConstraintSolver::Slot {
 
   explicit Slot(int max_constraints) {
     const auto k = static_cast<std::size_t>(max_constraints);
-    index.resize(k);
+    point_count.resize(k);
+    point_index.resize(3 * k);
+    point_weight.resize(3 * k);
     kind.resize(k);
     normal.resize(3 * k);
     unknown_vertex.resize(3 * k);
     unknown_value.resize(3 * k);
     unknown_dir.resize(9 * k);
-    G_CC.resize(9 * k * k);
+    P.resize(9 * k * k);
     GB.resize(9 * k * k);
     L.resize(9 * k * k);
     work.resize(9 * k);
@@ -76,14 +80,42 @@ ConstraintSolver::ConstraintSolver(const SurfaceModel& model, const SolverLimits
   PALPATE_DEMAND(limits.surface_threads == 1 || limits.surface_threads == 2);
   if (limits.surface_threads == 2) split_ = std::make_unique<SplitSurfaceProduct>();
   const auto k = static_cast<std::size_t>(limits.max_constraints);
-  index_.resize(k);
+  point_count_.resize(k);
+  point_index_.resize(3 * k);
+  point_weight_.resize(3 * k);
   kind_.resize(k);
   value_.resize(3 * k);
   normal_.resize(3 * k);
   force_.resize(3 * k);
   displacement_.resize(3 * k);
   rhs_.resize(3 * k);
-  seen_.assign(static_cast<std::size_t>(model.compliance_vertex_count()), 0);
+  const auto n = static_cast<std::size_t>(model.compliance_vertex_count());
+  seen_.assign(n, 0);
+  used_epoch_.assign(n, 0);
+  used_slot_.assign(n, 0);
+  used_index_.resize(3 * k);
+  G_UU_.resize(81 * k * k);
+  GHt_.resize(27 * k * k);
+  load_index_.resize(3 * k);
+  load_force_.resize(9 * k);
+  // The surface's triangles and edges by mesh vertex ids, for add_point.
+  const DrawnSurface& surface = model.surface;
+  for (int t = 0; t < surface.triangle_count(); ++t) {
+    std::array<std::uint32_t, 3> ids{};
+    for (int c = 0; c < 3; ++c)
+      ids[static_cast<std::size_t>(c)] =
+          surface.vertex_ids[surface.triangles[3 * static_cast<std::size_t>(t) +
+                                               static_cast<std::size_t>(c)]];
+    std::sort(ids.begin(), ids.end());
+    surface_triangles_.push_back(ids);
+    surface_edges_.push_back({ids[0], ids[1]});
+    surface_edges_.push_back({ids[0], ids[2]});
+    surface_edges_.push_back({ids[1], ids[2]});
+  }
+  std::sort(surface_triangles_.begin(), surface_triangles_.end());
+  std::sort(surface_edges_.begin(), surface_edges_.end());
+  surface_edges_.erase(std::unique(surface_edges_.begin(), surface_edges_.end()),
+                       surface_edges_.end());
   slots_.reserve(static_cast<std::size_t>(limits.cache_slots));
   for (int s = 0; s < limits.cache_slots; ++s) slots_.emplace_back(limits.max_constraints);
 }
@@ -134,7 +166,133 @@ RequestStatus ConstraintSolver::add(std::uint32_t vertex_id, std::int32_t kind, 
     return fail(message_, RequestStatus::kDuplicateVertex,
                 "constraint {}: vertex {} appears twice; each vertex at most once", j, vertex_id);
   seen_[static_cast<std::size_t>(index)] = epoch_;
+  if (const RequestStatus status = check_values(j, vertex_id, kind, value, normal);
+      status != RequestStatus::kOk)
+    return status;
+  const auto jj = static_cast<std::size_t>(j);
+  point_count_[jj] = 1;
+  point_index_[3 * jj] = index;
+  point_weight_[3 * jj] = 1.0;
+  ++added_;
+  return RequestStatus::kOk;
+}
 
+bool ConstraintSolver::on_surface(std::span<const std::uint32_t> ids) const {
+  if (ids.size() == 3) {
+    std::array<std::uint32_t, 3> key{ids[0], ids[1], ids[2]};
+    std::sort(key.begin(), key.end());
+    return std::binary_search(surface_triangles_.begin(), surface_triangles_.end(), key);
+  }
+  if (ids.size() == 2) {
+    const std::array<std::uint32_t, 2> key{std::min(ids[0], ids[1]), std::max(ids[0], ids[1])};
+    return std::binary_search(surface_edges_.begin(), surface_edges_.end(), key);
+  }
+  return true;
+}
+
+RequestStatus ConstraintSolver::add_point(std::span<const std::uint32_t> ids,
+                                          std::span<const double> weights, std::int32_t kind,
+                                          const double* value, const double* normal) {
+  PALPATE_DEMAND(added_ < count_);
+  const int j = added_;
+  if (ids.empty() || ids.size() > 3 || weights.size() != ids.size())
+    return fail(message_, RequestStatus::kBadConstraint,
+                "constraint {}: a point has {} vertices and {} weights; accepted: 1 to 3 "
+                "vertices (a vertex, an edge or a triangle of the surface), one weight each",
+                j, ids.size(), weights.size());
+  const std::uint32_t first = ids[0];
+  int fixed = 0;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const std::uint32_t id = ids[i];
+    if (id >= model_.mesh_vertex_count())
+      return fail(message_, RequestStatus::kVertexOutOfRange,
+                  "constraint {}: vertex {} is not a vertex of model '{}' (ids are 0..{})", j, id,
+                  model_.id, model_.mesh_vertex_count() - 1);
+    const std::int32_t index = model_.compliance_index_of_vertex[id];
+    if (index == static_cast<std::int32_t>(VertexRole::kInterior))
+      return fail(message_, RequestStatus::kVertexNotOnSurface,
+                  "constraint {}: vertex {} of model '{}' is inside the organ; a point's vertices "
+                  "must be a triangle or an edge of the surface (ModelDescription.triangles)",
+                  j, id, model_.id);
+    fixed += index == static_cast<std::int32_t>(VertexRole::kFixed) ? 1 : 0;
+    for (std::size_t e = 0; e < i; ++e)
+      if (ids[e] == id)
+        return fail(message_, RequestStatus::kDuplicateVertex,
+                    "constraint {}: vertex {} appears twice in one point", j, id);
+  }
+  if (fixed == static_cast<int>(ids.size()))
+    return fail(message_, RequestStatus::kVertexFixed,
+                "constraint {}: every vertex of the point at vertex {} of model '{}' is fixed "
+                "(attached); it cannot move",
+                j, first, model_.id);
+  if (!on_surface(ids))
+    return fail(message_, RequestStatus::kBadConstraint,
+                "constraint {}: vertices {}{}{}{}{} are not {} of model '{}''s surface; a point "
+                "lies on a surface triangle or edge (ModelDescription.triangles)",
+                j, ids[0], ids.size() > 1 ? ", " : "", ids.size() > 1 ? ids[1] : 0u,
+                ids.size() > 2 ? ", " : "", ids.size() > 2 ? ids[2] : 0u,
+                ids.size() == 3 ? "a triangle" : "an edge", model_.id);
+  double sum = 0;
+  for (std::size_t i = 0; i < weights.size(); ++i) {
+    const double w = weights[i];
+    // 1e-9: round-off of weights computed in double on the client's side.
+    if (!std::isfinite(w) || w < -1e-9 || w > 1 + 1e-9)
+      return fail(message_, RequestStatus::kBadConstraint,
+                  "constraint {} (point at vertex {}): weight {} is {:g}; accepted: barycentric "
+                  "weights, each in [0, 1], summing to 1",
+                  j, first, i, w);
+    sum += w;
+  }
+  if (std::abs(sum - 1) > 1e-9)
+    return fail(message_, RequestStatus::kBadConstraint,
+                "constraint {} (point at vertex {}): the weights sum to {:.17g}; accepted: "
+                "barycentric weights summing to 1 (within 1e-9)",
+                j, first, sum);
+  if (const RequestStatus status = check_values(j, first, kind, value, normal);
+      status != RequestStatus::kOk)
+    return status;
+  const auto jj = static_cast<std::size_t>(j);
+  int count = 0;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const std::int32_t index = model_.compliance_index_of_vertex[ids[i]];
+    if (index < 0) continue;  // fixed: its share goes to the attachment
+    point_index_[3 * jj + static_cast<std::size_t>(count)] = index;
+    point_weight_[3 * jj + static_cast<std::size_t>(count)] = weights[i];
+    ++count;
+  }
+  point_count_[jj] = count;
+  ++added_;
+  return RequestStatus::kOk;
+}
+
+RequestStatus ConstraintSolver::add_surface_point(const int* indices, const double* weights,
+                                                  int count, ConstraintKind kind,
+                                                  const double* value, const double* normal) {
+  PALPATE_DEMAND(added_ < count_ && count >= 1 && count <= 3);
+  const int j = added_;
+  const auto jj = static_cast<std::size_t>(j);
+  int kept = 0;
+  for (int i = 0; i < count; ++i) {
+    if (indices[i] < 0) continue;
+    PALPATE_DEMAND(indices[i] < model_.compliance_vertex_count());
+    point_index_[3 * jj + static_cast<std::size_t>(kept)] = indices[i];
+    point_weight_[3 * jj + static_cast<std::size_t>(kept)] = weights[i];
+    ++kept;
+  }
+  PALPATE_DEMAND(kept > 0);
+  const std::uint32_t first =
+      model_.surface.vertex_ids[static_cast<std::size_t>(point_index_[3 * jj])];
+  if (const RequestStatus status =
+          check_values(j, first, static_cast<std::int32_t>(kind), value, normal);
+      status != RequestStatus::kOk)
+    return status;
+  point_count_[jj] = kept;
+  ++added_;
+  return RequestStatus::kOk;
+}
+
+RequestStatus ConstraintSolver::check_values(int j, std::uint32_t vertex_id, std::int32_t kind,
+                                             const double* value, const double* normal) {
   if (kind < 0 || kind > 2)
     return fail(message_, RequestStatus::kBadConstraint,
                 "constraint {} (vertex {}): unknown kind {}; accepted: 0 force, "
@@ -184,12 +342,10 @@ RequestStatus ConstraintSolver::add(std::uint32_t vertex_id, std::int32_t kind, 
   } else {
     n[0] = n[1] = n[2] = 0;
   }
-  index_[static_cast<std::size_t>(j)] = index;
   kind_[static_cast<std::size_t>(j)] = k;
   for (int d = 0; d < 3; ++d)
     value_[3 * static_cast<std::size_t>(j) + static_cast<std::size_t>(d)] =
         d < value_count ? value[d] : 0.0;
-  ++added_;
   return RequestStatus::kOk;
 }
 
@@ -198,7 +354,11 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
   auto matches = [&](const Slot& slot) {
     if (!slot.valid || slot.count != k) return false;
     for (int j = 0; j < k; ++j) {
-      if (slot.index[j] != index_[j] || slot.kind[j] != kind_[j]) return false;
+      const int c = point_count_[j];
+      if (slot.point_count[j] != c || slot.kind[j] != kind_[j]) return false;
+      if (!std::equal(&point_index_[3 * j], &point_index_[3 * j + c], &slot.point_index[3 * j]) ||
+          !std::equal(&point_weight_[3 * j], &point_weight_[3 * j + c], &slot.point_weight[3 * j]))
+        return false;
       if (kind_[j] == ConstraintKind::kNormalDisplacement &&
           !std::equal(&normal_[3 * j], &normal_[3 * j + 3], &slot.normal[3 * j]))
         return false;
@@ -220,18 +380,15 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
   slot.valid = false;
   slot.last_used = ++clock_;
   slot.count = k;
-  std::copy_n(index_.begin(), k, slot.index.begin());
+  std::copy_n(point_count_.begin(), k, slot.point_count.begin());
+  std::copy_n(point_index_.begin(), 3 * k, slot.point_index.begin());
+  std::copy_n(point_weight_.begin(), 3 * k, slot.point_weight.begin());
   std::copy_n(kind_.begin(), k, slot.kind.begin());
   std::copy_n(normal_.begin(), 3 * k, slot.normal.begin());
-
-  // G_CC: the 3×3 blocks G^ab of the constrained vertices.
-  const int n3 = 3 * k;
-  Eigen::Map<Eigen::MatrixXd> G_CC(slot.G_CC.data(), n3, n3);
-  for (int b = 0; b < k; ++b)
-    for (int a = 0; a < k; ++a)
-      G_CC.block<3, 3>(3 * a, 3 * b) = model_.G_block(index_[a], index_[b]);
+  assemble_point_compliance(slot);
 
   // B: one unit column per unknown force component.
+  const int n3 = 3 * k;
   int m = 0;
   for (int j = 0; j < k; ++j) {
     if (kind_[j] == ConstraintKind::kDisplacement) {
@@ -254,12 +411,13 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
     return slot;
   }
 
-  // G_CC B, then Bᵀ (G_CC B) into L, which dpotrf factors in place.
+  // P B, then Bᵀ (P B) into L, which dpotrf factors in place.
+  const Eigen::Map<const Eigen::MatrixXd> P(slot.P.data(), n3, n3);
   Eigen::Map<Eigen::MatrixXd> GB(slot.GB.data(), n3, m);
   Eigen::Map<Eigen::MatrixXd> A(slot.L.data(), m, m);
   for (int p = 0; p < m; ++p) {
     const Eigen::Map<const Eigen::Vector3d> dir(&slot.unknown_dir[3 * p]);
-    GB.col(p).noalias() = G_CC.middleCols<3>(3 * slot.unknown_vertex[p]) * dir;
+    GB.col(p).noalias() = P.middleCols<3>(3 * slot.unknown_vertex[p]) * dir;
   }
   for (int p = 0; p < m; ++p)
     for (int q = 0; q < m; ++q) {
@@ -282,6 +440,70 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
   return slot;
 }
 
+void ConstraintSolver::assemble_point_compliance(Slot& slot) {
+  const int k = count_;
+  const int n3 = 3 * k;
+  // Number the distinct vertices U of the points.
+  if (++used_clock_ == 0) {
+    std::fill(used_epoch_.begin(), used_epoch_.end(), 0);
+    used_clock_ = 1;
+  }
+  int u = 0;
+  for (int j = 0; j < k; ++j)
+    for (int i = 0; i < point_count_[j]; ++i) {
+      const auto a = static_cast<std::size_t>(point_index_[3 * j + i]);
+      if (used_epoch_[a] == used_clock_) continue;
+      used_epoch_[a] = used_clock_;
+      used_slot_[a] = u;
+      used_index_[static_cast<std::size_t>(u++)] = static_cast<int>(a);
+    }
+  // G_UU, each 3×3 block of G read once.
+  const int u3 = 3 * u;
+  Eigen::Map<Eigen::MatrixXd> G_UU(G_UU_.data(), u3, u3);
+  for (int b = 0; b < u; ++b)
+    for (int a = 0; a < u; ++a)
+      G_UU.block<3, 3>(3 * a, 3 * b) = model_.G_block(used_index_[a], used_index_[b]);
+  // G Hᵀ (3u × 3k): column block q = Σ_j w_qj G_U,a_qj; then P = H (G Hᵀ).
+  // A vertex point (one vertex, weight 1) copies its blocks exactly.
+  Eigen::Map<Eigen::MatrixXd> GHt(GHt_.data(), u3, n3);
+  GHt.setZero();
+  for (int q = 0; q < k; ++q)
+    for (int i = 0; i < point_count_[q]; ++i)
+      GHt.middleCols<3>(3 * q) +=
+          point_weight_[3 * q + i] *
+          G_UU.middleCols<3>(3 * used_slot_[static_cast<std::size_t>(point_index_[3 * q + i])]);
+  Eigen::Map<Eigen::MatrixXd> P(slot.P.data(), n3, n3);
+  P.setZero();
+  for (int p = 0; p < k; ++p)
+    for (int i = 0; i < point_count_[p]; ++i)
+      P.middleRows<3>(3 * p) +=
+          point_weight_[3 * p + i] *
+          GHt.middleRows<3>(3 * used_slot_[static_cast<std::size_t>(point_index_[3 * p + i])]);
+}
+
+void ConstraintSolver::gather_loads() {
+  // f_S = Hᵀ f_C on the distinct vertices, in order of first use.
+  if (++used_clock_ == 0) {
+    std::fill(used_epoch_.begin(), used_epoch_.end(), 0);
+    used_clock_ = 1;
+  }
+  load_count_ = 0;
+  for (int j = 0; j < count_; ++j)
+    for (int i = 0; i < point_count_[j]; ++i) {
+      const auto a = static_cast<std::size_t>(point_index_[3 * j + i]);
+      if (used_epoch_[a] != used_clock_) {
+        used_epoch_[a] = used_clock_;
+        used_slot_[a] = load_count_;
+        load_index_[static_cast<std::size_t>(load_count_)] = static_cast<int>(a);
+        std::fill_n(&load_force_[3 * static_cast<std::size_t>(load_count_)], 3, 0.0);
+        ++load_count_;
+      }
+      const double w = point_weight_[3 * j + i];
+      double* f = &load_force_[3 * static_cast<std::size_t>(used_slot_[a])];
+      for (int d = 0; d < 3; ++d) f[d] += w * force_[3 * j + d];
+    }
+}
+
 RequestStatus ConstraintSolver::solve() {
   solved_ = false;
   if (added_ != count_)
@@ -291,14 +513,11 @@ RequestStatus ConstraintSolver::solve() {
   const Slot& slot = find_or_build_slot();
   condition_ = slot.condition;
   if (!slot.valid)
-    return fail(
-        message_, RequestStatus::kIllConditioned,
-        "the {} × {} system of the imposed displacements has condition estimate {:.3g}, above the "
-        "limit "
-        "{:.3g}: constrained vertices too close together, or normals nearly parallel on "
-        "neighbours; "
-        "constrain fewer vertices or give forces instead",
-        slot.unknowns, slot.unknowns, condition_, limits_.max_condition);
+    return fail(message_, RequestStatus::kIllConditioned,
+                "the {} × {} system of the imposed displacements has condition estimate {:.3g}, "
+                "above the limit {:.3g}: constrained points too close together, or normals nearly "
+                "parallel on neighbours; constrain fewer points or give forces instead",
+                slot.unknowns, slot.unknowns, condition_, limits_.max_condition);
 
   const int n3 = 3 * k;
   const int m = slot.unknowns;
@@ -311,7 +530,7 @@ RequestStatus ConstraintSolver::solve() {
   }
 
   if (m > 0) {
-    // rhs = b − (G_CC B)ᵀ f_known; then φ = (Bᵀ G_CC B)⁻¹ rhs.
+    // rhs = b − (P B)ᵀ f_known; then φ = (Bᵀ P B)⁻¹ rhs.
     Eigen::Map<Eigen::VectorXd> rhs(rhs_.data(), m);
     for (int p = 0; p < m; ++p) rhs(p) = value_[slot.unknown_value[p]];
     if (any_known_force) {
@@ -329,16 +548,17 @@ RequestStatus ConstraintSolver::solve() {
     }
   }
 
-  // u_C = G_CC f_C.
-  const Eigen::Map<const Eigen::MatrixXd> G_CC(slot.G_CC.data(), n3, n3);
+  // u_C = P f_C.
+  const Eigen::Map<const Eigen::MatrixXd> P(slot.P.data(), n3, n3);
   Eigen::Map<Eigen::VectorXd> u(displacement_.data(), n3);
-  u.noalias() = G_CC * f;
+  u.noalias() = P * f;
   // Finite values can still overflow (a displacement of 1e300 m needs an
   // infinite force): no reply carries an infinity or a NaN.
   if (!f.allFinite() || !u.allFinite() || !total_force().allFinite())
     return fail(message_, RequestStatus::kNonFiniteValue,
                 "the solution overflows (a force or displacement is not finite): the values are "
                 "too large for this model; give displacements in metres and forces in newtons");
+  gather_loads();
   solved_ = true;
   return RequestStatus::kOk;
 }
@@ -352,11 +572,11 @@ Eigen::Vector3d ConstraintSolver::total_force() const {
 void ConstraintSolver::surface_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const {
   PALPATE_DEMAND(solved_);
   if (split_ && model_.float32())
-    (*split_)(model_.G32, indices(), force_.data(), u_m);
+    (*split_)(model_.G32, load_indices(), load_force_.data(), u_m);
   else if (split_)
-    (*split_)(model_.G, indices(), force_.data(), u_m);
+    (*split_)(model_.G, load_indices(), load_force_.data(), u_m);
   else
-    palpate::surface_displacement(model_, indices(), force_.data(), u_m);
+    palpate::surface_displacement(model_, load_indices(), load_force_.data(), u_m);
 }
 
 void surface_displacement(const Eigen::MatrixXd& G, std::span<const int> indices,

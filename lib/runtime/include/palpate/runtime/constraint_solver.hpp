@@ -36,20 +36,31 @@ struct SolverLimits {
 
 /// Solves constraint sets on one model. One instance per model and thread.
 ///
-/// A request is `begin(k)`, k × `add(...)`, `solve()`. With C the k
-/// constrained vertices, the unknowns are the forces the request does not
-/// give: three per imposed displacement, one (along the normal) per imposed
-/// normal displacement. Writing f_C = f_known + B φ, where the columns of B
-/// are the unit directions of the unknowns, the conditions Bᵀ u_C = b with
-/// u_C = G_CC f_C give the m × m SPD system
+/// A request is `begin(k)`, k × `add(...)` or `add_point(...)`, `solve()`.
+/// Each constraint acts at a surface point: a vertex (`add`), or a point of a
+/// surface triangle or edge given by its vertices and barycentric weights
+/// (`add_point`). The point's displacement is u_p = Σ_i w_i u_{a_i} and a
+/// force f_p on it loads each vertex a_i with w_i f_p (the same weights, so
+/// that the work is the same); stacked, u_C = H u_S and f_S = Hᵀ f_C, and the
+/// points' own compliance is
 ///
-///     (Bᵀ G_CC B) φ = b − (G_CC B)ᵀ f_known,
+///     P = H G Hᵀ,   P^pq = Σ_i Σ_j w_pi w_qj G^{a_pi a_qj}
 ///
-/// m ≤ 3k (docs/model.md, "The reduced system of a request": B = I when every
-/// vertex has a full imposed displacement). The Cholesky factor of Bᵀ G_CC B
-/// depends only on the vertices, their kinds and normals; it is kept in one
-/// of `cache_slots` slots and reused while they stay the same, so that a tool
-/// holding tissue pays two triangular solves per request.
+/// (P = G_CC when every point is a vertex: H picks rows). The unknowns are
+/// the forces the request does not give: three per imposed displacement, one
+/// (along the normal) per imposed normal displacement. Writing
+/// f_C = f_known + B φ, where the columns of B are the unit directions of
+/// the unknowns, the conditions Bᵀ u_C = b with u_C = P f_C give the m × m
+/// SPD system
+///
+///     (Bᵀ P B) φ = b − (P B)ᵀ f_known,
+///
+/// m ≤ 3k (docs/model.md, "The reduced system of a request"). The Cholesky
+/// factor of Bᵀ P B depends only on the points (vertices and weights), their
+/// kinds and normals; it is kept in one of `cache_slots` slots and reused
+/// while they stay the same, so that a tool holding tissue pays two
+/// triangular solves per request. P is assembled from the 3×3 blocks of G
+/// among the distinct vertices the points use, each read once.
 class ConstraintSolver {
  public:
   /// Preallocates everything for up to `limits.max_constraints` vertices.
@@ -65,6 +76,21 @@ class ConstraintSolver {
   /// values. @p kind is a ConstraintKind number; @p value, @p normal are 3 doubles.
   RequestStatus add(std::uint32_t vertex_id, std::int32_t kind, const double* value,
                     const double* normal);
+  /// Adds constraint j at a point of a surface triangle (3 vertices), of a
+  /// surface edge (2) or at a vertex (1): @p vertex_ids are mesh vertex ids,
+  /// @p weights their barycentric weights (each in [0, 1], summing to 1).
+  /// Fixed vertices may be among them (their share goes to the attachment);
+  /// not all of them. The vertices must be a triangle or an edge of the
+  /// model's surface.
+  RequestStatus add_point(std::span<const std::uint32_t> vertex_ids,
+                          std::span<const double> weights, std::int32_t kind, const double* value,
+                          const double* normal);
+  /// The contact engine's path: a point given by @p count compliance indices
+  /// (−1 for a fixed vertex) and weights it has built itself on the surface;
+  /// only the values are checked. @p normal must be unit for a normal
+  /// displacement.
+  RequestStatus add_surface_point(const int* compliance_indices, const double* weights, int count,
+                                  ConstraintKind kind, const double* value, const double* normal);
   /// Solves the request built by begin/add.
   RequestStatus solve();
 
@@ -73,10 +99,19 @@ class ConstraintSolver {
   const char* message() const { return message_.data(); }
 
   int size() const { return count_; }  ///< k
-  std::span<const int> indices() const { return {index_.data(), static_cast<std::size_t>(count_)}; }
-  /// Force on each constrained vertex, 3k, N (the force the tool exerts).
+  /// Force at each constraint's point, 3k, N (the force the tool exerts).
   Eigen::Map<const Eigen::VectorXd> forces() const { return {force_.data(), 3 * count_}; }
-  /// Displacement of each constrained vertex, 3k, m.
+  /// The same forces as loads on vertices, f_S = Hᵀ f_C, after a successful
+  /// solve: the distinct compliance vertices they load (in order of first
+  /// use; for vertex constraints, the constraints' own order) and the force
+  /// on each, 3 per vertex, N.
+  std::span<const int> load_indices() const {
+    return {load_index_.data(), static_cast<std::size_t>(load_count_)};
+  }
+  std::span<const double> load_forces() const {
+    return {load_force_.data(), 3 * static_cast<std::size_t>(load_count_)};
+  }
+  /// Displacement of each constraint's point, 3k, m.
   Eigen::Map<const Eigen::VectorXd> displacements() const {
     return {displacement_.data(), 3 * count_};
   }
@@ -84,8 +119,9 @@ class ConstraintSolver {
   double condition_estimate() const { return condition_; }  ///< of Bᵀ G_CC B (1 when m = 0)
   bool reused_factorization() const { return reused_; }
 
-  /// Displacement of every compliance vertex after the last successful solve,
-  /// 3N_S, m; on two threads when `limits.surface_threads` is 2.
+  /// Displacement of every compliance vertex after the last successful solve
+  /// (u_S = G f_S with the loads above), 3N_S, m; on two threads when
+  /// `limits.surface_threads` is 2.
   void surface_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const;
 
   const SurfaceModel& model() const { return model_; }
@@ -93,17 +129,38 @@ class ConstraintSolver {
  private:
   struct Slot;
   Slot& find_or_build_slot();
+  void assemble_point_compliance(Slot& slot);
+  void gather_loads();
+  RequestStatus check_values(int j, std::uint32_t vertex_id, std::int32_t kind, const double* value,
+                             const double* normal);
+  bool on_surface(std::span<const std::uint32_t> vertex_ids) const;
 
   const SurfaceModel& model_;
   SolverLimits limits_;
   int count_ = 0;
   int added_ = 0;
-  std::vector<int> index_;  // compliance index per constraint
+  // Per constraint: its point, 1 to 3 compliance vertices and their weights
+  // (a fixed vertex of a triangle is left out: it does not move).
+  std::vector<int> point_count_;
+  std::vector<int> point_index_;      // 3 per constraint
+  std::vector<double> point_weight_;  // 3 per constraint
   std::vector<ConstraintKind> kind_;
   std::vector<double> value_;        // 3 per constraint
   std::vector<double> normal_;       // 3 per constraint, unit
   std::vector<std::uint32_t> seen_;  // per compliance vertex: epoch of the request naming it
   std::uint32_t epoch_ = 0;
+  // The distinct vertices of the points: per compliance vertex, the epoch it
+  // was last numbered in and its number; G among them (3u × 3u) and G Hᵀ.
+  std::vector<std::uint32_t> used_epoch_;
+  std::vector<int> used_slot_;
+  std::uint32_t used_clock_ = 0;
+  std::vector<int> used_index_;
+  std::vector<double> G_UU_, GHt_;
+  int load_count_ = 0;
+  std::vector<int> load_index_;                                  // up to 3k
+  std::vector<double> load_force_;                               // 3 per load
+  std::vector<std::array<std::uint32_t, 3>> surface_triangles_;  // sorted ids, sorted list
+  std::vector<std::array<std::uint32_t, 2>> surface_edges_;
   std::vector<Slot> slots_;
   std::uint64_t clock_ = 0;
   std::vector<double> force_, displacement_, rhs_;
