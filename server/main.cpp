@@ -228,6 +228,7 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   palpate::ensure_optimized_blas(argv);
+  palpate::set_blas_threads(1);  // small solves on the haptic and request threads
   try {
     return run(argc, argv);
   } catch (...) {

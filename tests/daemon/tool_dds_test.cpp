@@ -166,11 +166,16 @@ TEST_F(ToolsOverDdsTest, PressingGivesTheDirectSolveAndWithdrawingGivesNothing) 
     ASSERT_TRUE(probe.last) << daemon_->log();
     EXPECT_GT(probe.force().norm(), previous * 1.2) << "depth " << d;
     previous = probe.force().norm();
-    // docs/model.md: G_vv f = u_v with u_v = −d e_z; the probe feels −f.
+    // docs/model.md: at the vertex alone, G_vv f = u_v with u_v = −d e_z and
+    // the probe feels −f. The tip also meets the triangles that the dip
+    // around v tilts towards it (docs/tools.md, "Tip contacts"): a few
+    // per cent more, never less (the exact joint solve is checked in
+    // process, tests/runtime/tool_contact_test.cpp).
     const Vector3d f = G_->block<3, 3>(3 * v, 3 * v).ldlt().solve(Vector3d(0, 0, -d));
-    EXPECT_LT((probe.force() + f).norm(), kRelativeTolerance * f.norm()) << "depth " << d;
+    EXPECT_LT((probe.force() + f).norm(), 0.1 * f.norm()) << "depth " << d;
+    EXPECT_GE(probe.force().z(), -f.z() * (1 - 1e-9)) << "depth " << d;
     EXPECT_EQ(probe.last->state, ToolState::kTouching);
-    EXPECT_EQ(probe.last->contacts, 1u);
+    EXPECT_GE(probe.last->contacts, 1u);
     EXPECT_EQ(probe.last->sequence, probe.sequence) << "echoed";
     EXPECT_GT(probe.last->compute_ns, 0u);
   }

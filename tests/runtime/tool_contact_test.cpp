@@ -52,6 +52,22 @@ class ToolContactTest : public ::testing::Test {
         &model().surface.rest_positions_m[3 * static_cast<std::size_t>(j)]);
   }
   static Eigen::Matrix3d G_block(int a, int b) { return model().G.block<3, 3>(3 * a, 3 * b); }
+  /// A contact point at rest, Σ w_i rest_i.
+  static Vector3d point_rest(const ContactPoint& p) {
+    Vector3d x = Vector3d::Zero();
+    for (int i = 0; i < p.vertex_count; ++i) x += p.weights[i] * rest(p.vertices[i]);
+    return x;
+  }
+  /// The points' compliance block Σ_i Σ_j w_pi w_qj G^{a_pi a_qj} (fixed vertices: none).
+  static Eigen::Matrix3d point_block(const ContactPoint& p, const ContactPoint& q) {
+    const int n = model().compliance_vertex_count();
+    Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
+    for (int i = 0; i < p.vertex_count; ++i)
+      for (int j = 0; j < q.vertex_count; ++j)
+        if (p.vertices[i] < n && q.vertices[j] < n)
+          P += p.weights[i] * q.weights[j] * G_block(p.vertices[i], q.vertices[j]);
+    return P;
+  }
 
   static ToolGeometry probe(const std::string& id, double friction, double radius_m = 0.002) {
     ToolGeometry g;
@@ -134,34 +150,56 @@ class ToolContactTest : public ::testing::Test {
   inline static SurfaceModel* model_ = nullptr;
 };
 
-TEST_F(ToolContactTest, PressingToADepthGivesTheDirectImposedDisplacementForce) {
-  // A probe pressed along the normal at vertex v to depth d imposes
-  // u_v = −d e_z on v alone (its neighbours are 12.5 mm away, the tip 2 mm):
-  // docs/model.md's G_vv f_v = u_v.
+TEST_F(ToolContactTest, ATouchAtAVertexIsTheVertexContactAndDeeperTheJointSolve) {
+  // A sticking probe lowered onto vertex v of the flat top face first meets
+  // v itself: the deepest point of every triangle around v is v, one point
+  // of weight 1, so the force is that of the vertex model, G_vv f = u_v.
+  // Pressed on, the face dips around v and the triangles beside it reach the
+  // tip too: the force is then the joint solve P f = u of all the points.
   const int v = top_vertex(75, 25);
   const double d = 0.003, r = 0.002;
   ToolContactEngine engine(model(), {probe("probe", kSticks, r)}, {}, {});
   Driver driver(engine, 1);
-  start(driver, 0, rest(v) + Vector3d(0, 0, r + 0.002));
+  start(driver, 0, rest(v) + Vector3d(0, 0, r + 0.0005));
+  while (driver.last(0).state != ToolState::kTouching && driver.now < 1) {
+    driver.poses[0].position_m.z() -= 5e-5;
+    driver.tick_all();
+  }
+  ASSERT_EQ(engine.contact_points().size(), 1u);
+  const ContactPoint& first = engine.contact_points()[0];
+  ASSERT_EQ(first.vertex_count, 1);
+  EXPECT_EQ(first.vertices[0], v);
+  EXPECT_EQ(first.weights[0], 1.0);
+  const Vector3d u_v = first.position_m - rest(v);
+  EXPECT_LT(u_v.z(), 0.0);
+  const Vector3d expected = G_block(v, v).ldlt().solve(u_v);  // on the organ
+  EXPECT_LT((driver.last(0).force_n + expected).norm(), kRelativeTolerance * expected.norm());
+  EXPECT_TRUE(driver.saw(0, ToolEventKind::kTouch));
+
   driver.move(0, rest(v) + Vector3d(0, 0, r - d), 0);
   driver.hold(5);
-
-  ASSERT_EQ(engine.contact_indices().size(), 1u);
-  EXPECT_EQ(engine.contact_indices()[0], v);
-  const Vector3d expected = G_block(v, v).ldlt().solve(Vector3d(0, 0, -d));  // on the organ
-  const Vector3d felt = driver.last(0).force_n;                              // on the tool
-  EXPECT_LT((felt + expected).norm(), kRelativeTolerance * expected.norm());
-  EXPECT_GT(felt.z(), 0.1) << "the organ pushes the probe back up";
+  const auto points = engine.contact_points();
+  const auto k = static_cast<Eigen::Index>(points.size());
+  Eigen::VectorXd u(3 * k);
+  Eigen::MatrixXd P(3 * k, 3 * k);
+  for (Eigen::Index c = 0; c < k; ++c) {
+    const ContactPoint& p = points[static_cast<std::size_t>(c)];
+    u.segment<3>(3 * c) = p.position_m - point_rest(p);
+    for (Eigen::Index e = 0; e < k; ++e)
+      P.block<3, 3>(3 * c, 3 * e) = point_block(p, points[static_cast<std::size_t>(e)]);
+  }
+  const Eigen::VectorXd f = P.ldlt().solve(u);
+  Vector3d on_organ = Vector3d::Zero();
+  for (Eigen::Index c = 0; c < k; ++c) on_organ += f.segment<3>(3 * c);
+  EXPECT_LT((driver.last(0).force_n + on_organ).norm(), kRelativeTolerance * f.norm());
+  EXPECT_GT(driver.last(0).force_n.z(), 0.1) << "the organ pushes the probe back up";
   EXPECT_EQ(driver.last(0).state, ToolState::kTouching);
-  EXPECT_TRUE(driver.saw(0, ToolEventKind::kTouch));
 }
 
-TEST_F(ToolContactTest, PressingAFrictionlessProbeGivesTheDirectNormalDisplacementForce) {
-  // Normal-only: n·u_v = n·(c + r n − rest_v) with no tangential force, so
-  // f = λ n, λ = n·(c + r n − rest_v) / (nᵀ G_vv n), n the tip's surface
-  // normal at the contact. The box bends under the press, so v also moves
-  // sideways and n tilts: held still, the contact settles where n points
-  // from the tip's centre c to v's own deformed position, on the tip's surface.
+TEST_F(ToolContactTest, AFrictionlessProbeRestsOnTheSurfaceWithNormalForcesOnly) {
+  // Normal-only rows: held still, every contact point settles on the tip's
+  // surface (at distance r from its centre c), each force is along its
+  // normal and pushes, and the tool feels minus their sum.
   const int v = top_vertex(75, 25);
   const double d = 0.003, r = 0.006;  // the centre stays above the rest surface
   ToolContactEngine engine(model(), {probe("probe", 0.0, r)}, {}, {});
@@ -170,17 +208,18 @@ TEST_F(ToolContactTest, PressingAFrictionlessProbeGivesTheDirectNormalDisplaceme
   const Vector3d c = rest(v) + Vector3d(0, 0, r - d);
   driver.move(0, c, 0);
   driver.hold(200);
-
-  ASSERT_EQ(engine.contact_indices().size(), 1u);
-  const Vector3d f = Eigen::Map<const Vector3d>(engine.contact_forces().data());
-  const Vector3d x = rest(v) + G_block(v, v) * f;  // where the organ put v
-  const Vector3d n = (x - c).normalized();         // the push: from the tip to v
-  EXPECT_NEAR((x - c).norm(), r, 1e-9) << "v rests on the tip's surface";
-  EXPECT_GT(n.z(), -1.0);
-  EXPECT_LT(n.z(), -0.9) << "below the tip, tilted by the sideways motion only";
-  const double lambda = n.dot(c + r * n - rest(v)) / n.dot(G_block(v, v) * n);
-  EXPECT_LT((f - lambda * n).norm(), 1e-6 * f.norm()) << "settled to 1e-6 after 200 ticks";
-  EXPECT_LT((driver.last(0).force_n + f).norm(), kRelativeTolerance * f.norm());
+  const auto points = engine.contact_points();
+  ASSERT_GE(points.size(), 1u);
+  Vector3d sum = Vector3d::Zero();
+  for (const ContactPoint& p : points) {
+    EXPECT_NEAR((p.position_m - c).norm(), r, 1e-6 * r) << "on the tip's surface, settled";
+    ASSERT_NEAR(p.normal.norm(), 1.0, 1e-12);
+    EXPECT_LT((p.force_n - p.force_n.dot(p.normal) * p.normal).norm(), 1e-12 * p.force_n.norm());
+    EXPECT_GT(p.force_n.dot(p.normal), 0.0);
+    sum += p.force_n;
+  }
+  EXPECT_LT((driver.last(0).force_n + sum).norm(), kRelativeTolerance * sum.norm());
+  EXPECT_GT(driver.last(0).force_n.z(), 0.9 * driver.last(0).force_n.norm());
 }
 
 TEST_F(ToolContactTest, ForceGrowsWithDepthAndVanishesWhenWithdrawn) {
@@ -223,16 +262,14 @@ TEST_F(ToolContactTest, GlidingMovesTheContactSetAndKeepsEachForceNormal) {
   for (int i = 1; i <= 500; ++i) {  // 25 mm along x at 0.05 mm per tick
     driver.poses[0].position_m.x() += 5e-5;
     driver.tick_all();
-    const auto f = engine.contact_forces();
-    const auto n = engine.contact_normals();
-    for (std::size_t c = 0; c < engine.contact_indices().size(); ++c) {
-      const Vector3d fc = Eigen::Map<const Vector3d>(&f[3 * c]);
-      const Vector3d nc = Eigen::Map<const Vector3d>(&n[3 * c]);
+    for (const ContactPoint& point : engine.contact_points()) {
+      const Vector3d& fc = point.force_n;
+      const Vector3d& nc = point.normal;
       ASSERT_NEAR(nc.norm(), 1.0, 1e-12);
       worst_tangential = std::max(worst_tangential, (fc - fc.dot(nc) * nc).norm() / fc.norm());
       EXPECT_GE(fc.dot(nc), 0.0) << "a contact pulls the tissue (adhesion not released)";
-      touched.insert(engine.contact_indices()[c]);
     }
+    for (const int v : engine.contact_indices()) touched.insert(v);
     ASSERT_GT(driver.last(0).contacts, 0) << "lost contact at tick " << i;
   }
   const std::set<int> after(engine.contact_indices().begin(), engine.contact_indices().end());
@@ -293,23 +330,45 @@ TEST_F(ToolContactTest, TwoToolsAreSolvedTogether) {
   }
   driver.hold(5);
   // Each contact's imposed displacement as the engine set it (the first
-  // press moved b sideways before the second tool reached it).
-  ASSERT_EQ(engine.contact_indices().size(), 2u);
-  Eigen::Matrix<double, 6, 1> u;
-  for (int c = 0; c < 2; ++c)
-    u.segment<3>(3 * c) =
-        Eigen::Map<const Vector3d>(&engine.contact_positions()[3 * static_cast<std::size_t>(c)]) -
-        rest(engine.contact_indices()[static_cast<std::size_t>(c)]);
-  ASSERT_EQ(engine.contact_indices()[0], a);
-  EXPECT_LT(u(2), -0.5 * d);
-  Eigen::Matrix<double, 6, 6> G_CC;
-  G_CC << G_block(a, a), G_block(a, b), G_block(b, a), G_block(b, b);
-  const Eigen::Matrix<double, 6, 1> f = G_CC.ldlt().solve(u);
-  EXPECT_LT((driver.last(0).force_n + f.head<3>()).norm(), kRelativeTolerance * f.norm());
-  EXPECT_LT((driver.last(1).force_n + f.tail<3>()).norm(), kRelativeTolerance * f.norm());
-  // Coupled through G: each alone would feel something else.
-  const Vector3d separate = G_block(a, a).ldlt().solve(Vector3d(u.head<3>()));
-  EXPECT_GT((f.head<3>() - separate).norm(), 0.005 * separate.norm());
+  // press moved b sideways before the second tool reached it), and the
+  // joint solve P f = u of every tool's points together.
+  const auto points = engine.contact_points();
+  const auto k = static_cast<Eigen::Index>(points.size());
+  ASSERT_GE(k, 2);
+  Eigen::VectorXd u(3 * k);
+  Eigen::MatrixXd P(3 * k, 3 * k);
+  for (Eigen::Index c = 0; c < k; ++c) {
+    u.segment<3>(3 * c) = points[static_cast<std::size_t>(c)].position_m -
+                          point_rest(points[static_cast<std::size_t>(c)]);
+    for (Eigen::Index e = 0; e < k; ++e)
+      P.block<3, 3>(3 * c, 3 * e) =
+          point_block(points[static_cast<std::size_t>(c)], points[static_cast<std::size_t>(e)]);
+  }
+  const Eigen::VectorXd f = P.ldlt().solve(u);
+  Vector3d on[2] = {Vector3d::Zero(), Vector3d::Zero()}, alone = Vector3d::Zero();
+  std::vector<Eigen::Index> left;
+  for (Eigen::Index c = 0; c < k; ++c) {
+    on[points[static_cast<std::size_t>(c)].tool] += f.segment<3>(3 * c);
+    if (points[static_cast<std::size_t>(c)].tool == 0) left.push_back(c);
+  }
+  EXPECT_LT((driver.last(0).force_n + on[0]).norm(), kRelativeTolerance * f.norm());
+  EXPECT_LT((driver.last(1).force_n + on[1]).norm(), kRelativeTolerance * f.norm());
+  EXPECT_GT(driver.last(0).force_n.z(), 0.1);
+  EXPECT_GT(driver.last(1).force_n.z(), 0.1);
+  // Coupled through G: the left tool's points alone would feel something else.
+  const auto kl = static_cast<Eigen::Index>(left.size());
+  Eigen::MatrixXd P_left(3 * kl, 3 * kl);
+  Eigen::VectorXd u_left(3 * kl);
+  for (Eigen::Index c = 0; c < kl; ++c) {
+    u_left.segment<3>(3 * c) = u.segment<3>(3 * left[static_cast<std::size_t>(c)]);
+    for (Eigen::Index e = 0; e < kl; ++e)
+      P_left.block<3, 3>(3 * c, 3 * e) = P.block<3, 3>(3 * left[static_cast<std::size_t>(c)],
+                                                       3 * left[static_cast<std::size_t>(e)]);
+  }
+  const Eigen::VectorXd f_left = P_left.ldlt().solve(u_left);
+  for (Eigen::Index c = 0; c < kl; ++c) alone += f_left.segment<3>(3 * c);
+  EXPECT_GT((on[0] - alone).norm(), 0.005 * alone.norm());
+  (void)d;
 }
 
 TEST_F(ToolContactTest, TheForceNeverExceedsTheDeviceLimitNorJumpsFasterThanTheRate) {
@@ -483,40 +542,49 @@ TEST_F(ToolContactTest, ATickAllocatesNothing) {
   EXPECT_GT(driver.last(1).contacts, 0);
 }
 
-TEST_F(ToolContactTest, AGraspersContactsDoNotFlickerWhileItGlides) {
-  // A capsule (friction 0.3) pressed 3 mm and dragged 37.5 mm along the box,
-  // across vertices 12.5 mm apart: contacts come and go as it passes them,
-  // but the tool is never free in between and no contact switches on and
-  // off from one tick to the next. Its footprint on the surface,
-  // √(2rd − d²) = 7.1 mm, exceeds half the mesh spacing (a smaller one passes
-  // between vertices: docs/tools.md, "Limits of the model").
-  ToolGeometry g;
-  g.id = "grasper";
-  g.tip_radius_m = 0.010;
-  g.force_limit_n = 100;
-  ToolContactEngine engine(model(), {g}, {}, {});
-  Driver driver(engine, 1);
-  const Vector3d a = rest(top_vertex(37.5, 25));
-  const double reach = g.tip_length_m + g.tip_radius_m;
-  start(driver, 0, a + Vector3d(0, 0, reach + 0.001));
-  driver.move(0, a + Vector3d(0, 0, reach - 0.003), 0);
-  driver.hold(10);
-  ASSERT_EQ(driver.last(0).state, ToolState::kTouching);
-  const std::size_t from = driver.log.size();
-  std::set<int> previous(engine.contact_indices().begin(), engine.contact_indices().end());
-  std::map<int, int> switches;      // per vertex: times it entered the contact set
-  for (int i = 0; i < 1875; ++i) {  // 37.5 mm at 0.02 mm per tick
-    driver.poses[0].position_m.x() += 2e-5;
-    driver.tick_all();
-    const std::set<int> now(engine.contact_indices().begin(), engine.contact_indices().end());
-    for (int v : now)
-      if (!previous.contains(v)) ++switches[v];
-    previous = now;
+TEST_F(ToolContactTest, AGlideOverTrianglesIsNeverFreeAndFrictionlessItIsSmooth) {
+  // A capsule pressed 3 mm and dragged 37.5 mm along the box, across
+  // triangles of 12.5 mm: the contact moves from triangle to triangle, the
+  // tool is never free in between, and without friction no tick's force
+  // differs from the previous one by more than 25 % of the mean force
+  // (docs/tools.md, "How the contact feels"), measured on the engine's force
+  // before the slew limit (set out of reach here). With friction the
+  // stick/slide switches still jump (docs/tools.md, "Limits of the model").
+  for (const double friction : {0.0, 0.3}) {
+    ToolGeometry g;
+    g.id = "grasper";
+    g.tip_radius_m = 0.010;
+    g.friction = friction;
+    g.force_limit_n = 100;
+    g.max_force_rate_n_per_s = 1e6;
+    ToolContactEngine engine(model(), {g}, {}, {});
+    Driver driver(engine, 1);
+    const Vector3d a = rest(top_vertex(37.5, 25));
+    const double reach = g.tip_length_m + g.tip_radius_m;
+    start(driver, 0, a + Vector3d(0, 0, reach + 0.001));
+    driver.move(0, a + Vector3d(0, 0, reach - 0.003), 0);
+    driver.hold(10);
+    ASSERT_EQ(driver.last(0).state, ToolState::kTouching);
+    const std::size_t from = driver.log.size();
+    std::set<int> touched;
+    for (int i = 0; i < 1875; ++i) {  // 37.5 mm at 0.02 mm per tick
+      driver.poses[0].position_m.x() += 2e-5;
+      driver.tick_all();
+      for (const ContactPoint& p : engine.contact_points()) touched.insert(p.triangle);
+    }
+    for (std::size_t i = from; i < driver.log.size(); ++i)
+      ASSERT_NE(driver.log[i].state, ToolState::kFree)
+          << "free at tick " << i - from << ", friction " << friction;
+    EXPECT_GE(touched.size(), 4u) << "the contact moved along";
+    if (friction > 0) continue;
+    double mean = 0, worst = 0;
+    for (std::size_t i = from; i < driver.log.size(); ++i) mean += driver.log[i].force_n.norm();
+    mean /= static_cast<double>(driver.log.size() - from);
+    for (std::size_t i = from + 1; i < driver.log.size(); ++i)
+      worst = std::max(worst, (driver.log[i].force_n - driver.log[i - 1].force_n).norm());
+    EXPECT_GT(mean, 0.5);
+    EXPECT_LT(worst, 0.25 * mean);
   }
-  for (std::size_t i = from; i < driver.log.size(); ++i)
-    ASSERT_NE(driver.log[i].state, ToolState::kFree) << "free at tick " << i - from;
-  for (const auto& [v, n] : switches) EXPECT_LE(n, 2) << "vertex " << v << " flickers";
-  EXPECT_GE(switches.size(), 2u) << "the contact moved along";
 }
 
 TEST_F(ToolContactTest, EveryStoredContactIsTheSolutionOfTheSetSolvedLast) {
@@ -545,21 +613,18 @@ TEST_F(ToolContactTest, EveryStoredContactIsTheSolutionOfTheSetSolvedLast) {
     for (const double depth : {0.005, 0.0055, 0.006}) {
       driver.poses[0].position_m = rest(w) + Vector3d(0, 0, 0.006 - depth);
       driver.tick(0);  // the presser alone: its output is of the contacts now stored
-      const auto idx = engine.contact_indices();
-      const auto f = engine.contact_forces();
-      const auto x = engine.contact_positions();
-      const auto tools = engine.contact_tools();
+      const auto points = engine.contact_points();
       Vector3d felt = Vector3d::Zero();
-      for (std::size_t c = 0; c < idx.size(); ++c) {
+      for (std::size_t c = 0; c < points.size(); ++c) {
         Vector3d u = Vector3d::Zero();
-        for (std::size_t j = 0; j < idx.size(); ++j)
-          u += G_block(idx[c], idx[j]) * Eigen::Map<const Vector3d>(&f[3 * j]);
-        // Positions are u_C = G_CC f_C from the solve: round-off of the
+        for (std::size_t j = 0; j < points.size(); ++j)
+          u += point_block(points[c], points[j]) * points[j].force_n;
+        // Positions are u_C = P f_C from the solve: round-off of the
         // small dense products, ~1e-15 m against displacements of mm.
-        EXPECT_LT((Eigen::Map<const Vector3d>(&x[3 * c]) - rest(idx[c]) - u).norm(), 1e-12)
-            << "contact " << c << " of " << idx.size() << ", depth " << depth << ", " << iterations
-            << " iterations";
-        if (tools[c] == 0) felt -= Eigen::Map<const Vector3d>(&f[3 * c]);
+        EXPECT_LT((points[c].position_m - point_rest(points[c]) - u).norm(), 1e-12)
+            << "contact " << c << " of " << points.size() << ", depth " << depth << ", "
+            << iterations << " iterations";
+        if (points[c].tool == 0) felt -= points[c].force_n;
       }
       EXPECT_GT(felt.norm(), 0.1) << "the presser presses";
       EXPECT_LT((driver.last(0).force_n - felt).norm(), 1e-9 * felt.norm())

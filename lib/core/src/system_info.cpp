@@ -37,6 +37,12 @@ bool reset_peak_rss() {
   return static_cast<bool>(out);
 }
 
+void set_blas_threads(int count) {
+  using SetFn = void (*)(int);
+  if (auto set = reinterpret_cast<SetFn>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads")))
+    set(count);
+}
+
 std::string blas_description() {
   std::vector<std::string> libs;
   dl_iterate_phdr(

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 #include <hdf5.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 
 #include <cerrno>
@@ -19,6 +20,22 @@
 #include "palpate/file/hash.hpp"
 
 namespace palpate {
+
+namespace {
+
+/// Asks the kernel for transparent huge pages (2 MiB) under G before it is
+/// first written: the run time reads G in 3 × 3 blocks scattered over
+/// hundreds of MB, and with 4 KiB pages nearly every block is a TLB miss
+/// (BENCHMARKS.md, "Contact with the surface"). Only the whole 2 MiB pages
+/// inside the buffer; a kernel that declines changes nothing.
+void advise_huge_pages(void* data, std::size_t bytes) {
+  constexpr std::uintptr_t kHuge = std::uintptr_t{2} << 20;
+  const auto begin = (reinterpret_cast<std::uintptr_t>(data) + kHuge - 1) & ~(kHuge - 1);
+  const auto end = (reinterpret_cast<std::uintptr_t>(data) + bytes) & ~(kHuge - 1);
+  if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+}
+
+}  // namespace
 
 namespace {
 
@@ -503,9 +520,11 @@ ComplianceModel read_once(const std::filesystem::path& path, GTarget target,
       if (keep32) {
         G->resize(0, 0);
         target.G32->resize(static_cast<Eigen::Index>(n3), static_cast<Eigen::Index>(n3));
+        advise_huge_pages(target.G32->data(), sizeof(float) * target.G32->size());
       } else {
         if (target.G32) target.G32->resize(0, 0);
         G->resize(static_cast<Eigen::Index>(n3), static_cast<Eigen::Index>(n3));
+        advise_huge_pages(G->data(), sizeof(double) * G->size());
       }
       r.hash_dataset("/compliance/G", gd);
       const hsize_t block = 256;

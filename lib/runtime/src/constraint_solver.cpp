@@ -35,7 +35,9 @@ RequestStatus fail(std::array<char, 256>& message, RequestStatus status,
 }  // namespace
 
 /// One cached factorization: the structure it was built for (points, kinds,
-/// normals) and P = H G Hᵀ, P B and the Cholesky factor of Bᵀ P B.
+/// normals), G Hᵀ on the points' distinct vertices U and the Cholesky factor
+/// of Bᵀ P B. P = H G Hᵀ itself is never formed: H is three weights per
+/// point, so P x = H (G Hᵀ x) and Bᵀ P B is read off G Hᵀ B.
 struct ConstraintSolver::Slot {
   bool valid = false;
   std::uint64_t last_used = 0;
@@ -49,8 +51,9 @@ struct ConstraintSolver::Slot {
   std::vector<int> unknown_vertex;   // m: which constraint an unknown belongs to
   std::vector<int> unknown_value;    // m: where its prescribed displacement is in value_
   std::vector<double> unknown_dir;   // 3m: its unit direction (a column of B)
-  std::vector<double> P;             // 3k × 3k, column-major: H G Hᵀ
-  std::vector<double> GB;            // 3k × m, column-major: P B
+  int used = 0;                      // u, the distinct vertices of the points
+  std::vector<int> point_slot;       // 3k: each point vertex's place in U
+  std::vector<double> GHt;           // 3u × 3k, column-major: G_U· Hᵀ
   std::vector<double> L;             // m × m, Cholesky factor of Bᵀ G_CC B (lower)
   std::vector<double> work;          // 3m for dpocon
   std::vector<int> iwork;            // m
@@ -66,8 +69,8 @@ struct ConstraintSolver::Slot {
     unknown_vertex.resize(3 * k);
     unknown_value.resize(3 * k);
     unknown_dir.resize(9 * k);
-    P.resize(9 * k * k);
-    GB.resize(9 * k * k);
+    point_slot.resize(3 * k);
+    GHt.resize(27 * k * k);
     L.resize(9 * k * k);
     work.resize(9 * k);
     iwork.resize(3 * k);
@@ -95,7 +98,7 @@ ConstraintSolver::ConstraintSolver(const SurfaceModel& model, const SolverLimits
   used_slot_.assign(n, 0);
   used_index_.resize(3 * k);
   G_UU_.resize(81 * k * k);
-  GHt_.resize(27 * k * k);
+  GHt_.resize(27 * k * k);  // G Hᵀ B for the factorization (3u × m)
   load_index_.resize(3 * k);
   load_force_.resize(9 * k);
   // The surface's triangles and edges by mesh vertex ids, for add_point.
@@ -411,18 +414,27 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
     return slot;
   }
 
-  // P B, then Bᵀ (P B) into L, which dpotrf factors in place.
-  const Eigen::Map<const Eigen::MatrixXd> P(slot.P.data(), n3, n3);
-  Eigen::Map<Eigen::MatrixXd> GB(slot.GB.data(), n3, m);
+  // Y = (G Hᵀ) B, then Bᵀ P B = (H Y) read at the unknowns' directions,
+  // into L, which dpotrf factors in place.
+  const int u3 = 3 * slot.used;
+  const Eigen::Map<const Eigen::MatrixXd> GHt(slot.GHt.data(), u3, n3);
+  Eigen::Map<Eigen::MatrixXd> Y(GHt_.data(), u3, m);
   Eigen::Map<Eigen::MatrixXd> A(slot.L.data(), m, m);
   for (int p = 0; p < m; ++p) {
     const Eigen::Map<const Eigen::Vector3d> dir(&slot.unknown_dir[3 * p]);
-    GB.col(p).noalias() = P.middleCols<3>(3 * slot.unknown_vertex[p]) * dir;
+    Y.col(p).noalias() = GHt.middleCols<3>(3 * slot.unknown_vertex[p]) * dir;
   }
+  // The lower triangle (what dpotrf reads), mirrored for the 1-norm.
   for (int p = 0; p < m; ++p)
-    for (int q = 0; q < m; ++q) {
+    for (int q = p; q < m; ++q) {
       const Eigen::Map<const Eigen::Vector3d> dir(&slot.unknown_dir[3 * q]);
-      A(q, p) = dir.dot(GB.col(p).segment<3>(3 * slot.unknown_vertex[q]));
+      const int j = slot.unknown_vertex[q];
+      double a = 0;
+      for (int i = 0; i < point_count_[j]; ++i)
+        a +=
+            point_weight_[3 * j + i] * dir.dot(Y.col(p).segment<3>(3 * slot.point_slot[3 * j + i]));
+      A(q, p) = a;
+      A(p, q) = a;
     }
   double norm1 = 0;
   for (int p = 0; p < m; ++p) norm1 = std::max(norm1, A.col(p).cwiseAbs().sum());
@@ -452,33 +464,39 @@ void ConstraintSolver::assemble_point_compliance(Slot& slot) {
   for (int j = 0; j < k; ++j)
     for (int i = 0; i < point_count_[j]; ++i) {
       const auto a = static_cast<std::size_t>(point_index_[3 * j + i]);
-      if (used_epoch_[a] == used_clock_) continue;
-      used_epoch_[a] = used_clock_;
-      used_slot_[a] = u;
-      used_index_[static_cast<std::size_t>(u++)] = static_cast<int>(a);
+      if (used_epoch_[a] != used_clock_) {
+        used_epoch_[a] = used_clock_;
+        used_slot_[a] = u;
+        used_index_[static_cast<std::size_t>(u++)] = static_cast<int>(a);
+      }
+      slot.point_slot[3 * j + i] = used_slot_[a];
     }
+  slot.used = u;
   // G_UU, each 3×3 block of G read once.
   const int u3 = 3 * u;
   Eigen::Map<Eigen::MatrixXd> G_UU(G_UU_.data(), u3, u3);
   for (int b = 0; b < u; ++b)
     for (int a = 0; a < u; ++a)
       G_UU.block<3, 3>(3 * a, 3 * b) = model_.G_block(used_index_[a], used_index_[b]);
-  // G Hᵀ (3u × 3k): column block q = Σ_j w_qj G_U,a_qj; then P = H (G Hᵀ).
-  // A vertex point (one vertex, weight 1) copies its blocks exactly.
-  Eigen::Map<Eigen::MatrixXd> GHt(GHt_.data(), u3, n3);
+  // G Hᵀ (3u × 3k): column block q = Σ_j w_qj G_U,a_qj. A vertex point (one
+  // vertex, weight 1) copies its blocks exactly.
+  Eigen::Map<Eigen::MatrixXd> GHt(slot.GHt.data(), u3, n3);
   GHt.setZero();
   for (int q = 0; q < k; ++q)
     for (int i = 0; i < point_count_[q]; ++i)
       GHt.middleCols<3>(3 * q) +=
-          point_weight_[3 * q + i] *
-          G_UU.middleCols<3>(3 * used_slot_[static_cast<std::size_t>(point_index_[3 * q + i])]);
-  Eigen::Map<Eigen::MatrixXd> P(slot.P.data(), n3, n3);
-  P.setZero();
-  for (int p = 0; p < k; ++p)
-    for (int i = 0; i < point_count_[p]; ++i)
-      P.middleRows<3>(3 * p) +=
-          point_weight_[3 * p + i] *
-          GHt.middleRows<3>(3 * used_slot_[static_cast<std::size_t>(point_index_[3 * p + i])]);
+          point_weight_[3 * q + i] * G_UU.middleCols<3>(3 * slot.point_slot[3 * q + i]);
+}
+
+/// x_C = H z: the points' values of a field z on U (3 per vertex).
+void ConstraintSolver::points_of(const Slot& slot, const double* z, double* x) const {
+  for (int j = 0; j < count_; ++j) {
+    Eigen::Map<Eigen::Vector3d> xj(x + 3 * j);
+    xj.setZero();
+    for (int i = 0; i < point_count_[j]; ++i)
+      xj += point_weight_[3 * j + i] *
+            Eigen::Map<const Eigen::Vector3d>(z + 3 * slot.point_slot[3 * j + i]);
+  }
 }
 
 void ConstraintSolver::gather_loads() {
@@ -534,8 +552,15 @@ RequestStatus ConstraintSolver::solve() {
     Eigen::Map<Eigen::VectorXd> rhs(rhs_.data(), m);
     for (int p = 0; p < m; ++p) rhs(p) = value_[slot.unknown_value[p]];
     if (any_known_force) {
-      const Eigen::Map<const Eigen::MatrixXd> GB(slot.GB.data(), n3, m);
-      rhs.noalias() -= GB.transpose() * f;
+      // (P B)ᵀ f_known = Bᵀ H (G Hᵀ f_known).
+      const Eigen::Map<const Eigen::MatrixXd> GHt(slot.GHt.data(), 3 * slot.used, n3);
+      Eigen::Map<Eigen::VectorXd> z(GHt_.data(), 3 * slot.used);
+      z.noalias() = GHt * f;
+      points_of(slot, z.data(), displacement_.data());
+      for (int p = 0; p < m; ++p)
+        rhs(p) -= Eigen::Map<const Eigen::Vector3d>(&slot.unknown_dir[3 * p])
+                      .dot(Eigen::Map<const Eigen::Vector3d>(
+                          &displacement_[3 * static_cast<std::size_t>(slot.unknown_vertex[p])]));
     }
     int info = 0;
     const int one = 1;
@@ -548,10 +573,12 @@ RequestStatus ConstraintSolver::solve() {
     }
   }
 
-  // u_C = P f_C.
-  const Eigen::Map<const Eigen::MatrixXd> P(slot.P.data(), n3, n3);
-  Eigen::Map<Eigen::VectorXd> u(displacement_.data(), n3);
-  u.noalias() = P * f;
+  // u_C = P f_C = H (G Hᵀ f_C).
+  const Eigen::Map<const Eigen::MatrixXd> GHt(slot.GHt.data(), 3 * slot.used, n3);
+  Eigen::Map<Eigen::VectorXd> z(GHt_.data(), 3 * slot.used);
+  z.noalias() = GHt * f;
+  points_of(slot, z.data(), displacement_.data());
+  const Eigen::Map<const Eigen::VectorXd> u(displacement_.data(), n3);
   // Finite values can still overflow (a displacement of 1e300 m needs an
   // infinite force): no reply carries an infinity or a NaN.
   if (!f.allFinite() || !u.allFinite() || !total_force().allFinite())

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <limits>
 
+#include "contact_geometry.hpp"
 #include "palpate/core/error.hpp"
 
 namespace palpate {
@@ -23,13 +24,19 @@ Vector3d closest_on_segment(const Vector3d& a, const Vector3d& axis, double leng
   return a + t * axis;
 }
 
-/// A tip contact found this tick.
+/// A tip contact found this tick: the deepest point of a surface triangle
+/// inside the tip, on the triangle's vertices that carry a weight.
 struct TipCandidate {
-  int index;  // compliance index
-  double
-      depth;  // r − distance to the tip's axis segment, m (negative: within the hysteresis shell)
-  Vector3d normal;  // unit: the direction the tip pushes the vertex (the organ's inward normal)
-  Vector3d target;  // the vertex's position put back on the tip's surface, m
+  int triangle;                 // drawn triangle it was found on
+  int count;                    // vertices with a non-zero weight, 1 to 3
+  std::array<int, 3> vertices;  // drawn vertices
+  std::array<double, 3> weights;
+  double depth;     // r − distance to the tip's axis, m (negative: within the hysteresis shell)
+  Vector3d normal;  // unit: the direction the tip pushes the tissue (from the axis to the point)
+  Vector3d target;  // the point put back on the tip's surface, m
+  Vector3d rest;    // the point at rest, Σ w_i rest_i, m
+  bool active;      // penetrating (or within the hysteresis shell); else a near
+                    // triangle the solve may push into the tip
 };
 
 struct HeldVertex {
@@ -59,7 +66,7 @@ struct ToolContactEngine::Impl {
     double scale = 1;  // watchdog ramp, 1 → 0
     bool in_watchdog = false;
     std::vector<HeldVertex> held;
-    std::vector<TipCandidate> tips;  // this tick's tip contacts
+    std::vector<TipCandidate> tips;  // this tick's tip contacts, deepest first
     int tip_count = 0;
     Vector3d raw_force = Vector3d::Zero(), raw_torque = Vector3d::Zero();
     double raw_grip = 0;
@@ -71,27 +78,37 @@ struct ToolContactEngine::Impl {
   };
   std::vector<Tool> tools;
 
-  // Per compliance vertex.
-  std::vector<Vector3d> rest;           // rest positions
-  std::vector<Vector3d> vertex_normal;  // outward, area weighted
-  std::vector<int> owner;               // tool constraining it this tick, or -1
-  std::vector<int> previous_tip_owner;  // tool whose tip touched it last tick, or -1
+  // The drawn surface: compliance vertices first, then the fixed ones.
+  int compliance_count = 0;
+  std::vector<Vector3d> rest;           // per drawn vertex
+  std::vector<Vector3d> vertex_normal;  // per compliance vertex, outward, area weighted
+  std::vector<int> triangle_vertices;   // 3 per triangle
+  std::vector<int> vertex_triangles_begin, vertex_triangles;  // triangles around each vertex
+  std::vector<int> owner;               // per compliance vertex: tool holding it this tick, or -1
+  std::vector<int> previous_tip_owner;  // per compliance vertex: tool whose tip touched it last
+  std::vector<int> previous_triangle_owner;  // per triangle: tool whose tip touched it last tick
+  std::vector<std::uint32_t> triangle_seen;  // per triangle: the last find_tips that met it
+  std::uint32_t triangle_epoch = 0;
+  std::vector<std::uint32_t> position_seen;  // per drawn vertex: the epoch of `position`
+  std::uint32_t epoch = 0;
+  std::vector<Vector3d> position;  // per drawn vertex: deformed, valid when position_seen == epoch
   Vector3d box_min, box_max;
 
   // Scratch, sized once.
-  std::vector<int> candidates;
-  std::vector<Vector3d> candidate_position;  // deformed, under the previous solve's forces
-  std::vector<double> candidate_depth;
+  std::vector<int> candidates;  // compliance vertices near a tool
+  std::vector<Vector3d> candidate_position;
+  std::vector<TipCandidate> found;
 
-  // The last successful solve: every tool's constraints.
+  // The last successful solve: every tool's contact points and their loads.
   int count = 0;
-  std::vector<int> indices;       // compliance index per constraint
-  std::vector<int> tool_of;       // tool per constraint
-  std::vector<int> tip_of;        // index into tools[tool_of].tips, or -1 for a held vertex
-  std::vector<double> forces;     // 3 per constraint, on the organ
-  std::vector<double> positions;  // 3 per constraint, deformed
-  std::vector<double> normals;    // 3 per constraint: sliding normal, or zero
-  double max_displacement = 0;    // over the constraints, m
+  std::vector<ContactPoint> points;
+  std::vector<int> tip_of;  // per point: index into its tool's tips, or -1 for a held vertex
+  int load_count = 0;
+  std::vector<int> load_index;     // compliance vertex per load
+  std::vector<int> load_tool;      // tool per load
+  std::vector<double> load_force;  // 3 per load, N
+  std::vector<int> load_slot;      // per compliance vertex: its load this tool, or -1
+  double max_displacement = 0;     // over the points, m
   std::uint64_t solve_count = 0;
   char message[256] = {};
   mutable char problem[256] = {};  // why check() refused the last pose it refused
@@ -104,17 +121,24 @@ struct ToolContactEngine::Impl {
     *written.out = '\0';
   }
 
-  // The constraint set being built.
+  // The constraint set being built: a held vertex (tip -1) or a tip point.
   int building = 0;
-  std::vector<int> b_index, b_tool, b_tip;
+  std::vector<int> b_tool, b_tip, b_held;
   std::vector<ConstraintKind> b_kind;
   std::vector<double> b_value, b_normal;
-  std::vector<char> released;  // per built constraint: dropped for adhesion
+  // Per built constraint: solved (0), let go for adhesion this tick, or a
+  // near triangle not (yet) pressed.
+  static constexpr char kReleased = 1, kDormant = 2;
+  std::vector<char> released;
 
   Impl(const SurfaceModel& m, std::vector<ToolGeometry> geometries, const ContactSettings& s,
        const SolverLimits& l)
       : model(m), settings(s), limits(l), solver(m, l) {
-    const int n = m.compliance_vertex_count();
+    const DrawnSurface& surface = m.surface;
+    compliance_count = m.compliance_vertex_count();
+    const int n = compliance_count;
+    const int drawn = surface.vertex_count();
+    const int triangles = surface.triangle_count();
     const int t = static_cast<int>(geometries.size());
     PALPATE_DEMAND(t >= 1 && t <= 64);
     per_tool_cap = std::min(settings.max_contacts_per_tool, limits.max_constraints / t);
@@ -123,54 +147,85 @@ struct ToolContactEngine::Impl {
       Tool tool;
       tool.geometry = std::move(g);
       tool.held.reserve(static_cast<std::size_t>(per_tool_cap));
-      tool.tips.resize(static_cast<std::size_t>(n));
+      tool.tips.resize(static_cast<std::size_t>(per_tool_cap));
       tools.push_back(std::move(tool));
     }
-    rest.resize(static_cast<std::size_t>(n));
-    vertex_normal.resize(static_cast<std::size_t>(n));
+    rest.resize(static_cast<std::size_t>(drawn));
+    position.resize(static_cast<std::size_t>(drawn));
+    position_seen.assign(static_cast<std::size_t>(drawn), 0);
     box_min = Vector3d::Constant(std::numeric_limits<double>::infinity());
     box_max = -box_min;
-    const DrawnSurface& surface = m.surface;
-    for (int v = 0; v < surface.vertex_count(); ++v) {
-      const Vector3d x = surface.rest_position(v);
-      if (v < n) rest[static_cast<std::size_t>(v)] = x;
-      box_min = box_min.cwiseMin(x);
-      box_max = box_max.cwiseMax(x);
+    for (int v = 0; v < drawn; ++v) {
+      rest[static_cast<std::size_t>(v)] = surface.rest_position(v);
+      box_min = box_min.cwiseMin(rest[static_cast<std::size_t>(v)]);
+      box_max = box_max.cwiseMax(rest[static_cast<std::size_t>(v)]);
     }
     // A vertex without a normal (in no triangle of non-zero area) pushes along z.
+    vertex_normal.resize(static_cast<std::size_t>(n));
     const Eigen::MatrixX3d surface_normals = vertex_normals(surface);
     for (int v = 0; v < n; ++v)
       vertex_normal[static_cast<std::size_t>(v)] =
           surface_normals.row(v).squaredNorm() > 0 ? Vector3d(surface_normals.row(v).transpose())
                                                    : Vector3d::UnitZ();
+    // Triangles around each drawn vertex (compressed rows).
+    triangle_vertices.assign(surface.triangles.begin(), surface.triangles.end());
+    vertex_triangles_begin.assign(static_cast<std::size_t>(drawn) + 1, 0);
+    for (const int v : triangle_vertices) ++vertex_triangles_begin[static_cast<std::size_t>(v) + 1];
+    for (int v = 0; v < drawn; ++v)
+      vertex_triangles_begin[static_cast<std::size_t>(v) + 1] +=
+          vertex_triangles_begin[static_cast<std::size_t>(v)];
+    vertex_triangles.resize(triangle_vertices.size());
+    std::vector<int> fill(vertex_triangles_begin.begin(), vertex_triangles_begin.end() - 1);
+    for (int tri = 0; tri < triangles; ++tri)
+      for (int c = 0; c < 3; ++c)
+        vertex_triangles[static_cast<std::size_t>(
+            fill[static_cast<std::size_t>(triangle_vertices[3 * static_cast<std::size_t>(tri) +
+                                                            static_cast<std::size_t>(c)])]++)] =
+            tri;
+    triangle_seen.assign(static_cast<std::size_t>(triangles), 0);
+    previous_triangle_owner.assign(static_cast<std::size_t>(triangles), -1);
     owner.assign(static_cast<std::size_t>(n), -1);
     previous_tip_owner.assign(static_cast<std::size_t>(n), -1);
-    candidates.resize(static_cast<std::size_t>(n));
-    candidate_position.resize(static_cast<std::size_t>(n));
-    candidate_depth.resize(static_cast<std::size_t>(n));
+    candidates.resize(static_cast<std::size_t>(drawn));
+    candidate_position.resize(static_cast<std::size_t>(drawn));
+    found.resize(static_cast<std::size_t>(triangles));
     const auto k = static_cast<std::size_t>(limits.max_constraints);
-    indices.resize(k);
-    tool_of.resize(k);
+    points.resize(k);
     tip_of.resize(k);
-    forces.resize(3 * k);
-    positions.resize(3 * k);
-    normals.resize(3 * k);
-    b_index.resize(k);
+    load_index.resize(3 * k);
+    load_tool.resize(3 * k);
+    load_force.resize(9 * k);
+    load_slot.assign(static_cast<std::size_t>(n), -1);
     b_tool.resize(k);
     b_tip.resize(k);
+    b_held.resize(k);
     b_kind.resize(k);
     b_value.resize(3 * k);
     b_normal.resize(3 * k);
     released.resize(k);
   }
 
-  /// Deformed position of compliance vertex @p j under the last solve's forces.
-  Vector3d deformed(int j) const {
+  /// Forgets the deformed positions (the loads changed).
+  void next_epoch() {
+    if (++epoch == 0) {
+      std::fill(position_seen.begin(), position_seen.end(), 0);
+      epoch = 1;
+    }
+  }
+
+  /// Deformed position of drawn vertex @p v under the last solve's loads
+  /// (a fixed vertex stays at rest); computed once per epoch.
+  const Vector3d& deformed(int v) {
+    const auto vv = static_cast<std::size_t>(v);
+    if (position_seen[vv] == epoch) return position[vv];
+    position_seen[vv] = epoch;
     Vector3d u = Vector3d::Zero();
-    for (int c = 0; c < count; ++c)
-      u.noalias() += model.G_block(j, indices[static_cast<std::size_t>(c)]) *
-                     Eigen::Map<const Vector3d>(&forces[3 * static_cast<std::size_t>(c)]);
-    return rest[static_cast<std::size_t>(j)] + u;
+    if (v < compliance_count)
+      for (int l = 0; l < load_count; ++l)
+        u.noalias() += model.G_block(v, load_index[static_cast<std::size_t>(l)]) *
+                       Eigen::Map<const Vector3d>(&load_force[3 * static_cast<std::size_t>(l)]);
+    position[vv] = rest[vv] + u;
+    return position[vv];
   }
 
   /// Longest reach of a tool from its hinge along z, and its radius of interest.
@@ -181,7 +236,7 @@ struct ToolContactEngine::Impl {
     return g.tip == TipShape::kCapsule ? g.tip_length_m : 0.0;
   }
 
-  /// Vertices near tool @p t with their deformed positions; returns their count.
+  /// Drawn vertices whose rest position is near tool @p t; returns their count.
   int gather_candidates(const Tool& tool) {
     const ToolGeometry& g = tool.geometry;
     const Vector3d axis = tool.rotation.col(2);
@@ -191,15 +246,12 @@ struct ToolContactEngine::Impl {
                           settings.search_margin_m + max_displacement;
     const double radius2 = radius * radius;
     int n = 0;
-    const int vertices = model.compliance_vertex_count();
+    const int vertices = static_cast<int>(rest.size());
     for (int j = 0; j < vertices; ++j) {
       const Vector3d& x = rest[static_cast<std::size_t>(j)];
       if ((x - closest_on_segment(tool.pose.position_m, axis, length, x)).squaredNorm() <= radius2)
         candidates[static_cast<std::size_t>(n++)] = j;
     }
-    for (int c = 0; c < n; ++c)
-      candidate_position[static_cast<std::size_t>(c)] =
-          deformed(candidates[static_cast<std::size_t>(c)]);
     return n;
   }
 
@@ -228,11 +280,13 @@ struct ToolContactEngine::Impl {
     const bool closing = tool.has_previous_jaw && tool.previous_jaw > g.grasp_angle_rad &&
                          jaw <= g.grasp_angle_rad && g.jaw_length_m > 0;
     if (!closing) return;
+    next_epoch();
     const int n = gather_candidates(tool);
     // The tissue between the jaws as they were, and what the tip touched.
     for (int c = 0; c < n && static_cast<int>(tool.held.size()) < per_tool_cap; ++c) {
       const int j = candidates[static_cast<std::size_t>(c)];
-      const Vector3d& x = candidate_position[static_cast<std::size_t>(c)];
+      if (j >= compliance_count) continue;  // fixed: it cannot follow the jaws
+      const Vector3d x = deformed(j);
       const bool touched = previous_tip_owner[static_cast<std::size_t>(j)] == t;
       if (!touched && !between_jaws(tool, x, tool.previous_jaw)) continue;
       if (owner_held_elsewhere(j, t)) continue;
@@ -259,48 +313,113 @@ struct ToolContactEngine::Impl {
       out.events[static_cast<std::size_t>(out.event_count++)] = kind;
   }
 
-  /// Tip contacts of tool @p t among its candidates (gathered just before).
-  void find_tips(int t, int n) {
+  /// Tool @p t's tip contacts: the deepest point of each deformed surface
+  /// triangle near it that the tip penetrates (docs/tools.md, "Tip contacts").
+  void find_tips(int t) {
     Tool& tool = tools[static_cast<std::size_t>(t)];
     const ToolGeometry& g = tool.geometry;
     const Vector3d axis = tool.rotation.col(2);
     const double r = g.tip_radius_m;
     const double shell = 0.05 * r;  // a contact stays while within 5 % of r outside the tip
+    const double near = 0.25 * r;   // triangles this close are watched during the solve
     const bool jaws_open = g.jaw_length_m > 0 && tool.pose.jaw_angle_rad > g.grasp_angle_rad;
-    int found = 0;
+    const int n = gather_candidates(tool);
+    if (++triangle_epoch == 0) {
+      std::fill(triangle_seen.begin(), triangle_seen.end(), 0);
+      triangle_epoch = 1;
+    }
+    int total = 0;
     for (int c = 0; c < n; ++c) {
-      const int j = candidates[static_cast<std::size_t>(c)];
-      if (owner[static_cast<std::size_t>(j)] >= 0) continue;
-      const Vector3d& x = candidate_position[static_cast<std::size_t>(c)];
-      const Vector3d q = closest_on_segment(tool.pose.position_m, axis, tip_length(g), x);
-      const double distance = (x - q).norm();
-      const bool was = previous_tip_owner[static_cast<std::size_t>(j)] == t;
-      if (!(distance < r || (was && distance < r + shell))) continue;
-      // Tissue between open jaws is not pushed: it may be grasped.
-      if (jaws_open && tool.held.empty() && between_jaws(tool, x, tool.pose.jaw_angle_rad) && !was)
-        continue;
-      // Put back on the tip's surface at the nearest point, pushed along the
-      // tip's surface normal there. That normal's tangent plane bounds the
-      // tip (it is convex): a vertex whose free position is inside the tip
-      // is on the push side of it, so a sliding contact never finds itself
-      // pulling while the tissue would spring into the tip (no flicker).
-      const Vector3d normal = distance > 1e-9 * r
-                                  ? Vector3d((x - q) / distance)
-                                  : Vector3d(-vertex_normal[static_cast<std::size_t>(j)]);
-      const Vector3d target = q + r * normal;
-      tool.tips[static_cast<std::size_t>(found++)] = {j, r - distance, normal, target};
+      const int v = candidates[static_cast<std::size_t>(c)];
+      for (int e = vertex_triangles_begin[static_cast<std::size_t>(v)];
+           e < vertex_triangles_begin[static_cast<std::size_t>(v) + 1]; ++e) {
+        const int tri = vertex_triangles[static_cast<std::size_t>(e)];
+        if (triangle_seen[static_cast<std::size_t>(tri)] == triangle_epoch) continue;
+        triangle_seen[static_cast<std::size_t>(tri)] = triangle_epoch;
+        const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
+        bool blocked = false;  // a vertex held by a jaw, or the whole triangle fixed
+        int fixed = 0;
+        for (int i = 0; i < 3; ++i) {
+          if (corner[i] >= compliance_count)
+            ++fixed;
+          else if (owner[static_cast<std::size_t>(corner[i])] >= 0)
+            blocked = true;
+        }
+        if (blocked || fixed == 3) continue;
+        const Vector3d& a = deformed(corner[0]);
+        const Vector3d& b = deformed(corner[1]);
+        const Vector3d& cc = deformed(corner[2]);
+        const detail::SegmentTrianglePair pair =
+            detail::closest_segment_triangle(tool.pose.position_m, axis, tip_length(g), a, b, cc);
+        const bool was = previous_triangle_owner[static_cast<std::size_t>(tri)] == t;
+        const bool active = pair.distance < r || (was && pair.distance < r + shell);
+        if (!active && pair.distance >= r + near) continue;
+        const Vector3d& p = pair.on_triangle.point;
+        // Tissue between open jaws is not pushed: it may be grasped.
+        if (jaws_open && tool.held.empty() && !was &&
+            between_jaws(tool, p, tool.pose.jaw_angle_rad))
+          continue;
+        // Pushed from the axis to the point, onto the tip's surface. That
+        // normal's tangent plane bounds the tip (it is convex), so a sliding
+        // contact never pulls while the tissue would spring into the tip.
+        // An axis on the triangle, or beyond it (the tip pushed through in
+        // one tick), pushes along the triangle's inward normal.
+        const Vector3d outward = (b - a).cross(cc - a);
+        Vector3d normal = outward.squaredNorm() > 0 ? Vector3d(-outward.normalized())
+                                                    : Vector3d(-vertex_normal_of(corner));
+        if (pair.distance > 1e-9 * r && (p - pair.on_segment).dot(outward) <= 0)
+          normal = (p - pair.on_segment) / pair.distance;
+        TipCandidate candidate{tri,
+                               0,
+                               {},
+                               {},
+                               r - pair.distance,
+                               normal,
+                               pair.on_segment + r * normal,
+                               Vector3d::Zero(),
+                               active};
+        bool movable = false;
+        for (int i = 0; i < 3; ++i) {
+          const double w = pair.on_triangle.weights[static_cast<std::size_t>(i)];
+          if (w == 0) continue;  // on the opposite edge: not part of the point
+          candidate.vertices[static_cast<std::size_t>(candidate.count)] = corner[i];
+          candidate.weights[static_cast<std::size_t>(candidate.count)] = w;
+          ++candidate.count;
+          candidate.rest += w * rest[static_cast<std::size_t>(corner[i])];
+          movable |= corner[i] < compliance_count;
+        }
+        if (!movable) continue;  // a point of the attachment's edge
+        found[static_cast<std::size_t>(total++)] = candidate;
+      }
     }
-    // Keep the deepest.
-    if (found > per_tool_cap - static_cast<int>(tool.held.size())) {
-      const int keep = std::max(0, per_tool_cap - static_cast<int>(tool.held.size()));
-      std::nth_element(
-          tool.tips.begin(), tool.tips.begin() + keep, tool.tips.begin() + found,
-          [](const TipCandidate& a, const TipCandidate& b) { return a.depth > b.depth; });
-      found = keep;
+    // Deepest first; a point on an edge or a vertex is found from every
+    // triangle around it: keep it once. Points closer than 0.05 r to a
+    // deeper one would add a nearly equal row (and the surface between them
+    // stays within ~(0.05 r)²/2r = 0.1 % of r of the tip). A sticking point
+    // fixes three components, so with friction points keep 0.3 r apart
+    // (within ~4.5 % of r): closer ones make a nearly singular system.
+    std::sort(found.begin(), found.begin() + total,
+              [](const TipCandidate& x, const TipCandidate& y) { return x.depth > y.depth; });
+    const int room = std::max(0, per_tool_cap - static_cast<int>(tool.held.size()));
+    const double spacing2 = (g.friction > 0 ? 0.09 : 0.0025) * r * r;
+    int kept = 0;
+    for (int c = 0; c < total && kept < room; ++c) {
+      const TipCandidate& x = found[static_cast<std::size_t>(c)];
+      const Vector3d point = x.target - x.depth * x.normal;  // on the deformed triangle
+      bool near = false;
+      for (int k = 0; k < kept && !near; ++k) {
+        const TipCandidate& y = tool.tips[static_cast<std::size_t>(k)];
+        near = (y.target - y.depth * y.normal - point).squaredNorm() < spacing2;
+      }
+      if (!near) tool.tips[static_cast<std::size_t>(kept++)] = x;
     }
-    tool.tip_count = found;
-    for (int c = 0; c < found; ++c)
-      owner[static_cast<std::size_t>(tool.tips[static_cast<std::size_t>(c)].index)] = t;
+    tool.tip_count = kept;
+  }
+
+  Vector3d vertex_normal_of(const int* corner) const {
+    for (int i = 0; i < 3; ++i)
+      if (corner[i] < compliance_count) return vertex_normal[static_cast<std::size_t>(corner[i])];
+    return Vector3d::UnitZ();
   }
 
   /// Every living tool's contacts at its latest pose, one solve for all.
@@ -311,17 +430,14 @@ struct ToolContactEngine::Impl {
       if (tools[static_cast<std::size_t>(t)].alive)
         for (const auto& h : tools[static_cast<std::size_t>(t)].held)
           owner[static_cast<std::size_t>(h.index)] = t;
+    next_epoch();
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
       Tool& tool = tools[static_cast<std::size_t>(t)];
-      if (tool.alive && tool.in_watchdog) {
-        // Ramping out: the last contacts, scaled down, not found again (the
-        // scaled-back tissue would leave the frozen tip and come back).
-        for (int c = 0; c < tool.tip_count; ++c)
-          owner[static_cast<std::size_t>(tool.tips[static_cast<std::size_t>(c)].index)] = t;
-        continue;
-      }
+      // Ramping out: the last contacts, scaled down, not found again (the
+      // scaled-back tissue would leave the frozen tip and come back).
+      if (tool.alive && tool.in_watchdog) continue;
       tool.tip_count = 0;
-      if (tool.alive) find_tips(t, gather_candidates(tool));
+      if (tool.alive) find_tips(t);
     }
     return solve_all();
   }
@@ -329,12 +445,12 @@ struct ToolContactEngine::Impl {
   /// Builds, solves (with adhesion release) and stores every tool's constraints.
   RequestStatus solve_all() {
     building = 0;
-    auto add = [&](int index, int t, int tip, ConstraintKind kind, const Vector3d& value,
+    auto add = [&](int t, int tip, int held, ConstraintKind kind, const Vector3d& value,
                    const Vector3d& normal) {
       const auto b = static_cast<std::size_t>(building++);
-      b_index[b] = index;
       b_tool[b] = t;
       b_tip[b] = tip;
+      b_held[b] = held;
       b_kind[b] = kind;
       Eigen::Map<Vector3d>{&b_value[3 * b]} = value;
       Eigen::Map<Vector3d>{&b_normal[3 * b]} = normal;
@@ -343,10 +459,11 @@ struct ToolContactEngine::Impl {
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
       const Tool& tool = tools[static_cast<std::size_t>(t)];
       if (!tool.alive) continue;
-      for (const auto& h : tool.held) {
-        const Vector3d target = tool.pose.position_m + tool.rotation * h.local;
-        add(h.index, t, -1, ConstraintKind::kDisplacement,
-            tool.scale * (target - rest[static_cast<std::size_t>(h.index)]), Vector3d::Zero());
+      for (int h = 0; h < static_cast<int>(tool.held.size()); ++h) {
+        const HeldVertex& held = tool.held[static_cast<std::size_t>(h)];
+        const Vector3d target = tool.pose.position_m + tool.rotation * held.local;
+        add(t, -1, h, ConstraintKind::kDisplacement,
+            tool.scale * (target - rest[static_cast<std::size_t>(held.index)]), Vector3d::Zero());
       }
     }
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
@@ -354,16 +471,18 @@ struct ToolContactEngine::Impl {
       if (!tool.alive) continue;
       for (int c = 0; c < tool.tip_count; ++c) {
         const TipCandidate& tip = tool.tips[static_cast<std::size_t>(c)];
-        const Vector3d u = tool.scale * (tip.target - rest[static_cast<std::size_t>(tip.index)]);
+        const Vector3d u = tool.scale * (tip.target - tip.rest);
         if (tool.geometry.friction > 0)
-          add(tip.index, t, c, ConstraintKind::kDisplacement, u, tip.normal);
+          add(t, c, -1, ConstraintKind::kDisplacement, u, tip.normal);
         else
-          add(tip.index, t, c, ConstraintKind::kNormalDisplacement,
-              Vector3d(tip.normal.dot(u), 0, 0), tip.normal);
+          add(t, c, -1, ConstraintKind::kNormalDisplacement, Vector3d(tip.normal.dot(u), 0, 0),
+              tip.normal);
+        if (!tip.active) released[static_cast<std::size_t>(building - 1)] = kDormant;
       }
     }
 
     RequestStatus status = RequestStatus::kOk;
+    bool softened = false;
     const int iterations = std::max(1, settings.max_iterations);
     for (int iteration = 0; iteration < iterations; ++iteration) {
       int k = 0;
@@ -372,16 +491,35 @@ struct ToolContactEngine::Impl {
       for (int b = 0; b < building && status == RequestStatus::kOk; ++b) {
         const auto bb = static_cast<std::size_t>(b);
         if (released[bb]) continue;
-        status =
-            solver.add(model.surface.vertex_ids[static_cast<std::size_t>(b_index[bb])],
-                       static_cast<std::int32_t>(b_kind[bb]), &b_value[3 * bb], &b_normal[3 * bb]);
+        status = add_to_solver(bb);
       }
       if (status == RequestStatus::kOk) status = solver.solve();
       ++solve_count;
+      // Sticking points fix three components each: more of them than their
+      // triangles' vertices can move (a tip in a dip meets several triangles
+      // around the same vertices) is a singular system. They slide instead:
+      // one row each, the normal.
+      if (status == RequestStatus::kIllConditioned && !softened) {
+        softened = true;
+        bool any_stick = false;
+        for (int b = 0; b < building; ++b) {
+          const auto bb = static_cast<std::size_t>(b);
+          if (b_tip[bb] < 0 || b_kind[bb] != ConstraintKind::kDisplacement) continue;
+          const Eigen::Map<const Vector3d> n(&b_normal[3 * bb]);
+          b_kind[bb] = ConstraintKind::kNormalDisplacement;
+          b_value[3 * bb] = n.dot(Eigen::Map<const Vector3d>(&b_value[3 * bb]));
+          b_value[3 * bb + 1] = b_value[3 * bb + 2] = 0;
+          any_stick = true;
+        }
+        if (any_stick) {
+          --iteration;  // the same iteration, on rows that can be solved
+          continue;
+        }
+      }
       if (status != RequestStatus::kOk) break;
       // The last allowed solve stands as solved: the contacts stored are
       // exactly its constraints, and their forces its forces (changing the
-      // set now would pair each force with another vertex).
+      // set now would pair each force with another point).
       if (iteration + 1 == iterations) break;
       // Adhesion: a tip contact whose force pulls the tissue towards the
       // tool lets go. Friction: a sticking one whose tangential force
@@ -406,15 +544,33 @@ struct ToolContactEngine::Impl {
             b_value[3 * bb + 1] = b_value[3 * bb + 2] = 0;
             any = true;
           } else if (normal_force < 0) {
-            released[bb] = 1;  // a sliding contact that pulls: adhesion, let go
+            released[bb] = kReleased;  // a sliding contact that pulls: adhesion, let go
             any = true;
           }
         }
         ++j;
       }
+      // Signorini on the watched triangles: one the solve pushed into the
+      // tip (its linearized gap now negative) joins the set.
+      for (int b = 0; b < building; ++b) {
+        const auto bb = static_cast<std::size_t>(b);
+        if (released[bb] != kDormant) continue;
+        const Eigen::Map<const Vector3d> n(&b_normal[3 * bb]);
+        const double wanted = b_kind[bb] == ConstraintKind::kNormalDisplacement
+                                  ? b_value[3 * bb]
+                                  : n.dot(Eigen::Map<const Vector3d>(&b_value[3 * bb]));
+        const Tool& tool = tools[static_cast<std::size_t>(b_tool[bb])];
+        if (n.dot(displacement_under_solve(tool.tips[static_cast<std::size_t>(b_tip[bb])])) <
+            wanted - 1e-3 * tool.geometry.tip_radius_m) {
+          released[bb] = 0;
+          any = true;
+        }
+      }
       if (!any) break;
     }
-    for (auto& o : owner) o = -1;  // cleared sparsely below would be cheaper; n is small
+    for (int t = 0; t < static_cast<int>(tools.size()); ++t)
+      for (const auto& h : tools[static_cast<std::size_t>(t)].held)
+        owner[static_cast<std::size_t>(h.index)] = -1;
     if (status != RequestStatus::kOk) {
       const std::size_t length = strnlen(solver.message(), sizeof message - 1);
       std::memcpy(message, solver.message(), length);
@@ -425,10 +581,58 @@ struct ToolContactEngine::Impl {
     return RequestStatus::kOk;
   }
 
+  /// Displacement of a tip candidate's point under the forces of the solve
+  /// just made: Σ_i w_i Σ_l G_{v_i l} f_l over the solver's loads.
+  Vector3d displacement_under_solve(const TipCandidate& tip) const {
+    const auto loads = solver.load_indices();
+    const auto forces = solver.load_forces();
+    Vector3d u = Vector3d::Zero();
+    for (int i = 0; i < tip.count; ++i) {
+      const int v = tip.vertices[static_cast<std::size_t>(i)];
+      if (v >= compliance_count) continue;
+      Vector3d u_v = Vector3d::Zero();
+      for (std::size_t l = 0; l < loads.size(); ++l)
+        u_v.noalias() += model.G_block(v, loads[l]) * Eigen::Map<const Vector3d>(&forces[3 * l]);
+      u += tip.weights[static_cast<std::size_t>(i)] * u_v;
+    }
+    return u;
+  }
+
+  /// Adds built constraint @p b to the solver: a held vertex, or a tip's
+  /// point on its vertices (a fixed one as −1: its share goes to the attachment).
+  RequestStatus add_to_solver(std::size_t b) {
+    const Tool& tool = tools[static_cast<std::size_t>(b_tool[b])];
+    if (b_tip[b] < 0) {
+      const int index = tool.held[static_cast<std::size_t>(b_held[b])].index;
+      const double one = 1;
+      return solver.add_surface_point(&index, &one, 1, b_kind[b], &b_value[3 * b],
+                                      &b_normal[3 * b]);
+    }
+    const TipCandidate& tip = tool.tips[static_cast<std::size_t>(b_tip[b])];
+    std::array<int, 3> index{};
+    for (int i = 0; i < tip.count; ++i)
+      index[static_cast<std::size_t>(i)] =
+          tip.vertices[static_cast<std::size_t>(i)] < compliance_count
+              ? tip.vertices[static_cast<std::size_t>(i)]
+              : -1;
+    return solver.add_surface_point(index.data(), tip.weights.data(), tip.count, b_kind[b],
+                                    &b_value[3 * b], &b_normal[3 * b]);
+  }
+
   void store_solution() {
-    std::fill(previous_tip_owner.begin(), previous_tip_owner.end(), -1);
     const auto f = solver.forces();
     const auto u = solver.displacements();
+    // Forget last tick's tip contacts: the vertices (for the grasp) and the
+    // triangles (for the hysteresis shell) of the points stored below.
+    for (int c = 0; c < count; ++c) {
+      const ContactPoint& old = points[static_cast<std::size_t>(c)];
+      if (old.held) continue;
+      for (int i = 0; i < old.vertex_count; ++i)
+        if (old.vertices[static_cast<std::size_t>(i)] < compliance_count)
+          previous_tip_owner[static_cast<std::size_t>(old.vertices[static_cast<std::size_t>(i)])] =
+              -1;
+      previous_triangle_owner[static_cast<std::size_t>(old.triangle)] = -1;
+    }
     count = 0;
     max_displacement = 0;
     for (auto& tool : tools) {
@@ -441,29 +645,80 @@ struct ToolContactEngine::Impl {
       const auto bb = static_cast<std::size_t>(b);
       if (released[bb]) continue;
       const auto c = static_cast<std::size_t>(count);
-      indices[c] = b_index[bb];
-      tool_of[c] = b_tool[bb];
+      const int t = b_tool[bb];
+      Tool& tool = tools[static_cast<std::size_t>(t)];
+      ContactPoint& point = points[c];
+      point.tool = t;
+      point.held = b_tip[bb] < 0;
+      Vector3d at_rest;
+      if (point.held) {
+        const int index = tool.held[static_cast<std::size_t>(b_held[bb])].index;
+        point.triangle = -1;
+        point.vertex_count = 1;
+        point.vertices = {index, 0, 0};
+        point.weights = {1, 0, 0};
+        at_rest = rest[static_cast<std::size_t>(index)];
+      } else {
+        const TipCandidate& tip = tool.tips[static_cast<std::size_t>(b_tip[bb])];
+        point.triangle = tip.triangle;
+        point.vertex_count = tip.count;
+        point.vertices = tip.vertices;
+        point.weights = tip.weights;
+        at_rest = tip.rest;
+      }
       tip_of[c] = b_tip[bb];
-      const Vector3d force = f.segment<3>(3 * count);
+      point.force_n = f.segment<3>(3 * count);
       const Vector3d displacement = u.segment<3>(3 * count);
-      Eigen::Map<Vector3d>{&forces[3 * c]} = force;
-      const Vector3d position = rest[static_cast<std::size_t>(b_index[bb])] + displacement;
-      Eigen::Map<Vector3d>{&positions[3 * c]} = position;
+      point.position_m = at_rest + displacement;
       const bool sliding = b_kind[bb] == ConstraintKind::kNormalDisplacement;
-      for (int d = 0; d < 3; ++d)
-        normals[3 * c + static_cast<std::size_t>(d)] =
-            sliding ? b_normal[3 * bb + static_cast<std::size_t>(d)] : 0.0;
+      point.normal =
+          sliding ? Vector3d(Eigen::Map<const Vector3d>(&b_normal[3 * bb])) : Vector3d::Zero();
       max_displacement = std::max(max_displacement, displacement.norm());
-      Tool& tool = tools[static_cast<std::size_t>(b_tool[bb])];
-      tool.raw_force -= force;  // the organ pushes the tool back
-      tool.raw_torque += (position - tool.pose.position_m).cross(-force);
-      if (b_tip[bb] < 0)
-        tool.raw_grip += 0.5 * std::abs(force.dot(tool.rotation.col(0)));
-      else
-        previous_tip_owner[static_cast<std::size_t>(b_index[bb])] = b_tool[bb];
+      tool.raw_force -= point.force_n;  // the organ pushes the tool back
+      tool.raw_torque += (point.position_m - tool.pose.position_m).cross(-point.force_n);
+      if (point.held) {
+        tool.raw_grip += 0.5 * std::abs(point.force_n.dot(tool.rotation.col(0)));
+      } else {
+        // The grasp takes what the tip touched: the point's nearest vertex.
+        const auto nearest = static_cast<std::size_t>(
+            std::max_element(point.weights.begin(), point.weights.begin() + point.vertex_count) -
+            point.weights.begin());
+        if (point.vertices[nearest] < compliance_count)
+          previous_tip_owner[static_cast<std::size_t>(point.vertices[nearest])] = t;
+        previous_triangle_owner[static_cast<std::size_t>(point.triangle)] = t;
+      }
       ++tool.contacts;
       ++count;
     }
+    gather_loads();
+  }
+
+  /// The points' forces as loads on their vertices, f_S = Hᵀ f_C, tool by
+  /// tool (a vertex two tools load appears once for each).
+  void gather_loads() {
+    load_count = 0;
+    for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
+      const int first = load_count;
+      for (int c = 0; c < count; ++c) {
+        const ContactPoint& point = points[static_cast<std::size_t>(c)];
+        if (point.tool != t) continue;
+        for (int i = 0; i < point.vertex_count; ++i) {
+          const int v = point.vertices[static_cast<std::size_t>(i)];
+          if (v >= compliance_count) continue;  // the attachment takes it
+          int& slot = load_slot[static_cast<std::size_t>(v)];
+          if (slot < first) {
+            slot = load_count++;
+            load_index[static_cast<std::size_t>(slot)] = v;
+            load_tool[static_cast<std::size_t>(slot)] = t;
+            Eigen::Map<Vector3d>{&load_force[3 * static_cast<std::size_t>(slot)]}.setZero();
+          }
+          Eigen::Map<Vector3d>{&load_force[3 * static_cast<std::size_t>(slot)]} +=
+              point.weights[static_cast<std::size_t>(i)] * point.force_n;
+        }
+      }
+    }
+    for (int l = 0; l < load_count; ++l)
+      load_slot[static_cast<std::size_t>(load_index[static_cast<std::size_t>(l)])] = -1;
   }
 
   /// The feedback of tool @p t at @p now_s: clamp, slew limit, state events.
@@ -660,20 +915,17 @@ const ToolPoseInput& ToolContactEngine::pose(int t) const {
   return impl_->tools.at(static_cast<std::size_t>(t)).pose;
 }
 const char* ToolContactEngine::solver_message() const { return impl_->message; }
+std::span<const ContactPoint> ToolContactEngine::contact_points() const {
+  return {impl_->points.data(), static_cast<std::size_t>(impl_->count)};
+}
 std::span<const int> ToolContactEngine::contact_indices() const {
-  return {impl_->indices.data(), static_cast<std::size_t>(impl_->count)};
+  return {impl_->load_index.data(), static_cast<std::size_t>(impl_->load_count)};
 }
 std::span<const double> ToolContactEngine::contact_forces() const {
-  return {impl_->forces.data(), 3 * static_cast<std::size_t>(impl_->count)};
+  return {impl_->load_force.data(), 3 * static_cast<std::size_t>(impl_->load_count)};
 }
 std::span<const int> ToolContactEngine::contact_tools() const {
-  return {impl_->tool_of.data(), static_cast<std::size_t>(impl_->count)};
-}
-std::span<const double> ToolContactEngine::contact_normals() const {
-  return {impl_->normals.data(), 3 * static_cast<std::size_t>(impl_->count)};
-}
-std::span<const double> ToolContactEngine::contact_positions() const {
-  return {impl_->positions.data(), 3 * static_cast<std::size_t>(impl_->count)};
+  return {impl_->load_tool.data(), static_cast<std::size_t>(impl_->load_count)};
 }
 std::uint64_t ToolContactEngine::solves() const { return impl_->solve_count; }
 

@@ -59,8 +59,9 @@ struct SolverLimits {
 /// factor of Bᵀ P B depends only on the points (vertices and weights), their
 /// kinds and normals; it is kept in one of `cache_slots` slots and reused
 /// while they stay the same, so that a tool holding tissue pays two
-/// triangular solves per request. P is assembled from the 3×3 blocks of G
-/// among the distinct vertices the points use, each read once.
+/// triangular solves per request. G is read once per 3×3 block among the
+/// distinct vertices U the points use; P itself is never formed (H has three
+/// weights per point): Bᵀ P B is read off G_UU Hᵀ B, and P f = H (G_UU Hᵀ f).
 class ConstraintSolver {
  public:
   /// Preallocates everything for up to `limits.max_constraints` vertices.
@@ -130,6 +131,7 @@ class ConstraintSolver {
   struct Slot;
   Slot& find_or_build_slot();
   void assemble_point_compliance(Slot& slot);
+  void points_of(const Slot& slot, const double* z, double* x) const;
   void gather_loads();
   RequestStatus check_values(int j, std::uint32_t vertex_id, std::int32_t kind, const double* value,
                              const double* normal);

@@ -7,22 +7,32 @@
 /// tip, the jaws open in the x-z plane symmetrically about z.
 ///
 /// Per pose of tool t (update):
-///  1. Where the organ is: every compliance vertex near a tool gets its
-///     displacement under the forces of the previous solve, u_j = G_jC f_C.
+///  1. Where the organ is: the surface near a tool is deformed by the loads
+///     of the previous solve, x_v = rest_v + Σ_l G_vl f_l (fixed vertices
+///     stay).
 ///  2. Grasp: when the jaw angle falls below grasp_angle, the vertices
 ///     between the jaws (and those the tip touches) are held; each keeps its
 ///     position in the tool frame, squeezed onto the jaws' mid-plane x = 0,
 ///     and follows the tool rigidly. Released when the jaws open past
 ///     release_angle (hysteresis).
-///  3. Tip contacts: vertices inside the tip (a sphere or a capsule of radius
-///     r around the segment hinge → hinge + tip_length·z) are put back on its
-///     surface along the contact normal: fully while friction holds it
-///     ("stick"), along the normal only once it slides (tangential motion
-///     free: the tool glides).
-///  4. One ConstraintSolver solve for all tools. A tip contact whose solved
-///     force pulls the tissue towards the tool (adhesion) is released; one
-///     whose tangential force exceeds friction × normal force slides; the
-///     set is solved again (at most max_iterations solves).
+///  3. Tip contacts on triangles: for every deformed surface triangle near
+///     the tip (a sphere or a capsule of radius r around the segment
+///     hinge → hinge + tip_length·z), the closest points between the tip's
+///     axis and the triangle; a triangle closer than r is penetrated, and its
+///     closest point p = Σ w_i x_i (barycentric weights on its vertices) is
+///     put back on the tip's surface along the normal from the axis to p:
+///     fully while friction holds it ("stick"), along the normal only once
+///     it slides (tangential motion free: the tool glides). A point on an
+///     edge or a vertex is one point, found once; points within 0.05 r of a
+///     deeper one (0.3 r with friction: a sticking point fixes three
+///     components) are left out, their rows would be nearly the same. A
+///     system still singular makes every sticking point slide.
+///  4. One ConstraintSolver solve for all tools, each contact a row over its
+///     triangle's vertices (ConstraintSolver::add_surface_point). A tip
+///     contact whose solved force pulls the tissue towards the tool
+///     (adhesion) is released; one whose tangential force exceeds
+///     friction × normal force slides; the set is solved again (at most
+///     max_iterations solves).
 ///  5. Feedback: the force on the tool is minus the sum of its contact
 ///     forces, clamped to the device's force limit and moved towards that
 ///     value at most max_force_rate·Δt per tick; torque about the hinge;
@@ -50,6 +60,23 @@
 #include "palpate/runtime/tool_state.hpp"
 
 namespace palpate {
+
+/// One contact of the last solve: a point of the surface, on 1 to 3 drawn
+/// vertices (compliance vertices first, as in DrawnSurface), pressed by a
+/// tool's tip or held by its jaws.
+struct ContactPoint {
+  int tool = 0;
+  bool held = false;  ///< held by the jaws (a vertex), else a tip contact
+  int triangle = -1;  ///< drawn triangle of a tip contact, −1 when held
+  int vertex_count = 1;
+  std::array<int, 3> vertices{};  ///< drawn vertices with a non-zero weight
+  std::array<double, 3> weights{};
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();  ///< deformed, m
+  Eigen::Vector3d force_n = Eigen::Vector3d::Zero();     ///< on the organ, N
+  /// The unit normal of a sliding tip contact (its force is along it); zero
+  /// for a held vertex or a sticking tip.
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+};
 
 class ToolContactEngine {
  public:
@@ -91,16 +118,15 @@ class ToolContactEngine {
   const ToolPoseInput& pose(int tool) const;
   const char* solver_message() const;
 
-  /// The contacts of the last solve, all tools: compliance indices, the
-  /// force on the organ at each (3 per contact, N), the tool of each.
+  /// The contact points of the last solve, all tools.
+  std::span<const ContactPoint> contact_points() const;
+  /// The same contacts as loads on compliance vertices (f_S = Hᵀ f_C, what
+  /// the surface field u_S = G f_S needs), tool by tool: the vertex, the
+  /// force on the organ there (3 per load, N), the tool of each. A vertex
+  /// two tools load appears once for each.
   std::span<const int> contact_indices() const;
   std::span<const double> contact_forces() const;
   std::span<const int> contact_tools() const;
-  /// Per contact: the unit normal of a sliding tip contact (its force is
-  /// along it), zero for a held vertex or a sticking tip; 3 per contact.
-  std::span<const double> contact_normals() const;
-  /// Deformed position of each contact, 3 per contact, m.
-  std::span<const double> contact_positions() const;
   /// Solves since construction, and those that reused a cached factorization.
   std::uint64_t solves() const;
 

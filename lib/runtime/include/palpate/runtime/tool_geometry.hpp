@@ -41,7 +41,7 @@ struct ContactSettings {
   double watchdog_ramp_s = 0.25;     ///< from full to no contact
   double search_margin_m = 0.01;     ///< vertices this far beyond the tip are examined
   int max_contacts_per_tool = 24;    ///< deepest tip contacts kept
-  int max_iterations = 4;            ///< solves per tick (adhesion release, sliding)
+  int max_iterations = 8;            ///< solves per tick (adhesion release, sliding)
   double workspace_margin_m = 0.5;   ///< poses farther from the organ's bounding box are refused
 };
 
