@@ -433,15 +433,6 @@ int main(int argc, char** argv) {
         pose.position_m = point + normal * (rs - std::max(depth, -0.002));
         pose.orientation = q;
         engine.update(0, pose, t);
-        if (std::getenv("FEEL_DEBUG") && mm >= 4 && i > 480) {
-          std::fprintf(stderr, "DEBUG mm %d i %d contacts %d F %.4f:", mm, i,
-                       engine.output(0).contacts, engine.output(0).force_n.norm());
-          for (const auto& c : engine.contact_points())
-            std::fprintf(stderr, " [tri %d n %d fn %.4f nrm %.2f %.2f %.2f]", c.triangle,
-                         c.vertex_count, c.force_n.norm(), c.normal.x(), c.normal.y(),
-                         c.normal.z());
-          std::fprintf(stderr, "\n");
-        }
         t += 1e-3;
         if (i > 400) {
           const double f = engine.output(0).force_n.dot(normal);
@@ -492,6 +483,7 @@ int main(int argc, char** argv) {
       percentile(w.tick_us, 0.99));
   json += buffer;
 
+#ifdef PALPATE_HAS_SURFACE_POINTS
   // ---- the solve of a contact set that changed: k points on the k surface
   // triangles nearest the anchor (at their centroids, normal-only rows, the
   // rest surface pushed 1 mm in), each solve with new weights so that no
@@ -525,11 +517,11 @@ int main(int argc, char** argv) {
               &model.surface.triangles[3 * static_cast<std::size_t>(by_distance[c].second)];
           const int index[3] = {static_cast<int>(tri[0]), static_cast<int>(tri[1]),
                                 static_cast<int>(tri[2])};
-          const double w[3] = {1.0 / 3 + jitter, 1.0 / 3 - jitter, 1.0 / 3};
+          const double weights[3] = {1.0 / 3 + jitter, 1.0 / 3 - jitter, 1.0 / 3};
           const Vector3d n = -Vector3d(normals.row(tri[0])).normalized();
           const double value[3] = {1e-3, 0, 0};
-          solver.add_surface_point(index, w, 3, palpate::ConstraintKind::kNormalDisplacement, value,
-                                   n.data());
+          solver.add_surface_point(index, weights, 3, palpate::ConstraintKind::kNormalDisplacement,
+                                   value, n.data());
         }
         const auto status = solver.solve();
         const auto stop = std::chrono::steady_clock::now();
@@ -547,6 +539,7 @@ int main(int argc, char** argv) {
     }
     json += "]\n}\n";
   }
+#endif
   if (!json_path.empty()) std::ofstream(json_path) << json;
   return 0;
 }

@@ -17,6 +17,10 @@
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/surface_product.hpp"
 
+/// Constraints at points of surface triangles (add_point, add_surface_point):
+/// for code that builds against several versions (bench/contact_feel.cpp).
+#define PALPATE_HAS_SURFACE_POINTS 1
+
 namespace palpate {
 
 /// Limits of one solver, from the daemon's configuration.
