@@ -121,7 +121,8 @@ void run_gesture(benchmark::State& state, int tools, const std::vector<Keyframe>
           pose.orientation = p.orientation;
           pose.jaw_angle_rad = palpate::degrees(jaw);
           const auto start = std::chrono::steady_clock::now();
-          if (engine.update(t, pose, now) != palpate::RequestStatus::kOk) ++failures;
+          if (engine.update(t, pose, now) != palpate::RequestStatus::kOk && failures++ == 0)
+            std::fprintf(stderr, "first failed tick: %s\n", engine.solver_message());
           tick_us.push_back(
               std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
                   .count());

@@ -400,10 +400,49 @@ int main(int argc, char** argv) {
                 percentile(p.tick_us, 0.99));
   json += buffer;
 
+  // ---- a press between vertices: a frictionless 2 mm sphere 3 mm deep
+  // along the normal at the centroid of the surface triangle nearest the
+  // auto anchor (not at its vertex), held 2 s: ticks without force.
+  {
+    std::size_t nearest = 0;
+    for (std::size_t t = 0; t < scene.centroid.size(); ++t)
+      if ((scene.centroid[t] - anchor.origin_m).norm() <
+          (scene.centroid[nearest] - anchor.origin_m).norm())
+        nearest = t;
+    const auto* tri = &model.surface.triangles[3 * nearest];
+    const Vector3d n = (scene.rest[tri[1]] - scene.rest[tri[0]])
+                           .cross(scene.rest[tri[2]] - scene.rest[tri[0]])
+                           .normalized();
+    const Vector3d at = scene.centroid[nearest];
+    const double rb = 0.002;
+    auto between = [&](double t) {
+      const double d = 0.003 * std::clamp(t / 0.3, 0.0, 1.0);
+      palpate::GesturePose pose;
+      pose.hinge_m = at + (rb - d) * n;
+      pose.orientation = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -n);
+      return pose;
+    };
+    const TickLog b = play(scene, between, 2.3, capsule(rb, 0, 0), false);
+    int zero = 0;
+    for (std::size_t i = 300; i < b.force_n.size(); ++i) zero += b.force_n[i] == 0 ? 1 : 0;
+    std::printf(
+        "between vertices (2 mm sphere, 3 mm at a triangle's centroid, held 2 s): %d of "
+        "%zu ticks without force; force at the end %.4f N\n",
+        zero, b.force_n.size() - 300, b.force_n.back());
+    std::snprintf(buffer, sizeof buffer,
+                  "  \"between\": {\"zero_force_ticks\": %d, \"held_ticks\": %zu, "
+                  "\"final_force_n\": %.6g},\n",
+                  zero, b.force_n.size() - 300, b.force_n.back());
+    json += buffer;
+  }
+
   // ---- force-depth curve of a 5 mm sphere along one normal
   Vector3d point, normal;
   if (curve_point.size() == 6) {
-    point = {curve_point[0], curve_point[1], curve_point[2]};
+    // The given point, moved onto this mesh's rest surface (meshes of the
+    // same organ differ by their faceting), pressed along the given normal.
+    Vector3d ignored;
+    point = on_surface(Vector3d(curve_point[0], curve_point[1], curve_point[2]), ignored);
     normal = Vector3d(curve_point[3], curve_point[4], curve_point[5]).normalized();
   } else {
     const palpate::AnchorFrame a = palpate::auto_anchor(model.surface);
@@ -415,8 +454,10 @@ int main(int argc, char** argv) {
     palpate::ContactSettings settings;
     ToolContactEngine engine(model, {capsule(rs, 0, 0)}, settings, {});
     const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -normal);
-    std::printf("curve (5 mm frictionless sphere along -n at (%.5f, %.5f, %.5f) m):\n", point.x(),
-                point.y(), point.z());
+    std::printf(
+        "curve (5 mm frictionless sphere along -n at (%.5f, %.5f, %.5f) m, "
+        "n = (%.5f, %.5f, %.5f)):\n",
+        point.x(), point.y(), point.z(), normal.x(), normal.y(), normal.z());
     json += "  \"curve\": {\"point_m\": [" + std::to_string(point.x()) + ", " +
             std::to_string(point.y()) + ", " + std::to_string(point.z()) + "], \"depth_mm\": [";
     std::string forces = "], \"force_n\": [";

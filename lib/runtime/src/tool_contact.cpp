@@ -516,6 +516,27 @@ struct ToolContactEngine::Impl {
           continue;
         }
       }
+      // Still singular (more rows than their vertices can take: points on
+      // edges and corners of the same few vertices, or on triangles whose
+      // other corners are fixed): the shallowest tip contact goes, and the
+      // rest is solved again, within the same iteration.
+      if (status == RequestStatus::kIllConditioned && softened) {
+        int shallowest = -1;
+        double depth = INFINITY;
+        for (int b = 0; b < building; ++b) {
+          const auto bb = static_cast<std::size_t>(b);
+          if (b_tip[bb] < 0 || released[bb] != 0) continue;
+          const double d = tools[static_cast<std::size_t>(b_tool[bb])]
+                               .tips[static_cast<std::size_t>(b_tip[bb])]
+                               .depth;
+          if (d < depth) depth = d, shallowest = b;
+        }
+        if (shallowest >= 0) {
+          released[static_cast<std::size_t>(shallowest)] = kReleased;
+          --iteration;
+          continue;
+        }
+      }
       if (status != RequestStatus::kOk) break;
       // The last allowed solve stands as solved: the contacts stored are
       // exactly its constraints, and their forces its forces (changing the
