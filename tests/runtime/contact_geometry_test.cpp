@@ -24,8 +24,8 @@ double sampled_distance(const Vector3d& s0, const Vector3d& axis, double length,
     const Vector3d x = s0 + (length > 0 ? length * k / n : 0.0) * axis;
     for (int i = 0; i <= n; ++i)
       for (int j = 0; i + j <= n; ++j) {
-        const Vector3d y = a + (b - a) * (static_cast<double>(i) / n) +
-                           (c - a) * (static_cast<double>(j) / n);
+        const Vector3d y =
+            a + (b - a) * (static_cast<double>(i) / n) + (c - a) * (static_cast<double>(j) / n);
         best = std::min(best, (x - y).norm());
       }
   }
