@@ -112,9 +112,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const auto indices = engine.contact_indices();
     PALPATE_FUZZ_CHECK(static_cast<int>(indices.size()) <= limits.max_constraints);
     PALPATE_FUZZ_CHECK(engine.contact_forces().size() == 3 * indices.size());
-    PALPATE_FUZZ_CHECK(engine.contact_positions().size() == 3 * indices.size());
     for (const double f : engine.contact_forces()) PALPATE_FUZZ_CHECK(std::isfinite(f));
-    for (const double x : engine.contact_positions()) PALPATE_FUZZ_CHECK(std::isfinite(x));
+    for (const palpate::ContactPoint& c : engine.contact_points()) {
+      PALPATE_FUZZ_CHECK(c.position_m.allFinite() && c.force_n.allFinite());
+      double weight_sum = 0;
+      for (int k = 0; k < c.vertex_count; ++k) weight_sum += c.weights[k];
+      PALPATE_FUZZ_CHECK(c.vertex_count >= 1 && c.vertex_count <= 3);
+      PALPATE_FUZZ_CHECK(std::abs(weight_sum - 1) < 1e-9);
+    }
     for (const int j : indices) PALPATE_FUZZ_CHECK(j >= 0 && j < model.compliance_vertex_count());
   }
   return 0;
