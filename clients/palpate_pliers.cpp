@@ -407,7 +407,8 @@ int run(int argc, char** argv) {
       if (!o.quiet && ++event_lines <= kMaxEventLines) {
         std::printf("  %7.3f s  %-6s %s", static_cast<double>(e.receive_time_ns - start_ns) * 1e-9,
                     e.tool_id.c_str(), palpate::tool_event_name(e.kind));
-        if (e.kind == ToolEventKind::kGrasp) std::printf(" (%u vertices held)", e.held_vertices);
+        if (e.kind == ToolEventKind::kGrasp)
+          std::printf(" (%u point%s held)", e.held_vertices, e.held_vertices == 1 ? "" : "s");
         std::printf("  [pose %llu]\n",
                     static_cast<unsigned long long>(e.pose_sequence - first_sequence + 1));
         if (event_lines == kMaxEventLines)
@@ -485,8 +486,10 @@ int run(int argc, char** argv) {
   }
   for (auto& r : runs) r.ticks.resize(played);
   // The end of each tool's session: palpated lets go now (an `ended` event),
-  // not 50 ms later by its watchdog, and the next run starts afresh.
-  const auto end_by = Clock::now() + std::chrono::seconds(1);
+  // not 50 ms later by its watchdog, and the next run starts afresh. The
+  // wait ends as soon as every event is in; 5 s leaves room for a daemon
+  // on a machine that is busy (or under a sanitizer).
+  const auto end_by = Clock::now() + std::chrono::seconds(5);
   bool ended = true;
   for (const ToolRun& run : runs)
     if (played > 0)

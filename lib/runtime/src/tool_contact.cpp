@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "contact_geometry.hpp"
+#include "jaw_grasp.hpp"
 #include "palpate/core/error.hpp"
 
 namespace palpate {
@@ -39,11 +40,7 @@ struct TipCandidate {
                     // triangle the solve may push into the tip
 };
 
-struct HeldVertex {
-  int index;
-  Vector3d local;  // position in the tool frame, on the jaws' mid-plane x = 0
-  double side;     // sign of x before the squeeze: which jaw carries it
-};
+using detail::HeldPoint;
 
 }  // namespace
 
@@ -63,9 +60,13 @@ struct ToolContactEngine::Impl {
     bool has_sequence = false;
     double previous_jaw = 0;
     bool has_previous_jaw = false;
+    // The widest the jaws opened since they last held anything: the faces'
+    // position when they came around the tissue (line jaws closing slowly
+    // pass into it; real ones stop on its surface).
+    double widest_jaw = 0;
     double scale = 1;  // watchdog ramp, 1 → 0
     bool in_watchdog = false;
-    std::vector<HeldVertex> held;
+    std::vector<HeldPoint> held;     // by the jaws, in the tool frame
     std::vector<TipCandidate> tips;  // this tick's tip contacts, deepest first
     int tip_count = 0;
     Vector3d raw_force = Vector3d::Zero(), raw_torque = Vector3d::Zero();
@@ -84,8 +85,7 @@ struct ToolContactEngine::Impl {
   std::vector<Vector3d> vertex_normal;  // per compliance vertex, outward, area weighted
   std::vector<int> triangle_vertices;   // 3 per triangle
   std::vector<int> vertex_triangles_begin, vertex_triangles;  // triangles around each vertex
-  std::vector<int> owner;               // per compliance vertex: tool holding it this tick, or -1
-  std::vector<int> previous_tip_owner;  // per compliance vertex: tool whose tip touched it last
+  std::vector<int> owner;  // per compliance vertex: tool holding it this tick, or -1
   std::vector<int> previous_triangle_owner;  // per triangle: tool whose tip touched it last tick
   std::vector<std::uint32_t> triangle_seen;  // per triangle: the last find_tips that met it
   std::uint32_t triangle_epoch = 0;
@@ -98,11 +98,15 @@ struct ToolContactEngine::Impl {
   std::vector<int> candidates;  // compliance vertices near a tool
   std::vector<Vector3d> candidate_position;
   std::vector<TipCandidate> found;
+  detail::JawGrasp grasp;
+  std::vector<int> grasp_triangles;     // near the closing jaws
+  std::vector<Vector3d> grasp_corners;  // 3 per grasp triangle, deformed
+  std::vector<HeldPoint> touched;       // the tip's points at the last tick
 
   // The last successful solve: every tool's contact points and their loads.
   int count = 0;
   std::vector<ContactPoint> points;
-  std::vector<int> tip_of;  // per point: index into its tool's tips, or -1 for a held vertex
+  std::vector<int> tip_of;  // per point: index into its tool's tips, or -1 for a held point
   int load_count = 0;
   std::vector<int> load_index;     // compliance vertex per load
   std::vector<int> load_tool;      // tool per load
@@ -121,7 +125,7 @@ struct ToolContactEngine::Impl {
     *written.out = '\0';
   }
 
-  // The constraint set being built: a held vertex (tip -1) or a tip point.
+  // The constraint set being built: a held point (tip -1) or a tip point.
   int building = 0;
   std::vector<int> b_tool, b_tip, b_held;
   std::vector<ConstraintKind> b_kind;
@@ -133,7 +137,11 @@ struct ToolContactEngine::Impl {
 
   Impl(const SurfaceModel& m, std::vector<ToolGeometry> geometries, const ContactSettings& s,
        const SolverLimits& l)
-      : model(m), settings(s), limits(l), solver(m, l) {
+      : model(m),
+        settings(s),
+        limits(l),
+        solver(m, l),
+        grasp(std::max(1, l.max_constraints), m.compliance_vertex_count()) {
     const DrawnSurface& surface = m.surface;
     compliance_count = m.compliance_vertex_count();
     const int n = compliance_count;
@@ -185,11 +193,13 @@ struct ToolContactEngine::Impl {
     triangle_seen.assign(static_cast<std::size_t>(triangles), 0);
     previous_triangle_owner.assign(static_cast<std::size_t>(triangles), -1);
     owner.assign(static_cast<std::size_t>(n), -1);
-    previous_tip_owner.assign(static_cast<std::size_t>(n), -1);
     candidates.resize(static_cast<std::size_t>(drawn));
     candidate_position.resize(static_cast<std::size_t>(drawn));
     found.resize(static_cast<std::size_t>(triangles));
+    grasp_triangles.resize(static_cast<std::size_t>(triangles));
+    grasp_corners.resize(3 * static_cast<std::size_t>(triangles));
     const auto k = static_cast<std::size_t>(limits.max_constraints);
+    touched.reserve(k);
     points.resize(k);
     tip_of.resize(k);
     load_index.resize(3 * k);
@@ -257,12 +267,10 @@ struct ToolContactEngine::Impl {
 
   /// Is the deformed point @p x between the jaws of @p tool opened at @p angle?
   static bool between_jaws(const Tool& tool, const Vector3d& x, double angle) {
-    const ToolGeometry& g = tool.geometry;
-    if (g.jaw_length_m <= 0) return false;
-    const Vector3d local = tool.rotation.transpose() * (x - tool.pose.position_m);
-    return local.z() >= 0 && local.z() <= g.jaw_length_m &&
-           std::abs(local.y()) <= 0.5 * g.jaw_width_m + g.tip_radius_m &&
-           std::abs(local.x()) <= local.z() * std::tan(0.5 * angle) + g.tip_radius_m;
+    return detail::JawGrasp::between(jaws_of(tool, angle), x, angle);
+  }
+  static detail::JawsAtClosing jaws_of(const Tool& tool, double opening) {
+    return {tool.pose.position_m, tool.rotation, &tool.geometry, opening};
   }
 
   /// Grasp state machine of tool @p t for its new jaw angle (before contacts).
@@ -282,20 +290,54 @@ struct ToolContactEngine::Impl {
     if (!closing) return;
     next_epoch();
     const int n = gather_candidates(tool);
-    // The tissue between the jaws as they were, and what the tip touched.
-    for (int c = 0; c < n && static_cast<int>(tool.held.size()) < per_tool_cap; ++c) {
-      const int j = candidates[static_cast<std::size_t>(c)];
-      if (j >= compliance_count) continue;  // fixed: it cannot follow the jaws
-      const Vector3d x = deformed(j);
-      const bool touched = previous_tip_owner[static_cast<std::size_t>(j)] == t;
-      if (!touched && !between_jaws(tool, x, tool.previous_jaw)) continue;
-      if (owner_held_elsewhere(j, t)) continue;
-      Vector3d local = tool.rotation.transpose() * (x - tool.pose.position_m);
-      const double side = local.x() >= 0 ? 1.0 : -1.0;
-      local.x() = 0;  // squeezed between the closed jaws
-      local.z() = std::clamp(local.z(), 0.0, g.jaw_length_m);
-      tool.held.push_back({j, local, side});
+    // The triangles near the jaws that this tool may hold: not wholly fixed,
+    // no vertex of a point another tool holds.
+    if (++triangle_epoch == 0) {
+      std::fill(triangle_seen.begin(), triangle_seen.end(), 0);
+      triangle_epoch = 1;
     }
+    std::size_t near = 0;
+    for (int c = 0; c < n; ++c) {
+      const int v = candidates[static_cast<std::size_t>(c)];
+      for (int e = vertex_triangles_begin[static_cast<std::size_t>(v)];
+           e < vertex_triangles_begin[static_cast<std::size_t>(v) + 1]; ++e) {
+        const int tri = vertex_triangles[static_cast<std::size_t>(e)];
+        if (triangle_seen[static_cast<std::size_t>(tri)] == triangle_epoch) continue;
+        triangle_seen[static_cast<std::size_t>(tri)] = triangle_epoch;
+        const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
+        int fixed = 0;
+        bool elsewhere = false;
+        for (int i = 0; i < 3; ++i) {
+          if (corner[i] >= compliance_count)
+            ++fixed;
+          else
+            elsewhere |= owner_held_elsewhere(corner[i], t);
+        }
+        if (fixed == 3 || elsewhere) continue;
+        grasp_triangles[near] = tri;
+        for (int i = 0; i < 3; ++i)
+          grasp_corners[3 * near + static_cast<std::size_t>(i)] = deformed(corner[i]);
+        ++near;
+      }
+    }
+    // What the tip pressed at the last tick.
+    touched.clear();
+    for (int c = 0; c < count; ++c) {
+      const ContactPoint& point = points[static_cast<std::size_t>(c)];
+      if (point.tool != t || point.held) continue;
+      HeldPoint h;
+      h.triangle = point.triangle;
+      h.count = point.vertex_count;
+      h.vertices = point.vertices;
+      h.weights = point.weights;
+      for (int i = 0; i < h.count; ++i)
+        h.rest += h.weights[static_cast<std::size_t>(i)] *
+                  rest[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])];
+      touched.push_back(h);
+    }
+    grasp.choose(jaws_of(tool, std::max(tool.widest_jaw, tool.previous_jaw)),
+                 {grasp_triangles.data(), near}, {grasp_corners.data(), 3 * near},
+                 triangle_vertices, rest, touched, tool.held, per_tool_cap);
     if (!tool.held.empty()) push_event(out, ToolEventKind::kGrasp);
   }
 
@@ -303,7 +345,8 @@ struct ToolContactEngine::Impl {
     for (int other = 0; other < static_cast<int>(tools.size()); ++other) {
       if (other == t) continue;
       for (const auto& h : tools[static_cast<std::size_t>(other)].held)
-        if (h.index == j) return true;
+        for (int i = 0; i < h.count; ++i)
+          if (h.vertices[static_cast<std::size_t>(i)] == j) return true;
     }
     return false;
   }
@@ -337,7 +380,7 @@ struct ToolContactEngine::Impl {
         if (triangle_seen[static_cast<std::size_t>(tri)] == triangle_epoch) continue;
         triangle_seen[static_cast<std::size_t>(tri)] = triangle_epoch;
         const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
-        bool blocked = false;  // a vertex held by a jaw, or the whole triangle fixed
+        bool blocked = false;  // a vertex of a held point, or the whole triangle fixed
         int fixed = 0;
         for (int i = 0; i < 3; ++i) {
           if (corner[i] >= compliance_count)
@@ -429,7 +472,9 @@ struct ToolContactEngine::Impl {
     for (int t = 0; t < static_cast<int>(tools.size()); ++t)
       if (tools[static_cast<std::size_t>(t)].alive)
         for (const auto& h : tools[static_cast<std::size_t>(t)].held)
-          owner[static_cast<std::size_t>(h.index)] = t;
+          for (int i = 0; i < h.count; ++i)
+            if (h.vertices[static_cast<std::size_t>(i)] < compliance_count)
+              owner[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = t;
     next_epoch();
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
       Tool& tool = tools[static_cast<std::size_t>(t)];
@@ -460,10 +505,10 @@ struct ToolContactEngine::Impl {
       const Tool& tool = tools[static_cast<std::size_t>(t)];
       if (!tool.alive) continue;
       for (int h = 0; h < static_cast<int>(tool.held.size()); ++h) {
-        const HeldVertex& held = tool.held[static_cast<std::size_t>(h)];
+        const HeldPoint& held = tool.held[static_cast<std::size_t>(h)];
         const Vector3d target = tool.pose.position_m + tool.rotation * held.local;
-        add(t, -1, h, ConstraintKind::kDisplacement,
-            tool.scale * (target - rest[static_cast<std::size_t>(held.index)]), Vector3d::Zero());
+        add(t, -1, h, ConstraintKind::kDisplacement, tool.scale * (target - held.rest),
+            Vector3d::Zero());
       }
     }
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
@@ -591,7 +636,9 @@ struct ToolContactEngine::Impl {
     }
     for (int t = 0; t < static_cast<int>(tools.size()); ++t)
       for (const auto& h : tools[static_cast<std::size_t>(t)].held)
-        owner[static_cast<std::size_t>(h.index)] = -1;
+        for (int i = 0; i < h.count; ++i)
+          if (h.vertices[static_cast<std::size_t>(i)] < compliance_count)
+            owner[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = -1;
     if (status != RequestStatus::kOk) {
       const std::size_t length = strnlen(solver.message(), sizeof message - 1);
       std::memcpy(message, solver.message(), length);
@@ -619,40 +666,33 @@ struct ToolContactEngine::Impl {
     return u;
   }
 
-  /// Adds built constraint @p b to the solver: a held vertex, or a tip's
-  /// point on its vertices (a fixed one as −1: its share goes to the attachment).
+  /// Adds built constraint @p b to the solver: a held point or a tip's
+  /// point, on its vertices (a fixed one as −1: its share goes to the
+  /// attachment).
   RequestStatus add_to_solver(std::size_t b) {
     const Tool& tool = tools[static_cast<std::size_t>(b_tool[b])];
-    if (b_tip[b] < 0) {
-      const int index = tool.held[static_cast<std::size_t>(b_held[b])].index;
-      const double one = 1;
-      return solver.add_surface_point(&index, &one, 1, b_kind[b], &b_value[3 * b],
-                                      &b_normal[3 * b]);
-    }
-    const TipCandidate& tip = tool.tips[static_cast<std::size_t>(b_tip[b])];
+    const bool held = b_tip[b] < 0;
+    const HeldPoint* h = held ? &tool.held[static_cast<std::size_t>(b_held[b])] : nullptr;
+    const TipCandidate* tip = held ? nullptr : &tool.tips[static_cast<std::size_t>(b_tip[b])];
+    const int count = held ? h->count : tip->count;
+    const std::array<int, 3>& vertices = held ? h->vertices : tip->vertices;
+    const std::array<double, 3>& weights = held ? h->weights : tip->weights;
     std::array<int, 3> index{};
-    for (int i = 0; i < tip.count; ++i)
-      index[static_cast<std::size_t>(i)] =
-          tip.vertices[static_cast<std::size_t>(i)] < compliance_count
-              ? tip.vertices[static_cast<std::size_t>(i)]
-              : -1;
-    return solver.add_surface_point(index.data(), tip.weights.data(), tip.count, b_kind[b],
-                                    &b_value[3 * b], &b_normal[3 * b]);
+    for (int i = 0; i < count; ++i)
+      index[static_cast<std::size_t>(i)] = vertices[static_cast<std::size_t>(i)] < compliance_count
+                                               ? vertices[static_cast<std::size_t>(i)]
+                                               : -1;
+    return solver.add_surface_point(index.data(), weights.data(), count, b_kind[b], &b_value[3 * b],
+                                    &b_normal[3 * b]);
   }
 
   void store_solution() {
     const auto f = solver.forces();
     const auto u = solver.displacements();
-    // Forget last tick's tip contacts: the vertices (for the grasp) and the
-    // triangles (for the hysteresis shell) of the points stored below.
+    // Forget last tick's tip contacts' triangles (for the hysteresis shell).
     for (int c = 0; c < count; ++c) {
       const ContactPoint& old = points[static_cast<std::size_t>(c)];
-      if (old.held) continue;
-      for (int i = 0; i < old.vertex_count; ++i)
-        if (old.vertices[static_cast<std::size_t>(i)] < compliance_count)
-          previous_tip_owner[static_cast<std::size_t>(old.vertices[static_cast<std::size_t>(i)])] =
-              -1;
-      previous_triangle_owner[static_cast<std::size_t>(old.triangle)] = -1;
+      if (!old.held) previous_triangle_owner[static_cast<std::size_t>(old.triangle)] = -1;
     }
     count = 0;
     max_displacement = 0;
@@ -673,12 +713,12 @@ struct ToolContactEngine::Impl {
       point.held = b_tip[bb] < 0;
       Vector3d at_rest;
       if (point.held) {
-        const int index = tool.held[static_cast<std::size_t>(b_held[bb])].index;
-        point.triangle = -1;
-        point.vertex_count = 1;
-        point.vertices = {index, 0, 0};
-        point.weights = {1, 0, 0};
-        at_rest = rest[static_cast<std::size_t>(index)];
+        const HeldPoint& held = tool.held[static_cast<std::size_t>(b_held[bb])];
+        point.triangle = held.triangle;
+        point.vertex_count = held.count;
+        point.vertices = held.vertices;
+        point.weights = held.weights;
+        at_rest = held.rest;
       } else {
         const TipCandidate& tip = tool.tips[static_cast<std::size_t>(b_tip[bb])];
         point.triangle = tip.triangle;
@@ -700,12 +740,6 @@ struct ToolContactEngine::Impl {
       if (point.held) {
         tool.raw_grip += 0.5 * std::abs(point.force_n.dot(tool.rotation.col(0)));
       } else {
-        // The grasp takes what the tip touched: the point's nearest vertex.
-        const auto nearest = static_cast<std::size_t>(
-            std::max_element(point.weights.begin(), point.weights.begin() + point.vertex_count) -
-            point.weights.begin());
-        if (point.vertices[nearest] < compliance_count)
-          previous_tip_owner[static_cast<std::size_t>(point.vertices[nearest])] = t;
         previous_triangle_owner[static_cast<std::size_t>(point.triangle)] = t;
       }
       ++tool.contacts;
@@ -869,6 +903,9 @@ RequestStatus ToolContactEngine::update(int t, const ToolPoseInput& pose, double
   tool.alive = true;
   tool.has_previous_jaw = tool.has_sequence;
   tool.previous_jaw = tool.pose.jaw_angle_rad;
+  tool.widest_jaw = tool.has_sequence && tool.held.empty()
+                        ? std::max(tool.widest_jaw, tool.previous_jaw)
+                        : tool.previous_jaw;
   tool.pose = pose;
   tool.has_sequence = true;
   tool.rotation = pose.orientation.toRotationMatrix();
@@ -920,6 +957,7 @@ bool ToolContactEngine::end(int t, double now_s) {
   tool.scale = 1;
   tool.has_sequence = false;  // its next pose starts a new session, not a resumed one
   tool.has_previous_jaw = false;
+  tool.widest_jaw = 0;
   tool.tip_count = 0;
   // The others feel the tissue it let go of.
   if (had_contacts) s.find_contacts_and_solve();

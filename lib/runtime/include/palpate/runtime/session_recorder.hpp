@@ -49,7 +49,7 @@ struct ToolTickRecord {
   double grip_n = 0;      ///< per jaw, N
   ToolState state = ToolState::kFree;
   bool watchdog = false, force_limited = false;
-  std::uint32_t held = 0;        ///< vertices held by the jaws
+  std::uint32_t held = 0;        ///< surface points held by the jaws
   std::uint64_t compute_ns = 0;  ///< time the daemon spent on this tick, ns
 };
 

@@ -10,10 +10,12 @@
 ///  1. Where the organ is: the surface near a tool is deformed by the loads
 ///     of the previous solve, x_v = rest_v + Σ_l G_vl f_l (fixed vertices
 ///     stay).
-///  2. Grasp: when the jaw angle falls below grasp_angle, the vertices
-///     between the jaws (and those the tip touches) are held; each keeps its
-///     position in the tool frame, squeezed onto the jaws' mid-plane x = 0,
-///     and follows the tool rigidly. Released when the jaws open past
+///  2. Grasp: when the jaw angle falls below grasp_angle, the surface
+///     under the two jaw faces (and what the tip pressed) is held: points
+///     of the deformed triangles, each with rows independent of the others'
+///     (JawGrasp, lib/runtime/src/jaw_grasp.hpp). Each keeps its position
+///     in the tool frame, squeezed between the faces onto one plane, and
+///     follows the tool rigidly. Released when the jaws open past
 ///     release_angle (hysteresis).
 ///  3. Tip contacts on triangles: for every deformed surface triangle near
 ///     the tip (a sphere or a capsule of radius r around the segment
@@ -36,7 +38,7 @@
 ///  5. Feedback: the force on the tool is minus the sum of its contact
 ///     forces, clamped to the device's force limit and moved towards that
 ///     value at most max_force_rate·Δt per tick; torque about the hinge;
-///     grip force from the held vertices.
+///     grip force from the held points (the squeeze of each face).
 /// A tool whose poses stop (watchdog_timeout) has its imposed displacements
 /// scaled from 1 to 0 over watchdog_ramp, then is dropped.
 ///
@@ -66,15 +68,15 @@ namespace palpate {
 /// tool's tip or held by its jaws.
 struct ContactPoint {
   int tool = 0;
-  bool held = false;  ///< held by the jaws (a vertex), else a tip contact
-  int triangle = -1;  ///< drawn triangle of a tip contact, −1 when held
+  bool held = false;  ///< held by the jaws, else a tip contact
+  int triangle = -1;  ///< drawn triangle it lies on
   int vertex_count = 1;
   std::array<int, 3> vertices{};  ///< drawn vertices with a non-zero weight
   std::array<double, 3> weights{};
   Eigen::Vector3d position_m = Eigen::Vector3d::Zero();  ///< deformed, m
   Eigen::Vector3d force_n = Eigen::Vector3d::Zero();     ///< on the organ, N
   /// The unit normal of a sliding tip contact (its force is along it); zero
-  /// for a held vertex or a sticking tip.
+  /// for a held point or a sticking tip.
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
 };
 

@@ -110,7 +110,7 @@ struct ToolEventSample {
   std::string tool_id, model_id;
   ToolEventKind kind = ToolEventKind::kTouch;
   std::uint64_t pose_sequence = 0;   ///< the pose that caused it (the last one for the watchdog)
-  std::uint32_t held_vertices = 0;   ///< vertices held by the jaws (grasp)
+  std::uint32_t held_vertices = 0;   ///< surface points held by the jaws (grasp)
   std::int64_t daemon_time_ns = 0;   ///< palpated's UTC clock
   std::int64_t receive_time_ns = 0;  ///< when this client took it, steady clock
 };
