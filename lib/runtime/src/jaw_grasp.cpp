@@ -44,8 +44,7 @@ bool IndependentRows::add(std::span<const int> vertices, std::span<const double>
     for (int q = 0; q < rows_; ++q) {
       const double* basis = &basis_[stride * static_cast<std::size_t>(q)];
       double dot = 0;
-      for (int c = 0; c < columns; ++c)
-        dot += basis[c] * row_[static_cast<std::size_t>(c)];
+      for (int c = 0; c < columns; ++c) dot += basis[c] * row_[static_cast<std::size_t>(c)];
       for (int c = 0; c < columns; ++c) row_[static_cast<std::size_t>(c)] -= dot * basis[c];
     }
   double norm2 = 0;
@@ -138,7 +137,8 @@ int JawGrasp::choose(const JawsAtClosing& jaws, std::span<const int> triangles,
           if (triangle_vertices[3 * static_cast<std::size_t>(point.triangle) +
                                 static_cast<std::size_t>(c)] ==
               point.vertices[static_cast<std::size_t>(i)])
-            deformed += point.weights[static_cast<std::size_t>(i)] * corners[3 * k + static_cast<std::size_t>(c)];
+            deformed += point.weights[static_cast<std::size_t>(i)] *
+                        corners[3 * k + static_cast<std::size_t>(c)];
       found = true;
     }
     if (found) keep(jaws, point, deformed, true, held, capacity);

@@ -24,7 +24,7 @@ struct HeldPoint {
   std::array<double, 3> weights{};
   Eigen::Vector3d rest = Eigen::Vector3d::Zero();   ///< Σ w_i rest_i, m
   Eigen::Vector3d local = Eigen::Vector3d::Zero();  ///< tool frame, on the mid-plane x = 0, m
-  double side = 1;                                  ///< +1: the jaw on +x carries it; −1 the other
+  double side = 1;  ///< +1: the jaw on +x carries it; −1 the other
 };
 
 /// A set of barycentric rows over vertices kept linearly independent: a
