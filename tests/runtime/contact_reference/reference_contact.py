@@ -43,9 +43,11 @@ C with the stored compliance G on the same vertices (the same model).
 
 Usage: reference_contact.py MODEL.h5 --point X,Y,Z --normal NX,NY,NZ
            --radius-mm R --depths-mm 1,2,3 [--level 8] [--json OUT]
+           [--palpate build/tests/palpate_sphere_press]  (also palpate's answer, and a table)
 """
 import argparse
 import json
+import subprocess
 import sys
 
 import h5py
@@ -380,26 +382,58 @@ def compliance_agreement(organ, vertices, C):
 def main(argv):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("model")
-    parser.add_argument("--point", required=True)
-    parser.add_argument("--normal", required=True)
+    parser.add_argument("--point", required=True,
+                        help="x,y,z in m, moved onto the rest surface (its closest point)")
+    parser.add_argument("--normal", required=True, help="outward; the sphere moves along -normal")
     parser.add_argument("--radius-mm", type=float, required=True)
     parser.add_argument("--depths-mm", required=True)
-    parser.add_argument("--level", type=int, default=8)
-    parser.add_argument("--json")
+    parser.add_argument("--level", type=int, default=8, help="lattice level per triangle")
+    parser.add_argument("--palpate", metavar="SPHERE_PRESS",
+                        help="also run palpate_sphere_press and print the comparison")
+    parser.add_argument("--json", help="write the answers here (default: stdout)")
     a = parser.parse_args(argv)
+
+    def numbers(option, text, count=None):
+        try:
+            values = [float(s) for s in text.split(",")]
+        except ValueError:
+            values = []
+        if not values or (count and len(values) != count) or not np.all(np.isfinite(values)):
+            parser.error(f"{option} '{text}': expected {count or 'some'} numbers "
+                         "separated by commas")
+        return np.array(values)
+
+    point = numbers("--point", a.point, 3)
+    normal = numbers("--normal", a.normal, 3)
+    depths = list(1e-3 * numbers("--depths-mm", a.depths_mm))
+    if not (a.radius_mm > 0) or np.linalg.norm(normal) == 0 or min(depths) <= 0:
+        parser.error("--radius-mm and the depths must be positive, --normal not zero")
     organ = Organ(a.model)
-    point = [float(s) for s in a.point.split(",")]
-    normal = [float(s) for s in a.normal.split(",")]
-    depths = [1e-3 * float(s) for s in a.depths_mm.split(",")]
+    point = surface_point(organ, point)
+    print(f"point on the surface: {','.join(f'{v:.6f}' for v in point)} m", file=sys.stderr)
     answers = press(organ, point, normal, 1e-3 * a.radius_mm, depths, level=a.level)
     for ans in answers:
         ans["compliance_agreement"] = compliance_agreement(organ, ans.pop("compliance_vertices"),
                                                            ans.pop("compliance_block_m_per_n"))
         print(f"depth {1e3 * ans['depth_m']:.2f} mm: force {ans['force_n']:.5f} N, "
-              f"{ans['iterations']} iterations, {ans['active_samples']} of {ans['samples']} samples "
-              f"active, penetration {1e6 * ans['max_penetration_m']:.2f} um, "
+              f"{ans['iterations']} iterations, "
+              f"{ans['active_samples']} of {ans['samples']} samples active, "
+              f"penetration {1e6 * ans['max_penetration_m']:.2f} um, "
               f"G agreement {ans['compliance_agreement']:.1e}", file=sys.stderr)
-    text = json.dumps({"model": a.model, "level": a.level, "presses": answers}, indent=1)
+    result = {"model": a.model, "level": a.level, "presses": answers}
+    if a.palpate:
+        out = subprocess.run([a.palpate, a.model, "--point", ",".join(repr(v) for v in point),
+                              "--normal", ",".join(repr(v) for v in normal),
+                              "--radius-mm", repr(a.radius_mm), "--depths-mm", a.depths_mm],
+                             capture_output=True, text=True, check=True)
+        result["palpate"] = json.loads(out.stdout)
+        print("| depth (mm) | reference (N) | palpate (N), held min-max | difference |",
+              file=sys.stderr)
+        for p, q in zip(result["palpate"]["presses"], answers):
+            print(f"| {1e3 * p['depth_m']:g} | {q['force_n']:.3f} | {p['force_n']:.3f} "
+                  f"({p['force_min_n']:.3f}-{p['force_max_n']:.3f}) | "
+                  f"{100 * (p['force_n'] / q['force_n'] - 1):+.1f} % |", file=sys.stderr)
+    text = json.dumps(result, indent=1)
     if a.json:
         with open(a.json, "w") as f:
             f.write(text)

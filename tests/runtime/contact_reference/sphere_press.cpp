@@ -18,14 +18,15 @@
 // Usage: palpate_sphere_press MODEL.h5 --point X,Y,Z --normal NX,NY,NZ
 //            --radius-mm R --depths-mm D1,D2,... [--ramp-ticks 200] [--hold-ticks 300]
 //            [--max-iterations N (the [contact] setting, default 8)]
-// Prints one JSON object on stdout; exits 2 on bad arguments, 1 when a pose
-// is refused or a solve fails.
+// Prints one JSON object on stdout; exits 2 on bad arguments or an unreadable
+// model, 1 when a pose is refused or a solve fails.
 
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <string>
 #include <vector>
 
@@ -106,7 +107,13 @@ int main(int argc, char** argv) {
   if (depths_mm.empty()) usage("--depths-mm is required");
   if (ramp_ticks < 1 || hold_ticks < 4) usage("--ramp-ticks ≥ 1 and --hold-ticks ≥ 4");
 
-  const palpate::SurfaceModel model = palpate::load_surface_model("organ", model_path);
+  palpate::SurfaceModel model;
+  try {
+    model = palpate::load_surface_model("organ", model_path);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sphere_press: %s\n", e.what());
+    return 2;
+  }
   const Vector3d p(point[0], point[1], point[2]);
   const Vector3d n = Vector3d(normal[0], normal[1], normal[2]).normalized();
   const double r = radius_mm * 1e-3;
@@ -125,8 +132,8 @@ int main(int argc, char** argv) {
   // A sphere has no orientation of its own; the tool's +z along the press.
   const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -n);
 
-  std::string json = "{\n  \"model\": \"" + model_path + "\",\n  \"radius_m\": " +
-                     std::to_string(r) + ",\n  \"point_m\": " + vec(p) +
+  std::string json = "{\n  \"model\": \"" + model_path +
+                     "\",\n  \"radius_m\": " + std::to_string(r) + ",\n  \"point_m\": " + vec(p) +
                      ",\n  \"normal\": " + vec(n) + ",\n  \"presses\": [";
   std::uint64_t sequence = 0;
   double t = 0, previous_depth = 0;
@@ -167,11 +174,11 @@ int main(int argc, char** argv) {
     }
     previous_depth = depth;
     json += std::string(k ? "," : "") + "\n    {\"depth_m\": " + std::to_string(depth) +
-            ", \"centre_m\": " + vec(centre) +
-            ", \"force_n\": " + std::to_string(sum / averaged) +
-            ", \"force_min_n\": " + std::to_string(lo) + ", \"force_max_n\": " +
-            std::to_string(hi) + ", \"force_vector_n\": " + vec(sum_vector / averaged) +
-            ",\n     \"held_forces_n\": [" + held + "],\n     \"contact_points\": [";
+            ", \"centre_m\": " + vec(centre) + ", \"force_n\": " + std::to_string(sum / averaged) +
+            ", \"force_min_n\": " + std::to_string(lo) +
+            ", \"force_max_n\": " + std::to_string(hi) +
+            ", \"force_vector_n\": " + vec(sum_vector / averaged) + ",\n     \"held_forces_n\": [" +
+            held + "],\n     \"contact_points\": [";
     // The last tick's contacts and loads, for the test's own checks.
     bool first = true;
     for (const palpate::ContactPoint& c : engine.contact_points()) {

@@ -3,33 +3,34 @@
 solution (issue 17; docs/model.md, "An independent check of the contact").
 
 Makes the sample organ (8 mm tetrahedra, the demo's materials and attachment),
-presses a frictionless rigid sphere into it with palpate's ToolContactEngine
-(palpate_sphere_press: 200 ticks per millimetre, 300 held ticks, the mean of
-the last 75), and solves the same press with reference_contact.py: its own
-stiffness K from the mesh and materials of the file, its own factorization,
-non-penetration at lattice samples of every surface triangle near the sphere
-plus refinement at the points still penetrated, an exact least-distance
-solve per linearization and a fixed point on the sphere's normals. Same
-mesh, same material, same attachment: what differs is how the contact is
-found and solved.
+presses a frictionless rigid 5 mm sphere into it at three points, 1 to 5 mm,
+with palpate's ToolContactEngine (palpate_sphere_press: 200 ticks per
+millimetre, 300 held ticks, the mean of the last 75), and solves the same
+press with reference_contact.py: its own stiffness K from the mesh and
+materials of the file, its own factorization, non-penetration at lattice
+samples of every surface triangle near the sphere plus refinement at the
+points still penetrated, an exact least-distance solve per linearization and a
+fixed point on the sphere's normals. Same mesh, same material, same
+attachment: what differs is how the contact is found and solved.
 
 Tolerances, per press (force along the press, relative to the reference):
 - the reference itself: its compliance on the contact vertices equals the
   file's G to 1e-9 (the same model; 7e-14 measured), its normals' fixed point
   converged (change < 1e-9), no triangle penetrated by more than 1e-4 r
   (after refinement: < 1e-5 r measured) and its forces move by < 0.3 % from
-  lattice level 4 to 16 (measured 0.2 % at most);
+  lattice level 4 to 8 (measured 0.23 % at most: the refinement, not the
+  lattice, places the active samples);
 - a press whose held force is steady in palpate (its last 75 ticks within
   0.1 %: the tick-to-tick iteration reached a fixed point): within 1 %
   (measured 0.3 % at most: the same fixed point, up to the reference's
   refinement tolerance);
-- a press whose contact set alternates from tick to tick (a limit cycle of
-  2 to 6 ticks): the mean force within 10 %, the issue's target, on the
-  press of `lower_face_x20_y10`; on `lower_face_x0_y30` at 4 and 5 mm the
-  cycle's mean is 7 % and 13 % below the reference (every tick of the cycle
-  is below it, and its triangles are penetrated by up to 0.8 mm): the 10 %
-  target is not met there, and the test holds it to 20 % so that it fails if
-  this gets worse (docs/model.md explains the cycle).
+- a press whose contact set alternates from tick to tick (a limit cycle of 2
+  to 6 ticks): the mean force within 10 %, the issue's target, on the presses
+  of `lower_face_x20_y10` and `upper_face_x40_ym10`; on `lower_face_x0_y30` at
+  4 and 5 mm the cycle's mean is 7 % and 13 % below the reference (every tick
+  of the cycle is below it, and its triangles are penetrated by up to 0.8 mm):
+  the 10 % target is not met there, and the test holds it to 20 % so that it
+  fails if this gets worse (docs/model.md explains the cycle).
 
 Usage: sphere_press_test.py PRECOMPUTE SPHERE_PRESS
 """
@@ -49,7 +50,7 @@ PRECOMPUTE = SPHERE_PRESS = None
 ENV = dict(os.environ, OPENBLAS_NUM_THREADS="1")
 
 # The sample organ is an ellipsoid, semi-axes 80 x 50 x 40 mm: a point aimed
-# at on its lower face, moved onto the mesh; pressed along the ellipsoid's
+# at on its lower (or upper) face, moved onto the mesh; pressed along the ellipsoid's
 # outward normal there. Tolerance per depth (mm), see the docstring.
 SCENARIOS = {
     "lower_face_x20_y10": dict(aim=(0.02, 0.01), radius_mm=5,
@@ -57,6 +58,8 @@ SCENARIOS = {
     "lower_face_x0_y30": dict(aim=(0.0, 0.03), radius_mm=5,
                                      alternating_tolerance={1: 0.10, 2: 0.10, 3: 0.10,
                                                             4: 0.20, 5: 0.20}),
+    "upper_face_x40_ym10": dict(aim=(0.04, -0.01), side=1, radius_mm=5,
+                                alternating_tolerance={d: 0.10 for d in (1, 2, 3, 4, 5)}),
 }
 DEPTHS_MM = (1, 2, 3, 4, 5)
 STEADY_TOLERANCE = 0.01
@@ -69,9 +72,9 @@ def run(*args):
     return p.stdout
 
 
-def ellipsoid_point(x, y):
+def ellipsoid_point(x, y, side=-1):
     a, b, c = 0.08, 0.05, 0.04
-    z = -c * np.sqrt(1 - (x / a) ** 2 - (y / b) ** 2)
+    z = side * c * np.sqrt(1 - (x / a) ** 2 - (y / b) ** 2)
     n = np.array([x / a ** 2, y / b ** 2, z / c ** 2])
     return np.array([x, y, z]), n / np.linalg.norm(n)
 
@@ -89,7 +92,7 @@ class SpherePress(unittest.TestCase):
         cls.organ = reference_contact.Organ(model)
         cls.results = {}
         for name, s in SCENARIOS.items():
-            aim, normal = ellipsoid_point(*s["aim"])
+            aim, normal = ellipsoid_point(*s["aim"], s.get("side", -1))
             point = reference_contact.surface_point(cls.organ, aim)
             palpate = json.loads(run(
                 SPHERE_PRESS, model, "--point", ",".join(repr(v) for v in point),
