@@ -23,6 +23,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # independent reader used by the tests (Debian's python3, not a venv)
   python3 python3-h5py python3-numpy
+  # the independent contact check (tests/runtime/contact_reference): sparse LU, NNLS
+  python3-scipy
   # DDS middleware and its tools (ddsperf), network namespaces
   cyclonedds-dev cyclonedds-tools iproute2 util-linux
   # DDS Security: Cyclone's plugins (libddsc0debian, with cyclonedds-dev) and
