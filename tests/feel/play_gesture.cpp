@@ -65,15 +65,15 @@ int main(int argc, char** argv) {
                    gesture.name.c_str(), trace.failed_solves);
     if (!output.empty()) {
       // The reference's horizon: where round-off alone changes the trace.
-      palpate::feel::FeelTrace reference = trace;
-      palpate::feel::find_horizon(reference, model, gesture, setup);
-      for (std::size_t k = 0; k < reference.tools.size(); ++k)
-        if (reference.horizon[k] < reference.ticks)
+      palpate::feel::FeelTrace written = trace;
+      palpate::feel::find_horizon(written, model, gesture, setup);
+      for (std::size_t k = 0; k < written.tools.size(); ++k)
+        if (written.horizon[k] < written.ticks)
           std::printf("%s: %s: round-off changes the trace from %.3f s: compared until then\n",
-                      gesture.name.c_str(), reference.tools[k].c_str(),
-                      reference.horizon[k] / setup.rate_hz);
+                      gesture.name.c_str(), written.tools[k].c_str(),
+                      written.horizon[k] / setup.rate_hz);
       palpate::feel::write_csv(
-          output, reference, stride,
+          output, written, stride,
           "palpated's default tools on the sample organ (tests/feel/make_organ.sh), 1 kHz");
     }
     if (!reference.empty()) {
