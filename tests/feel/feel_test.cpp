@@ -128,6 +128,7 @@ TEST_F(FeelTest, RoundOffInTheComplianceIsAccepted) {
   for (const auto& name : gestures()) {
     const FeelComparison c = against_reference(name, noisy);
     EXPECT_TRUE(c.passed()) << name << ": " << c.summary();
+    std::printf("  G ± 1e-12  %-20s %s\n", name.c_str(), c.summary().c_str());
   }
 }
 
@@ -138,6 +139,7 @@ TEST_F(FeelTest, AStifferOrganIsRejected) {
   for (const auto& name : kWhole) {
     const FeelComparison c = against_reference(name, stiffer);
     EXPECT_FALSE(c.passed()) << name << ": a 2 % stiffer organ passed: " << c.summary();
+    std::printf("  E x 1.02   %-20s %s\n", name.c_str(), c.summary().c_str());
   }
 }
 
@@ -151,6 +153,7 @@ TEST_F(FeelTest, MoreFrictionIsRejectedWhereTheTipSlides) {
   for (const auto& name : {"glide", "two-handed"}) {
     const FeelComparison c = against_reference(name, model(), setup);
     EXPECT_FALSE(c.passed()) << name << ": friction 0.31 passed: " << c.summary();
+    std::printf("  mu 0.31    %-20s %s\n", name, c.summary().c_str());
   }
   for (const auto& name : {"press", "grasp-pull-release"}) {
     const FeelComparison c = against_reference(name, model(), setup);
@@ -167,6 +170,7 @@ TEST_F(FeelTest, AGestureMovedBy1MillimetreIsRejected) {
       for (auto& key : tool.keyframes) key.tip_m.x() += 0.001;
     const FeelComparison c = against_reference(name, moved, model());
     EXPECT_FALSE(c.passed()) << name << ": moved 1 mm, passed: " << c.summary();
+    std::printf("  moved 1 mm %-20s %s\n", name.c_str(), c.summary().c_str());
   }
 }
 
