@@ -19,7 +19,12 @@ if [ ! -f "$build/CMakeCache.txt" ]; then
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 fi
 echo "regenerate-feel-traces: building palpate-precompute and palpate_play_gesture in $build"
-cmake --build "$build" -j2 --target palpate-precompute palpate_play_gesture >/dev/null
+if ! cmake --build "$build" -j2 --target palpate-precompute palpate_play_gesture \
+  >"$build/regenerate-feel-traces-build.log" 2>&1; then
+  tail -n 30 "$build/regenerate-feel-traces-build.log" >&2
+  echo "regenerate-feel-traces: the build failed (log: $build/regenerate-feel-traces-build.log)" >&2
+  exit 1
+fi
 player=$build/tests/feel/palpate_play_gesture
 precompute=$build/precompute/palpate-precompute
 
