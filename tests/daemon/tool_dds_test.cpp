@@ -13,6 +13,7 @@
 #include "palpate.h"
 #include "palpate/core/units.hpp"
 #include "palpate/file/compliance_file.hpp"
+#include "palpate/transport/client.hpp"
 #include "palpate/transport/dds.hpp"
 #include "palpate/transport/tool_client.hpp"
 #include "support/box_job.hpp"
@@ -54,8 +55,10 @@ class ToolsOverDdsTest : public ::testing::Test {
     ASSERT_TRUE(info) << daemon_->log();
     info_ = new ModelInfo(*info);
     ASSERT_TRUE(client_->wait_for_daemon(kTimeout)) << daemon_->log();
+    viewer_ = new Client(ClientOptions{"tool-viewer", 0, "", true, false});
   }
   static void TearDownTestSuite() {
+    delete viewer_;
     delete client_;
     EXPECT_EQ(daemon_->stop(SIGTERM), 0) << daemon_->log();
     // The session was recorded and closed: the final file, no .partial.
@@ -137,6 +140,73 @@ class ToolsOverDdsTest : public ::testing::Test {
     Vector3d force() const { return last ? Vector3d(last->force_n.data()) : Vector3d::Zero(); }
   };
 
+  /// The surface sample of a tick of @p hand (held still) and that tick's
+  /// feedback: the hand ticks until the stream publishes one of its ticks
+  /// (the stream runs at the visual rate, so it skips most). Poses keep
+  /// coming meanwhile: no watchdog.
+  static std::pair<SurfaceSample, ToolFeedbackSample> shown_tick(Hand& hand) {
+    for (int attempt = 0; attempt < 200; ++attempt) {
+      hand.tick();
+      if (auto s = viewer_->wait_surface("box", 0, hand.sequence, 20ms); s && hand.last)
+        if (hand.last->sequence == hand.sequence) return {std::move(*s), *hand.last};
+    }
+    ADD_FAILURE() << "no surface sample of a tick of " << hand.tool << "\n" << daemon_->log();
+    return {};
+  }
+
+  /// What every contact point of @p s must satisfy (docs/dds.md,
+  /// SurfaceContact): a tool's point, its vertices valid with weights summing
+  /// to 1, and its position Σ w_i (rest_i + u_i) of the sample's own
+  /// displacement u: on the deformed triangle. @returns Σ of the points' forces.
+  static Vector3d check_contact_points(const SurfaceSample& s, const std::string& tool) {
+    const DrawnSurface& surface = info_->surface;
+    const auto ns = static_cast<std::size_t>(surface.compliance_vertex_count);
+    EXPECT_EQ(s.displacement_m.size(), 3 * ns);
+    double largest_u = 0;
+    for (std::size_t a = 0; a < ns; ++a)
+      largest_u = std::max(largest_u, Eigen::Map<const Vector3d>(&s.displacement_m[3 * a]).norm());
+    // The engine's point and the stream's field are the same G f, summed
+    // in another order: they agree to rounding, far below 1e-9 of the press.
+    const double on_surface_m = 1e-9 * largest_u;
+    Vector3d total = Vector3d::Zero();
+    for (const SurfaceContactSample& c : s.contact_points) {
+      EXPECT_EQ(c.tool_id, tool);
+      const Vector3d at(c.position_m.data()), f(c.force_n.data());
+      EXPECT_TRUE(at.allFinite() && f.allFinite());
+      Vector3d expected = Vector3d::Zero();
+      double weight_sum = 0;
+      int used = 0;
+      for (std::size_t i = 0; i < 3; ++i) {
+        const std::uint32_t v = c.vertices[i];
+        if (v == SurfaceContactSample::kNoVertex) {
+          EXPECT_EQ(c.weights[i], 0.0);
+          continue;
+        }
+        EXPECT_EQ(used, static_cast<int>(i)) << "used slots come first";
+        ++used;
+        EXPECT_GT(c.weights[i], 0.0);
+        const auto drawn = static_cast<std::size_t>(
+            std::find(surface.vertex_ids.begin(), surface.vertex_ids.end(), v) -
+            surface.vertex_ids.begin());
+        EXPECT_LT(drawn, surface.vertex_ids.size()) << "mesh vertex " << v << " is not drawn";
+        if (drawn >= surface.vertex_ids.size()) continue;
+        Vector3d x = rest(static_cast<int>(drawn));
+        if (drawn < ns) x += Eigen::Map<const Vector3d>(&s.displacement_m[3 * drawn]);
+        expected += c.weights[i] * x;
+        weight_sum += c.weights[i];
+      }
+      EXPECT_GE(used, 1);
+      EXPECT_NEAR(weight_sum, 1.0, 1e-12);
+      if (c.held) {
+        EXPECT_EQ(used, 1) << "a held point is one vertex";
+      }
+      EXPECT_LE((at - expected).norm(), on_surface_m)
+          << "contact point off its deformed triangle by " << (at - expected).norm() << " m";
+      total += f;
+    }
+    return total;
+  }
+
   static bool saw_event(const std::vector<ToolEventSample>& events, const std::string& tool,
                         ToolEventKind kind) {
     for (const auto& e : events)
@@ -149,6 +219,7 @@ class ToolsOverDdsTest : public ::testing::Test {
   inline static testing::Daemon* daemon_ = nullptr;
   inline static Eigen::MatrixXd* G_ = nullptr;
   inline static ToolClient* client_ = nullptr;
+  inline static Client* viewer_ = nullptr;
   inline static ModelInfo* info_ = nullptr;
   inline static std::uint64_t next_sequence_ = 0;
   inline static std::chrono::steady_clock::time_point next_tick_{};
@@ -190,6 +261,61 @@ TEST_F(ToolsOverDdsTest, PressingGivesTheDirectSolveAndWithdrawingGivesNothing) 
   EXPECT_GT(probe.answered, 100);
 }
 
+TEST_F(ToolsOverDdsTest, TheSurfaceStreamCarriesTheContactPointsOnTheDeformedTriangles) {
+  // A top triangle of free vertices: the probe presses its centroid, a
+  // point between vertices.
+  const DrawnSurface& surface = info_->surface;
+  Vector3d centroid = Vector3d::Zero();
+  for (int t = 0; t < surface.triangle_count() && centroid.isZero(); ++t) {
+    Vector3d sum = Vector3d::Zero();
+    bool top = true;
+    for (int i = 0; i < 3; ++i) {
+      const auto v = static_cast<int>(surface.triangles[3 * static_cast<std::size_t>(t) + i]);
+      top &= v < surface.compliance_vertex_count && std::abs(rest(v).z() - 0.040) < 1e-9;
+      sum += rest(v);
+    }
+    if (top && std::abs(sum.x() / 3 - 0.060) < 0.008 && std::abs(sum.y() / 3 - 0.025) < 0.008)
+      centroid = sum / 3;
+  }
+  ASSERT_FALSE(centroid.isZero());
+  const double r = 0.002;
+  Hand probe("probe", centroid + Vector3d(0, 0, r + 0.002));
+  probe.move(centroid + Vector3d(0, 0, r - 0.002), 0);
+  probe.hold(5);
+  const auto [sample, feedback] = shown_tick(probe);
+  ASSERT_FALSE(sample.contact_points.empty()) << daemon_->log();
+  EXPECT_EQ(sample.source_client_id, "tool:probe");
+  EXPECT_EQ(sample.contact_points.size(), feedback.contacts) << "the tool's points, all of them";
+  const Vector3d total = check_contact_points(sample, "probe");
+  bool inside_a_triangle = false;
+  for (const auto& c : sample.contact_points) {
+    EXPECT_FALSE(c.held);
+    inside_a_triangle |= c.vertices[2] != SurfaceContactSample::kNoVertex;
+    // Friction holds every point (friction = 1e9): each is put back onto
+    // the sphere exactly, to the solve's rounding (1e-9 of r).
+    const double from_centre = (Vector3d(c.position_m.data()) - probe.at).norm();
+    EXPECT_NEAR(from_centre, r, 1e-9 * r) << "a point of the tip's surface";
+  }
+  EXPECT_TRUE(inside_a_triangle) << "the centroid is pressed between vertices";
+  // The feedback is minus the points' sum (under the 100 N limit, the slew
+  // limit 1e6 N/s caught up), and the vertex loads f_S = Hᵀ f_C the same sum
+  // (no point touches a fixed vertex): both to rounding, 1e-9 relative.
+  EXPECT_FALSE(feedback.force_limited);
+  EXPECT_LT((total + Vector3d(feedback.force_n.data())).norm(), 1e-9 * total.norm());
+  Vector3d loads = Vector3d::Zero();
+  for (std::size_t i = 0; i < sample.constrained_forces_n.size(); ++i)
+    loads[static_cast<Eigen::Index>(i % 3)] += sample.constrained_forces_n[i];
+  EXPECT_LT((loads - total).norm(), 1e-9 * total.norm());
+  EXPECT_LT((Vector3d(sample.total_force_n.data()) - total).norm(), 1e-9 * total.norm());
+
+  // Withdrawn: the tool's state shows no contact point.
+  probe.move(centroid + Vector3d(0, 0, r + 0.002), 0);
+  const auto [after, withdrawn] = shown_tick(probe);
+  EXPECT_EQ(withdrawn.state, ToolState::kFree);
+  EXPECT_TRUE(after.contact_points.empty());
+  EXPECT_TRUE(after.constrained_vertices.empty());
+}
+
 TEST_F(ToolsOverDdsTest, GraspPullAndReleaseArriveInOrderAndReleaseRestoresTheOrgan) {
   const int v = top_vertex(75, 25);
   const double reach = 0.015 + 0.004;  // default capsule: 15 mm long, radius 4 mm
@@ -204,6 +330,21 @@ TEST_F(ToolsOverDdsTest, GraspPullAndReleaseArriveInOrderAndReleaseRestoresTheOr
   left.move(in + Vector3d(0, 0, 0.008), 0);  // pull up
   left.hold(10);
   EXPECT_LT(left.force().z(), -0.05) << "the organ holds the pliers back";
+  {
+    // The held vertices reach the surface stream as held contact points,
+    // each on its deformed vertex, their forces what the jaws feel. The
+    // slew limit (500 N/s) has caught up after the hold: the feedback is
+    // minus their sum, to rounding (1e-12 N on ~0.1 N).
+    const auto [sample, feedback] = shown_tick(left);
+    EXPECT_EQ(sample.source_client_id, "tool:left");
+    int held = 0;
+    for (const auto& c : sample.contact_points) held += c.held;
+    EXPECT_GT(held, 0);
+    EXPECT_EQ(sample.contact_points.size(), feedback.contacts);
+    const Vector3d total = check_contact_points(sample, "left");
+    EXPECT_FALSE(feedback.force_limited);
+    EXPECT_LT((total + Vector3d(feedback.force_n.data())).norm(), 1e-12 + 1e-9 * total.norm());
+  }
   left.move(in + Vector3d(0, 0, 0.008), degrees(40));  // open
   left.move(above, degrees(40));
   left.hold(10);
