@@ -4,7 +4,8 @@
 // what its legend means, exaggerate the drawn shape by the asked factor (and
 // only the shape), move the organ when palpate-pliers presses it, draw the
 // tool's contact points where the surface stream puts them (a request's
-// constrained vertex otherwise), let it go back to rest when the tool leaves, and show a page that
+// constrained vertex otherwise; the vertices the jaws hold as cubes), let
+// it go back to rest when the tool leaves, and show a page that
 // opens after palpated stopped the rest shape, not palpated's last state.
 // Screenshots go to --out.
 //
@@ -21,7 +22,7 @@ import { execFile, spawn } from 'node:child_process';
 import { mkdirSync } from 'node:fs';
 import { request } from 'node:http';
 import { connect } from 'node:net';
-import { join } from 'node:path';
+import { dirname, join } from 'node:path';
 import { parseArgs } from 'node:util';
 import { chromium } from 'playwright-core';
 
@@ -330,6 +331,32 @@ try {
   const after = await drawnDisplacement(page);
   check(after < REST_M, 'back at rest once the tool is gone', `${after.toExponential(2)} m`);
   await page.screenshot({ path: join(args.out, 'viewer-after.png') });
+
+  // 7b. The jaws grasp (config/gestures/grasp-pull-release.toml, beside
+  //     --gesture): the held vertices are drawn as held markers, in the
+  //     tool's colour, at their streamed positions.
+  const grasp = spawn(args.pliers, [join(dirname(args.gesture), 'grasp-pull-release.toml'), '--model', args.model,
+                                    '--tool', 'left', '-q'], { stdio: ['ignore', 'inherit', 'inherit'] });
+  pliers = grasp;
+  const graspDone = new Promise((resolve) => grasp.on('exit', resolve));
+  await page.waitForFunction(() => {
+    const v = window.palpateViewer;
+    return v.tools.left && v.tools.left.state === 'grasping' && v.drawnContactPoints().some((q) => q.held);
+  }, null, { timeout: TIMEOUT_MS }).catch(() => {});
+  const grasped = await page.evaluate(() => {
+    const v = window.palpateViewer;
+    return { points: v.streamedContactPoints(), markers: v.drawnContactPoints(), leftColour: v.toolColour('left') };
+  });
+  const heldStreamed = grasped.points.filter((q) => q.held), heldDrawn = grasped.markers.filter((q) => q.held);
+  const heldOff = heldStreamed.reduce((worst, q, i) => Math.max(worst,
+    heldDrawn[i] ? Math.hypot(...q.position.map((x, c) => x - heldDrawn[i].position[c])) : Infinity), 0);
+  check(heldStreamed.length > 0 && heldDrawn.length === heldStreamed.length && heldOff <= FLOAT32_M &&
+        heldDrawn.every((q) => q.colour === grasped.leftColour) && heldStreamed.every((q) => q.tool_id === 'left'),
+    'the held vertices are drawn as held markers at their streamed positions, in the tool\'s colour',
+    `${heldStreamed.length} held, ${heldDrawn.length} drawn, ${heldOff.toExponential(2)} m off`);
+  await page.screenshot({ path: join(args.out, 'viewer-grasp.png') });
+  await graspDone;
+  pliers = null;
 
   const status = await page.evaluate(() => window.palpateViewer.status);
   check(status && status.daemon && status.daemon.models === 1, 'the daemon status reaches the page');
