@@ -87,6 +87,9 @@ constexpr auto kToolForgotten = std::chrono::seconds(2);
 // Tools drawn at most: ids beyond are ignored (a misbehaving client cannot
 // grow the bridge without bound).
 constexpr std::size_t kMaxTools = 64;
+// Contact points passed on per surface frame at most (palpated sends at most
+// limits.max_constraints, 64 by default, 1024 at most).
+constexpr std::size_t kMaxContactPoints = 1024;
 
 }  // namespace
 
@@ -264,7 +267,8 @@ struct Feed::Impl {
     const auto nc = static_cast<std::uint32_t>(
         std::min(s.constrained_vertices.size(), s.constrained_forces_n.size() / 3));
     FrameWriter frame(kSurfaceFrame);
-    frame.reserve(96 + 12 * static_cast<std::size_t>(ns) + 16 * static_cast<std::size_t>(nc));
+    frame.reserve(128 + 12 * static_cast<std::size_t>(ns) + 16 * static_cast<std::size_t>(nc) +
+                  64 * s.contact_points.size());
     frame.string(s.model_id);
     frame.string(s.source_client_id);
     frame.u32(static_cast<std::uint32_t>(s.sequence_number));
@@ -282,7 +286,45 @@ struct Feed::Impl {
       frame.u32(drawn);
     }
     for (std::uint32_t i = 0; i < 3 * nc; ++i) frame.f32(s.constrained_forces_n[i]);
+    write_contact_points(s, index == drawn_index.end() ? nullptr : &index->second, frame);
     sink({Message::Kind::kSurface, s.model_id, {}, frame.take()});
+  }
+
+  /// The tools' contact points, after the constrained vertices (a page that
+  /// predates them stops reading before): the tools' ids, then per point
+  /// its tool (index into those ids), whether it is held, its drawn vertices
+  /// (kNoVertex when unused or unknown), weights, position and force
+  /// (docs/viewer.md, "Surface frame").
+  static void write_contact_points(const SurfaceSample& s,
+                                   const std::unordered_map<std::uint32_t, std::uint32_t>* index,
+                                   FrameWriter& frame) {
+    const auto& points = s.contact_points;
+    const auto np = static_cast<std::uint32_t>(std::min(points.size(), kMaxContactPoints));
+    std::vector<std::string> ids;
+    std::vector<std::uint32_t> tool_of(np);
+    for (std::uint32_t c = 0; c < np; ++c) {
+      const auto it = std::find(ids.begin(), ids.end(), points[c].tool_id);
+      tool_of[c] = static_cast<std::uint32_t>(it - ids.begin());
+      if (it == ids.end()) ids.push_back(points[c].tool_id);
+    }
+    frame.u32(static_cast<std::uint32_t>(ids.size()));
+    for (const std::string& id : ids) frame.string(id);
+    frame.u32(np);
+    for (std::uint32_t c = 0; c < np; ++c) frame.u32(tool_of[c]);
+    for (std::uint32_t c = 0; c < np; ++c) frame.u32(points[c].held ? 1 : 0);
+    for (std::uint32_t c = 0; c < np; ++c)
+      for (const std::uint32_t v : points[c].vertices) {
+        std::uint32_t drawn = kNoVertex;
+        if (index)
+          if (const auto it = index->find(v); it != index->end()) drawn = it->second;
+        frame.u32(drawn);
+      }
+    for (std::uint32_t c = 0; c < np; ++c)
+      for (const double w : points[c].weights) frame.f32(w);
+    for (std::uint32_t c = 0; c < np; ++c)
+      for (const double x : points[c].position_m) frame.f32(x);
+    for (std::uint32_t c = 0; c < np; ++c)
+      for (const double f : points[c].force_n) frame.f32(f);
   }
 
   /// A model's surface stream has no live writer any more (palpated

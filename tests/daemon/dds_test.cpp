@@ -277,6 +277,8 @@ TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMove
              vec(shown.results[0].force_n))
                 .norm(),
             1e-15);
+  // A request constrains vertices: no contact points (docs/dds.md).
+  EXPECT_TRUE(sample->contact_points.empty());
 
   // A query (update_state = false) and a refused request leave the state alone:
   // the next state the viewer sees is the next state-changing request's.

@@ -8,11 +8,13 @@
 #include <Eigen/Dense>
 #include <chrono>
 #include <fstream>
+#include <map>
 #include <thread>
 
 #include "palpate.h"
 #include "palpate/core/units.hpp"
 #include "palpate/file/compliance_file.hpp"
+#include "palpate/transport/client.hpp"
 #include "palpate/transport/dds.hpp"
 #include "palpate/transport/tool_client.hpp"
 #include "support/box_job.hpp"
@@ -54,8 +56,10 @@ class ToolsOverDdsTest : public ::testing::Test {
     ASSERT_TRUE(info) << daemon_->log();
     info_ = new ModelInfo(*info);
     ASSERT_TRUE(client_->wait_for_daemon(kTimeout)) << daemon_->log();
+    viewer_ = new Client(ClientOptions{"tool-viewer", 0, "", true, false});
   }
   static void TearDownTestSuite() {
+    delete viewer_;
     delete client_;
     EXPECT_EQ(daemon_->stop(SIGTERM), 0) << daemon_->log();
     // The session was recorded and closed: the final file, no .partial.
@@ -137,6 +141,79 @@ class ToolsOverDdsTest : public ::testing::Test {
     Vector3d force() const { return last ? Vector3d(last->force_n.data()) : Vector3d::Zero(); }
   };
 
+  /// The surface sample of a tick of @p hand (held still) and that tick's
+  /// feedback: the hand ticks until the stream publishes one of its ticks
+  /// (the stream runs at the visual rate, so it skips most). Poses keep
+  /// coming meanwhile: no watchdog.
+  static std::pair<SurfaceSample, ToolFeedbackSample> shown_tick(Hand& hand) {
+    for (int attempt = 0; attempt < 200; ++attempt) {
+      hand.tick();
+      if (auto s = viewer_->wait_surface("box", 0, hand.sequence, 20ms); s && hand.last)
+        if (hand.last->sequence == hand.sequence) return {std::move(*s), *hand.last};
+    }
+    ADD_FAILURE() << "no surface sample of a tick of " << hand.tool << "\n" << daemon_->log();
+    return {};
+  }
+
+  /// What every contact point of @p s must satisfy (docs/dds.md,
+  /// SurfaceContact): a tool's point, its vertices valid with weights summing
+  /// to 1, and its position Σ w_i (rest_i + u_i) of the sample's own
+  /// displacement u: on the deformed triangle. @returns per tool id, the
+  /// number of its points and Σ of their forces.
+  struct ToolPoints {
+    std::uint32_t count = 0;
+    Vector3d force = Vector3d::Zero();
+  };
+  static std::map<std::string, ToolPoints> check_contact_points(const SurfaceSample& s) {
+    const DrawnSurface& surface = info_->surface;
+    const auto ns = static_cast<std::size_t>(surface.compliance_vertex_count);
+    EXPECT_EQ(s.displacement_m.size(), 3 * ns);
+    double largest_u = 0;
+    for (std::size_t a = 0; a < ns; ++a)
+      largest_u = std::max(largest_u, Eigen::Map<const Vector3d>(&s.displacement_m[3 * a]).norm());
+    // The engine's point and the stream's field are the same G f, summed
+    // in another order: they agree to rounding, far below 1e-9 of the press.
+    const double on_surface_m = 1e-9 * largest_u;
+    std::map<std::string, ToolPoints> tools;
+    for (const SurfaceContactSample& c : s.contact_points) {
+      EXPECT_TRUE(c.tool_id == "probe" || c.tool_id == "left" || c.tool_id == "right") << c.tool_id;
+      const Vector3d at(c.position_m.data()), f(c.force_n.data());
+      EXPECT_TRUE(at.allFinite() && f.allFinite());
+      Vector3d expected = Vector3d::Zero();
+      double weight_sum = 0;
+      int used = 0;
+      for (std::size_t i = 0; i < 3; ++i) {
+        const std::uint32_t v = c.vertices[i];
+        if (v == SurfaceContactSample::kNoVertex) {
+          EXPECT_EQ(c.weights[i], 0.0);
+          continue;
+        }
+        EXPECT_EQ(used, static_cast<int>(i)) << "used slots come first";
+        ++used;
+        EXPECT_GT(c.weights[i], 0.0);
+        const auto drawn = static_cast<std::size_t>(
+            std::find(surface.vertex_ids.begin(), surface.vertex_ids.end(), v) -
+            surface.vertex_ids.begin());
+        EXPECT_LT(drawn, surface.vertex_ids.size()) << "mesh vertex " << v << " is not drawn";
+        if (drawn >= surface.vertex_ids.size()) continue;
+        Vector3d x = rest(static_cast<int>(drawn));
+        if (drawn < ns) x += Eigen::Map<const Vector3d>(&s.displacement_m[3 * drawn]);
+        expected += c.weights[i] * x;
+        weight_sum += c.weights[i];
+      }
+      EXPECT_GE(used, 1);
+      EXPECT_NEAR(weight_sum, 1.0, 1e-12);
+      if (c.held) {
+        EXPECT_EQ(used, 1) << "a held point is one vertex";
+      }
+      EXPECT_LE((at - expected).norm(), on_surface_m)
+          << "contact point off its deformed triangle by " << (at - expected).norm() << " m";
+      ++tools[c.tool_id].count;
+      tools[c.tool_id].force += f;
+    }
+    return tools;
+  }
+
   static bool saw_event(const std::vector<ToolEventSample>& events, const std::string& tool,
                         ToolEventKind kind) {
     for (const auto& e : events)
@@ -149,6 +226,7 @@ class ToolsOverDdsTest : public ::testing::Test {
   inline static testing::Daemon* daemon_ = nullptr;
   inline static Eigen::MatrixXd* G_ = nullptr;
   inline static ToolClient* client_ = nullptr;
+  inline static Client* viewer_ = nullptr;
   inline static ModelInfo* info_ = nullptr;
   inline static std::uint64_t next_sequence_ = 0;
   inline static std::chrono::steady_clock::time_point next_tick_{};
@@ -190,6 +268,63 @@ TEST_F(ToolsOverDdsTest, PressingGivesTheDirectSolveAndWithdrawingGivesNothing) 
   EXPECT_GT(probe.answered, 100);
 }
 
+TEST_F(ToolsOverDdsTest, TheSurfaceStreamCarriesTheContactPointsOnTheDeformedTriangles) {
+  // A top triangle of free vertices: the probe presses its centroid, a
+  // point between vertices.
+  const DrawnSurface& surface = info_->surface;
+  Vector3d centroid = Vector3d::Zero();
+  for (int t = 0; t < surface.triangle_count() && centroid.isZero(); ++t) {
+    Vector3d sum = Vector3d::Zero();
+    bool top = true;
+    for (int i = 0; i < 3; ++i) {
+      const auto v = static_cast<int>(surface.triangles[3 * static_cast<std::size_t>(t) + i]);
+      top &= v < surface.compliance_vertex_count && std::abs(rest(v).z() - 0.040) < 1e-9;
+      sum += rest(v);
+    }
+    if (top && std::abs(sum.x() / 3 - 0.060) < 0.008 && std::abs(sum.y() / 3 - 0.025) < 0.008)
+      centroid = sum / 3;
+  }
+  ASSERT_FALSE(centroid.isZero());
+  const double r = 0.002;
+  Hand probe("probe", centroid + Vector3d(0, 0, r + 0.002));
+  probe.move(centroid + Vector3d(0, 0, r - 0.002), 0);
+  probe.hold(5);
+  const auto [sample, feedback] = shown_tick(probe);
+  ASSERT_FALSE(sample.contact_points.empty()) << daemon_->log();
+  EXPECT_EQ(sample.source_client_id, "tool:probe");
+  EXPECT_EQ(sample.contact_points.size(), feedback.contacts) << "the tool's points, all of them";
+  const auto tools = check_contact_points(sample);
+  EXPECT_EQ(tools.size(), 1u) << "the probe's points only";
+  const Vector3d total = tools.count("probe") ? tools.at("probe").force : Vector3d::Zero();
+  bool inside_a_triangle = false;
+  for (const auto& c : sample.contact_points) {
+    EXPECT_FALSE(c.held);
+    inside_a_triangle |= c.vertices[2] != SurfaceContactSample::kNoVertex;
+    // Friction holds every point (friction = 1e9): each is put back onto
+    // the sphere exactly, to the solve's rounding (1e-9 of r).
+    const double from_centre = (Vector3d(c.position_m.data()) - probe.at).norm();
+    EXPECT_NEAR(from_centre, r, 1e-9 * r) << "a point of the tip's surface";
+  }
+  EXPECT_TRUE(inside_a_triangle) << "the centroid is pressed between vertices";
+  // The feedback is minus the points' sum (under the 100 N limit, the slew
+  // limit 1e6 N/s caught up), and the vertex loads f_S = Hᵀ f_C the same sum
+  // (no point touches a fixed vertex): both to rounding, 1e-9 relative.
+  EXPECT_FALSE(feedback.force_limited);
+  EXPECT_LT((total + Vector3d(feedback.force_n.data())).norm(), 1e-9 * total.norm());
+  Vector3d loads = Vector3d::Zero();
+  for (std::size_t i = 0; i < sample.constrained_forces_n.size(); ++i)
+    loads[static_cast<Eigen::Index>(i % 3)] += sample.constrained_forces_n[i];
+  EXPECT_LT((loads - total).norm(), 1e-9 * total.norm());
+  EXPECT_LT((Vector3d(sample.total_force_n.data()) - total).norm(), 1e-9 * total.norm());
+
+  // Withdrawn: the tool's state shows no contact point.
+  probe.move(centroid + Vector3d(0, 0, r + 0.002), 0);
+  const auto [after, withdrawn] = shown_tick(probe);
+  EXPECT_EQ(withdrawn.state, ToolState::kFree);
+  EXPECT_TRUE(after.contact_points.empty());
+  EXPECT_TRUE(after.constrained_vertices.empty());
+}
+
 TEST_F(ToolsOverDdsTest, GraspPullAndReleaseArriveInOrderAndReleaseRestoresTheOrgan) {
   const int v = top_vertex(75, 25);
   const double reach = 0.015 + 0.004;  // default capsule: 15 mm long, radius 4 mm
@@ -204,6 +339,23 @@ TEST_F(ToolsOverDdsTest, GraspPullAndReleaseArriveInOrderAndReleaseRestoresTheOr
   left.move(in + Vector3d(0, 0, 0.008), 0);  // pull up
   left.hold(10);
   EXPECT_LT(left.force().z(), -0.05) << "the organ holds the pliers back";
+  {
+    // The held vertices reach the surface stream as held contact points,
+    // each on its deformed vertex, their forces what the jaws feel. The
+    // slew limit (500 N/s) has caught up after the hold: the feedback is
+    // minus their sum, to rounding (1e-12 N on ~0.1 N).
+    const auto [sample, feedback] = shown_tick(left);
+    EXPECT_EQ(sample.source_client_id, "tool:left");
+    int held = 0;
+    for (const auto& c : sample.contact_points) held += c.held;
+    EXPECT_GT(held, 0);
+    EXPECT_EQ(sample.contact_points.size(), feedback.contacts);
+    const auto tools = check_contact_points(sample);
+    EXPECT_EQ(tools.size(), 1u) << "the left tool's points only";
+    const Vector3d total = tools.count("left") ? tools.at("left").force : Vector3d::Zero();
+    EXPECT_FALSE(feedback.force_limited);
+    EXPECT_LT((total + Vector3d(feedback.force_n.data())).norm(), 1e-12 + 1e-9 * total.norm());
+  }
   left.move(in + Vector3d(0, 0, 0.008), degrees(40));  // open
   left.move(above, degrees(40));
   left.hold(10);
@@ -249,6 +401,56 @@ TEST_F(ToolsOverDdsTest, TwoToolsPressingTogetherFeelEachOther) {
       << "coupled through G: the right tool changes what the left one feels";
   // Withdraw both.
   for (int i = 0; i < 200; ++i) {
+    left.at.z() += 5e-5;
+    right.at.z() += 5e-5;
+    left.send();
+    right.send();
+    left.receive();
+    right.receive();
+  }
+  EXPECT_EQ(left.force().norm() + right.force().norm(), 0.0);
+}
+
+TEST_F(ToolsOverDdsTest, BothToolsContactPointsReachTheStreamEachNamedByItsTool) {
+  const int a = top_vertex(25, 12.5), b = top_vertex(25, 37.5);
+  const double reach = 0.015 + 0.004;
+  Hand left("left", rest(a) + Vector3d(0, 0, reach + 0.001));
+  Hand right("right", rest(b) + Vector3d(0, 0, reach + 0.001));
+  for (int i = 0; i < 80; ++i) {  // both down 4 mm, 3 mm into the organ
+    left.at.z() -= 5e-5;
+    right.at.z() -= 5e-5;
+    left.send();
+    right.send();
+    left.receive();
+    right.receive();
+  }
+  left.hold(20, &right);
+  ASSERT_TRUE(left.last && right.last);
+  ASSERT_GT(left.last->contacts, 0u);
+  ASSERT_GT(right.last->contacts, 0u);
+  // The shown state of one of the right tool's ticks: every tool's points,
+  // each named by its tool, as many as each tool's feedback counts. Per
+  // tool, their forces are minus its feedback; the left's feedback is of
+  // the tick before (the same still poses, solved again): 1e-6 relative
+  // bounds the difference.
+  std::optional<SurfaceSample> sample;
+  for (int attempt = 0; attempt < 200 && !sample; ++attempt) {
+    left.send();
+    right.send();
+    left.receive();
+    right.receive();
+    sample = viewer_->wait_surface("box", 0, right.sequence, 20ms);
+  }
+  ASSERT_TRUE(sample) << daemon_->log();
+  const auto tools = check_contact_points(*sample);
+  ASSERT_EQ(tools.size(), 2u);
+  for (const Hand* hand : {&left, &right}) {
+    const ToolPoints& points = tools.at(hand->tool);
+    EXPECT_EQ(points.count, hand->last->contacts) << hand->tool;
+    EXPECT_FALSE(hand->last->force_limited) << hand->tool;
+    EXPECT_LT((points.force + hand->force()).norm(), 1e-6 * points.force.norm()) << hand->tool;
+  }
+  for (int i = 0; i < 100; ++i) {  // withdraw both
     left.at.z() += 5e-5;
     right.at.z() += 5e-5;
     left.send();

@@ -18,6 +18,7 @@
 
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/surface_model.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/box_job.hpp"
 #include "support/test_meshes.hpp"
@@ -248,6 +249,56 @@ TEST(Wire, ASurfaceSampleCarriesItsState) {
   const SurfaceSample empty = wire::from_idl(rest);
   EXPECT_TRUE(empty.displacement_m.empty());
   EXPECT_TRUE(empty.constrained_vertices.empty());
+}
+
+TEST(Wire, AContactPointCarriesItsToolVerticesWeightsPositionAndForce) {
+  // Drawn vertices 0..5 are mesh vertices 100..105.
+  const std::vector<std::uint32_t> vertex_ids{100, 101, 102, 103, 104, 105};
+  ContactPoint tip;
+  tip.tool = 1;
+  tip.triangle = 4;
+  tip.vertex_count = 2;  // on an edge
+  tip.vertices = {5, 2, 0};
+  tip.weights = {0.75, 0.25, 0};
+  tip.position_m = {0.01, -0.02, 0.03};
+  tip.force_n = {0.5, 0, -1.5};
+  palpate_SurfaceContact c{};
+  wire::to_idl(tip, "right", vertex_ids, c);
+  const SurfaceContactSample s = wire::from_idl(c);
+  EXPECT_EQ(s.tool_id, "right");
+  EXPECT_FALSE(s.held);
+  EXPECT_EQ(s.vertices, (std::array<std::uint32_t, 3>{105, 102, SurfaceContactSample::kNoVertex}));
+  EXPECT_EQ(s.weights, (std::array<double, 3>{0.75, 0.25, 0}));
+  EXPECT_EQ(s.position_m, (std::array<double, 3>{0.01, -0.02, 0.03}));
+  EXPECT_EQ(s.force_n, (std::array<double, 3>{0.5, 0, -1.5}));
+
+  // A held vertex: one vertex, weight 1; a vertex the map does not know is
+  // left out rather than read past the map.
+  ContactPoint held;
+  held.held = true;
+  held.vertices = {3, 0, 0};
+  held.weights = {1, 0, 0};
+  wire::to_idl(held, "left", vertex_ids, c);
+  EXPECT_TRUE(wire::from_idl(c).held);
+  EXPECT_EQ(wire::from_idl(c).vertices,
+            (std::array<std::uint32_t, 3>{103, SurfaceContactSample::kNoVertex,
+                                          SurfaceContactSample::kNoVertex}));
+  held.vertices = {6, 0, 0};
+  wire::to_idl(held, "left", vertex_ids, c);
+  EXPECT_EQ(wire::from_idl(c).vertices[0], SurfaceContactSample::kNoVertex);
+  EXPECT_EQ(wire::from_idl(c).weights[0], 0.0);
+
+  // In a surface sample, in order; none in a sample without them.
+  std::vector<palpate_SurfaceContact> contacts(2);
+  wire::to_idl(tip, "right", vertex_ids, contacts[0]);
+  wire::to_idl(held, "left", vertex_ids, contacts[1]);
+  palpate_SurfaceDisplacement sample{};
+  wire::view(sample.contact_points, std::span(contacts));
+  const SurfaceSample read = wire::from_idl(sample);
+  ASSERT_EQ(read.contact_points.size(), 2u);
+  EXPECT_EQ(read.contact_points[0].tool_id, "right");
+  EXPECT_EQ(read.contact_points[1].tool_id, "left");
+  EXPECT_TRUE(wire::from_idl(palpate_SurfaceDisplacement{}).contact_points.empty());
 }
 
 TEST(Wire, AStatusCarriesItsCountersAndLatencies) {
@@ -583,7 +634,14 @@ TEST_F(WireSolverTest, TheRequestAndToolPathsAllocateNothing) {
   const ToolOutput out = an_output();
   palpate_ToolFeedback feedback{};
   palpate_ToolEvent event{};
+  ContactPoint point;
+  point.vertex_count = 3;
+  point.vertices = {0, 1, 2};
+  point.weights = {0.5, 0.25, 0.25};
+  const std::vector<std::uint32_t> vertex_ids{7, 8, 9};
+  palpate_SurfaceContact contact{};
   auto tick = [&](std::size_t i) {
+    wire::to_idl(point, "grasper-left", vertex_ids, contact);
     int ok = 0;
     if (wire::load_constraints(wire_requests[i], solver) == RequestStatus::kOk &&
         solver.solve() == RequestStatus::kOk) {

@@ -3,7 +3,9 @@
 // the organ at rest first, framed whole with its attachment in sight, say
 // what its legend means, exaggerate the drawn shape by the asked factor (and
 // only the shape), move the organ when palpate-pliers presses it, draw the
-// contact, let it go back to rest when the tool leaves, and show a page that
+// tool's contact points where the surface stream puts them (a request's
+// constrained vertex otherwise; the vertices the jaws hold as cubes), let
+// it go back to rest when the tool leaves, and show a page that
 // opens after palpated stopped the rest shape, not palpated's last state.
 // Screenshots go to --out.
 //
@@ -20,7 +22,7 @@ import { execFile, spawn } from 'node:child_process';
 import { mkdirSync } from 'node:fs';
 import { request } from 'node:http';
 import { connect } from 'node:net';
-import { join } from 'node:path';
+import { dirname, join } from 'node:path';
 import { parseArgs } from 'node:util';
 import { chromium } from 'playwright-core';
 
@@ -251,6 +253,9 @@ try {
   await displace();
   await Promise.all([waitForRequestState(page, REQUEST_SEEN_M), waitForRequestState(five, REQUEST_SEEN_M)]);
   const one = await drawnFrame(page), x5 = await drawnFrame(five);
+  const requestMarkers = await page.evaluate(() => ({ points: window.palpateViewer.contactPoints, loads: window.palpateViewer.vertexLoads }));
+  check(requestMarkers.points === 0 && requestMarkers.loads === 1,
+    'a request\'s state draws its constrained vertex, no contact point', `${requestMarkers.loads} vertices, ${requestMarkers.points} points`);
   check(one.sequence === x5.sequence && largestDifference(one.displacement, x5.displacement) === 0,
     'both pages drew the same sample', `${one.sequence} and ${x5.sequence}`);
   check(exaggerationError(one, 1) <= EXAGGERATED_M, '×1 draws rest + displacement', `${exaggerationError(one, 1).toExponential(2)} m`);
@@ -283,12 +288,32 @@ try {
   }, PRESS_DEPTH_M, { timeout: TIMEOUT_MS });
   await page.waitForTimeout(300);  // a few frames
   // One evaluation: the state and the drawn geometry of the same frame.
-  const pressed = await page.evaluate(() => ({ ...window.palpateViewer, drawn: window.palpateViewer.drawnDisplacement() }));
+  const pressed = await page.evaluate(() => {
+    const v = window.palpateViewer;
+    return { ...v, drawn: v.drawnDisplacement(), points: v.streamedContactPoints(), markers: v.drawnContactPoints(),
+             leftColour: v.toolColour('left') };
+  });
   const pressedDrawn = pressed.drawn;
   check(pressedDrawn > PRESS_DEPTH_M, 'the drawn organ moves under the tool', `${(pressedDrawn * 1000).toFixed(2)} mm`);
   check(Math.abs(pressedDrawn - pressed.maxDisplacement_m) < FLOAT32_M,
     'the drawn displacement is the streamed one', `${pressedDrawn} vs ${pressed.maxDisplacement_m} m`);
   check(pressed.contacts > 0, 'contact points are drawn', pressed.contacts);
+  // The tool's contact points come from the stream's contact_points: one
+  // marker each (tips first, then held), at the point on the drawn surface,
+  // which at ×1 is the streamed position (float32 both ways), in the tool's
+  // colour; the vertex loads they make are not drawn.
+  const streamed = [...pressed.points.filter((q) => !q.held), ...pressed.points.filter((q) => q.held)];
+  check(streamed.length > 0 && pressed.contactPoints === streamed.length && pressed.vertexLoads === 0 &&
+        pressed.markers.length === streamed.length,
+    'one marker per streamed contact point, none on the loaded vertices',
+    `${streamed.length} points, ${pressed.markers.length} markers, ${pressed.vertexLoads} vertex markers`);
+  const offSurface = streamed.reduce((worst, q, i) => Math.max(worst,
+    pressed.markers[i] ? Math.hypot(...q.position.map((x, c) => x - pressed.markers[i].position[c])) : Infinity), 0);
+  check(offSurface <= FLOAT32_M, 'each contact point is drawn at its streamed position', `${offSurface.toExponential(2)} m`);
+  check(streamed.every((q, i) => q.tool_id === 'left' && !q.held && pressed.markers[i] &&
+                                 pressed.markers[i].held === q.held && pressed.markers[i].colour === pressed.leftColour),
+    'the points are the left tool\'s tip contacts, drawn in its colour', streamed.map((q) => q.tool_id).join(' '));
+  check(streamed.every((q) => Math.hypot(...q.force) > 0 && q.force.every(Number.isFinite)), 'each point has a force');
   check(pressed.source === 'tool:left', 'the state comes from the tool', pressed.source);
   const left = pressed.tools.left;
   check(Math.hypot(...left.force) > 0, 'the tool feels a force', `${Math.hypot(...left.force).toFixed(3)} N`);
@@ -306,6 +331,32 @@ try {
   const after = await drawnDisplacement(page);
   check(after < REST_M, 'back at rest once the tool is gone', `${after.toExponential(2)} m`);
   await page.screenshot({ path: join(args.out, 'viewer-after.png') });
+
+  // 7b. The jaws grasp (config/gestures/grasp-pull-release.toml, beside
+  //     --gesture): the held vertices are drawn as held markers, in the
+  //     tool's colour, at their streamed positions.
+  const grasp = spawn(args.pliers, [join(dirname(args.gesture), 'grasp-pull-release.toml'), '--model', args.model,
+                                    '--tool', 'left', '-q'], { stdio: ['ignore', 'inherit', 'inherit'] });
+  pliers = grasp;
+  const graspDone = new Promise((resolve) => grasp.on('exit', resolve));
+  await page.waitForFunction(() => {
+    const v = window.palpateViewer;
+    return v.tools.left && v.tools.left.state === 'grasping' && v.drawnContactPoints().some((q) => q.held);
+  }, null, { timeout: TIMEOUT_MS }).catch(() => {});
+  const grasped = await page.evaluate(() => {
+    const v = window.palpateViewer;
+    return { points: v.streamedContactPoints(), markers: v.drawnContactPoints(), leftColour: v.toolColour('left') };
+  });
+  const heldStreamed = grasped.points.filter((q) => q.held), heldDrawn = grasped.markers.filter((q) => q.held);
+  const heldOff = heldStreamed.reduce((worst, q, i) => Math.max(worst,
+    heldDrawn[i] ? Math.hypot(...q.position.map((x, c) => x - heldDrawn[i].position[c])) : Infinity), 0);
+  check(heldStreamed.length > 0 && heldDrawn.length === heldStreamed.length && heldOff <= FLOAT32_M &&
+        heldDrawn.every((q) => q.colour === grasped.leftColour) && heldStreamed.every((q) => q.tool_id === 'left'),
+    'the held vertices are drawn as held markers at their streamed positions, in the tool\'s colour',
+    `${heldStreamed.length} held, ${heldDrawn.length} drawn, ${heldOff.toExponential(2)} m off`);
+  await page.screenshot({ path: join(args.out, 'viewer-grasp.png') });
+  await graspDone;
+  pliers = null;
 
   const status = await page.evaluate(() => window.palpateViewer.status);
   check(status && status.daemon && status.daemon.models === 1, 'the daemon status reaches the page');

@@ -11,10 +11,16 @@ export function renderModel(m) {
     `${m.triangle_count} triangles · ${m.material}`;
 }
 
-export function renderToolTable(list) {
+/** The tools table; each tool's name in the colour of its contact points (colourOf(id), 0xRRGGBB). */
+export function renderToolTable(list, colourOf) {
   const body = document.querySelector('#tools tbody');
+  const name = (id) => {
+    const td = cell(`● ${id}`);
+    td.style.color = `#${colourOf(id).toString(16).padStart(6, '0')}`;
+    return td;
+  };
   body.replaceChildren(row(cell('tool'), cell('state'), cell('|F| N', 'num'), cell('contacts', 'num'), cell('grip N', 'num')),
-    ...list.map((t) => row(cell(t.tool_id), cell(t.watchdog ? 'watchdog' : t.state, `state-${t.state}`),
+    ...list.map((t) => row(name(t.tool_id), cell(t.watchdog ? 'watchdog' : t.state, `state-${t.state}`),
       cell(fixed(Math.hypot(...t.force), 3), 'num'), cell(String(t.contacts), 'num'), cell(fixed(t.grip_force, 2), 'num'))));
 }
 

@@ -5,6 +5,15 @@ import * as THREE from 'three';
 
 export const ARROW_M_PER_N = 0.005;  // force arrows: 5 mm per newton
 const STATE_COLORS = { free: 0xb8c0cc, touching: 0xffb454, grasping: 0xff6b6b };
+// The colour of each tool's contact points and their arrows, picked from the
+// tool's id (the same on every page): clear of the displacement colours
+// (viridis), of the yellow force on a tool and of the red request markers.
+const TOOL_COLOURS = [0x4fc3ff, 0xff8c42, 0xe15bff, 0xffffff, 0x00e0b0, 0xff5fa2];
+export function toolColour(id) {
+  let h = 0;
+  for (const ch of id) h = (31 * h + ch.codePointAt(0)) >>> 0;
+  return TOOL_COLOURS[h % TOOL_COLOURS.length];
+}
 
 // Arrows are drawn over everything: a force on the organ points into it and
 // the force on a tool along its shaft, where both would be hidden.

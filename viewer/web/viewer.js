@@ -4,7 +4,7 @@
 // in metres, as the messages are; the panel converts at display (mm, N).
 //
 // This file holds the organ, the wire and the render loop; camera.js,
-// legend.js, exaggeration.js, tools.js and panel.js one concept each.
+// legend.js, exaggeration.js, tools.js, contacts.js and panel.js one concept each.
 
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
@@ -12,11 +12,11 @@ import { boxOf, fitToFreeArea, frameOrgan, placeCamera, projectCorners, toolsVie
 import { EXAGGERATION_PARAMETER, createExaggerationControl, parseExaggeration } from './exaggeration.js';
 import { MIN_SCALE_M, PeakHoldScale, colourAt, drawLegendBar, legendMeaning, mm } from './legend.js';
 import { addEvent, renderModel, renderRates, renderToolTable } from './panel.js';
-import { ToolLayer, arrow, setArrow } from './tools.js';
+import { ContactLayer, NO_POINTS, listContactPoints, readContactPoints } from './contacts.js';
+import { ToolLayer, toolColour } from './tools.js';
 
 const GEOMETRY_FRAME = 1;
 const SURFACE_FRAME = 2;
-const NO_VERTEX = 0xffffffff;
 const MAX_CONTACTS = 256;
 const FIXED_COLOR = new THREE.Color(0x5a6270);
 const FIXED_MARKER_COLOR = 0x7fdbff;
@@ -44,7 +44,9 @@ const view = {
   streamEnded: false,     // palpated stopped serving the model: drawn at rest
   firstOrganFrame: null,  // { maxOffset_m, surfacesReceived }: the first frame drawn with the organ
   fixedMarkers: 0,
-  contacts: 0,
+  contacts: 0,            // markers drawn: contact points, or a request's constrained vertices
+  contactPoints: 0,       // of them, the tools' contact points (on triangles)
+  vertexLoads: 0,         // of them, a request's constrained vertices (no contact points)
   tools: {},
   framesRendered: 0,
   events: [],
@@ -94,7 +96,7 @@ createExaggerationControl({
 
 // ---------------------------------------------------------------- the organ
 // { id, mesh, fixedMarkers, rest, restNormal, displacement, magnitude,
-//   contactIndex, contactForce, nv, ns, box, centre, radius }: displacement (3·ns, m) is
+//   contactIndex, contactForce, points, nv, ns, box, centre, radius }: displacement (3·ns, m) is
 // the last streamed one, true; the mesh draws it exaggerated.
 let organ = null;
 
@@ -125,7 +127,8 @@ function loadGeometry(id, nv, ns, rest, triangles) {
   const centre = box.getCenter(new THREE.Vector3());
   const radius = box.getSize(new THREE.Vector3()).length() / 2;
   organ = { id, mesh, rest, nv, ns, box, centre, radius, displacement: new Float32Array(3 * ns),
-            magnitude: new Float32Array(ns), contactIndex: new Uint32Array(0), contactForce: new Float32Array(0) };
+            magnitude: new Float32Array(ns), contactIndex: new Uint32Array(0), contactForce: new Float32Array(0),
+            points: NO_POINTS };
   organ.restNormal = geometry.attributes.normal.array.slice();
   organ.fixedMarkers = makeFixedMarkers(rest, organ.restNormal, ns, nv, radius);
   scene.add(organ.fixedMarkers);
@@ -166,7 +169,7 @@ function drawSurface() {
   showContacts();
 }
 
-function applySurface(ns, displacement, contactIndex, contactForce) {
+function applySurface(ns, displacement, contactIndex, contactForce, points) {
   if (!organ || ns !== organ.ns) return;
   const colour = organ.mesh.geometry.attributes.color, mag = organ.magnitude;
   organ.displacement.set(displacement);
@@ -180,18 +183,21 @@ function applySurface(ns, displacement, contactIndex, contactForce) {
   colour.needsUpdate = true;
   organ.contactIndex = contactIndex;
   organ.contactForce = contactForce;
+  organ.points = points;
   drawSurface();
   view.maxDisplacement_m = max;
   view.colourScale_m = scale;
   document.getElementById('legend-max').textContent = `peak-hold ${mm(scale)}`;
   document.getElementById('displacement').textContent =
-    `max now ${mm(max)} · ${contactIndex.length} constrained vertices`;
+    `max now ${mm(max)} · ` + (points.count > 0
+      ? `${points.count} contact point${points.count === 1 ? '' : 's'} on ${contactIndex.length} loaded vertices`
+      : `${contactIndex.length} constrained vertices`);
 }
 
 // palpated stopped serving the model (the bridge's surface_ended): its last
 // state is gone with it, so the organ is drawn at rest, and the page says so.
 function endStream() {
-  applySurface(organ.ns, new Float32Array(3 * organ.ns), new Uint32Array(0), new Float32Array(0));
+  applySurface(organ.ns, new Float32Array(3 * organ.ns), new Uint32Array(0), new Float32Array(0), NO_POINTS);
   colourScale.reset();
   view.source = '';
   showStreamEnded(true);
@@ -202,37 +208,16 @@ function showStreamEnded(ended) {
   document.getElementById('stream-ended').hidden = !ended;
 }
 
-// Contact points (small spheres on the drawn surface) and the force the tool
-// exerts on the organ at each (red arrows); the force on each tool is the
-// yellow arrow at its tip.
-const contactMarkers = new THREE.InstancedMesh(
-  new THREE.SphereGeometry(1, 12, 8),
-  new THREE.MeshBasicMaterial({ color: 0xff3355 }), MAX_CONTACTS);
-contactMarkers.count = 0;
-contactMarkers.frustumCulled = false;
-scene.add(contactMarkers);
-const contactArrows = [];
+// The contacts of the shown state (contacts.js).
+const contactLayer = new ContactLayer(scene, MAX_CONTACTS);
 
 function showContacts() {
-  const p = organ.mesh.geometry.attributes.position.array, index = organ.contactIndex, force = organ.contactForce;
   const r = Math.max(organ.radius * 0.006, 0.0008);
-  const m = new THREE.Matrix4(), at = new THREE.Vector3(), f = new THREE.Vector3();
-  let n = 0;
-  for (let c = 0; c < index.length && n < MAX_CONTACTS; ++c) {
-    const v = index[c];
-    if (v === NO_VERTEX || v >= organ.nv) continue;
-    at.set(p[3 * v], p[3 * v + 1], p[3 * v + 2]);
-    m.makeScale(r, r, r).setPosition(at);
-    contactMarkers.setMatrixAt(n, m);
-    while (contactArrows.length <= n) contactArrows.push(arrow(scene, 0xff3355));
-    f.set(force[3 * c], force[3 * c + 1], force[3 * c + 2]);
-    setArrow(contactArrows[n], at, f, 4 * r);
-    ++n;
-  }
-  for (let c = n; c < contactArrows.length; ++c) contactArrows[c].visible = false;
-  contactMarkers.count = n;
-  contactMarkers.instanceMatrix.needsUpdate = true;
-  view.contacts = n;
+  const drawn = contactLayer.show(organ.points, organ.contactIndex, organ.contactForce,
+                                  organ.mesh.geometry.attributes.position.array, organ.nv, r);
+  view.contacts = drawn.arrows;
+  view.contactPoints = drawn.points;
+  view.vertexLoads = drawn.vertexLoads;
 }
 
 // ---------------------------------------------------------------- for tests
@@ -251,6 +236,11 @@ view.drawnPositions = () => (organ ? Array.from(organ.mesh.geometry.attributes.p
 view.restPositions = () => (organ ? Array.from(organ.rest) : []);
 view.trueDisplacement = () => (organ ? Array.from(organ.displacement) : []);
 view.vertexColours = () => (organ ? Array.from(organ.mesh.geometry.attributes.color.array) : []);
+// The contact points as streamed (true positions, m; forces, N) and as the
+// renderer draws them: the centres and colours of the markers (tips, then held).
+view.streamedContactPoints = () => listContactPoints(organ ? organ.points : NO_POINTS);
+view.drawnContactPoints = () => contactLayer.drawnPoints();
+view.toolColour = (id) => toolColour(id);
 view.projectedBoxCorners = () => (organ ? projectCorners(camera, organ.box) : []);
 view.freeNdcLeft = () => camera.userData.freeNdcLeft;  // the panel covers x < this
 // The share of attached vertices whose (rest) normal faces the camera.
@@ -272,7 +262,7 @@ function updateTools(list) {
   toolLayer.update(list, organ ? organ.id : null);
   view.tools = Object.fromEntries(list.map((t) => [t.tool_id, t]));
   frameTools(list);
-  renderToolTable(list);
+  renderToolTable(list, toolColour);
 }
 
 // Until the user moves the camera, it turns to the tools once they come near the organ.
@@ -326,7 +316,8 @@ function onBinary(buffer) {
     o += 12 * ns;
     const contactIndex = new Uint32Array(buffer, o, nc);
     const contactForce = new Float32Array(buffer, o + 4 * nc, 3 * nc);
-    applySurface(ns, displacement, contactIndex, contactForce);
+    o += 16 * nc;
+    applySurface(ns, displacement, contactIndex, contactForce, readContactPoints(data, o, readString));
     showStreamEnded(false);
     view.surfacesReceived += 1;
     view.lastSequence = sequence;

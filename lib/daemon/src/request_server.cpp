@@ -102,7 +102,7 @@ RequestStatus RequestServer::solve(const palpate_ConstraintRequest& request) {
   if (request.update_state) {
     // The latest successful state-changing request defines what the model
     // shows: the vertices it loads and their forces; the stream thread does the big product.
-    served->shown.show(solver.load_indices(), solver.load_forces(), "",
+    served->shown.show(solver.load_indices(), solver.load_forces(), {}, "",
                        wire::bounded(reply_.client_id), request.request_id, reply_.total_force);
   }
   return RequestStatus::kOk;

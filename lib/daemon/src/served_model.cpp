@@ -12,29 +12,35 @@ namespace palpate::daemon {
 
 namespace {
 
-ShownState::Snapshot make_snapshot_of(std::size_t capacity) {
+ShownState::Snapshot make_snapshot_of(std::size_t capacity, std::size_t point_capacity) {
   ShownState::Snapshot s;
   s.indices.resize(capacity);
   s.forces.resize(3 * capacity);
+  s.points.resize(point_capacity);
   return s;
 }
 
 }  // namespace
 
-ShownState::ShownState(std::size_t capacity) : state_(make_snapshot_of(capacity)) {}
+ShownState::ShownState(std::size_t capacity, std::size_t point_capacity)
+    : state_(make_snapshot_of(capacity, point_capacity)) {}
 
 ShownState::Snapshot ShownState::make_snapshot() const {
-  return make_snapshot_of(state_.indices.size());
+  return make_snapshot_of(state_.indices.size(), state_.points.size());
 }
 
 void ShownState::show(std::span<const int> indices, std::span<const double> forces_n,
-                      std::string_view source_prefix, std::string_view source_id,
-                      std::uint64_t source_request, const double* total_force_n) {
+                      std::span<const ContactPoint> points, std::string_view source_prefix,
+                      std::string_view source_id, std::uint64_t source_request,
+                      const double* total_force_n) {
   const std::lock_guard lock(mutex_);
   const std::size_t k = std::min(indices.size(), state_.indices.size());
   state_.count = static_cast<int>(k);
   std::copy_n(indices.begin(), k, state_.indices.begin());
   std::copy_n(forces_n.begin(), 3 * k, state_.forces.begin());
+  const std::size_t p = std::min(points.size(), state_.points.size());
+  state_.point_count = static_cast<int>(p);
+  std::copy_n(points.begin(), p, state_.points.begin());
   const std::size_t prefix = std::min(source_prefix.size(), sizeof state_.source - 1);
   std::memcpy(state_.source, source_prefix.data(), prefix);
   const std::size_t id = std::min(source_id.size(), sizeof state_.source - 1 - prefix);
@@ -52,6 +58,8 @@ bool ShownState::copy_if_newer(std::uint64_t& version, Snapshot& out) {
   out.count = state_.count;
   std::copy_n(state_.indices.begin(), state_.count, out.indices.begin());
   std::copy_n(state_.forces.begin(), 3 * state_.count, out.forces.begin());
+  out.point_count = state_.point_count;
+  std::copy_n(state_.points.begin(), state_.point_count, out.points.begin());
   std::memcpy(out.source, state_.source, sizeof out.source);
   out.source_request = state_.source_request;
   std::copy_n(state_.total_force, 3, out.total_force);
@@ -59,8 +67,11 @@ bool ShownState::copy_if_newer(std::uint64_t& version, Snapshot& out) {
 }
 
 ServedModel::ServedModel(SurfaceModel loaded, const Options& config)
-    // A constraint at a point of a triangle loads up to 3 vertices.
-    : model(std::move(loaded)), shown(3 * static_cast<std::size_t>(config.limits.max_constraints)) {
+    // A constraint at a point of a triangle loads up to 3 vertices; the
+    // tools' points are constraints.
+    : model(std::move(loaded)),
+      shown(3 * static_cast<std::size_t>(config.limits.max_constraints),
+            static_cast<std::size_t>(config.limits.max_constraints)) {
   // The organ's size: the diagonal of its surface's bounding box.
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
   for (int v = 0; v < model.surface.vertex_count(); ++v) {

@@ -19,9 +19,9 @@
 namespace palpate::daemon {
 
 /// What a model shows on the surface stream: the constrained vertices and
-/// their forces of the latest state-changing request or tool tick, and who
-/// set it. The request and tool servers write it, the stream publisher reads
-/// it; each takes its lock. Allocation-free after construction.
+/// their forces of the latest state-changing request or tool tick, the
+/// tools' contact points (a tick's), and who set it. The request and tool servers write it, the
+/// stream publisher reads it; each takes its lock. Allocation-free after construction.
 class ShownState {
  public:
   /// A copy of the state, for the stream publisher.
@@ -29,21 +29,25 @@ class ShownState {
     int count = 0;
     std::vector<int> indices;    // compliance indices
     std::vector<double> forces;  // 3 per index, N, tool on organ
-    char source[64] = {};        // client id, or "tool:<id>"
+    int point_count = 0;
+    std::vector<ContactPoint> points;  // the tools' contact points; none for a request
+    char source[64] = {};              // client id, or "tool:<id>"
     std::uint64_t source_request = 0;
     double total_force[3] = {};
   };
 
-  /// Room for @p capacity constrained vertices (the solver's limit).
-  explicit ShownState(std::size_t capacity);
+  /// Room for @p capacity constrained vertices and @p point_capacity
+  /// contact points.
+  ShownState(std::size_t capacity, std::size_t point_capacity);
   /// A snapshot sized for this state.
   Snapshot make_snapshot() const;
 
-  /// Replaces the state; vertices beyond the capacity are cut. The source
-  /// is @p source_prefix followed by @p source_id.
+  /// Replaces the state; vertices and points beyond the capacity are cut.
+  /// The source is @p source_prefix followed by @p source_id. @p points
+  /// are the tools' contact points (empty for a request's state).
   void show(std::span<const int> indices, std::span<const double> forces_n,
-            std::string_view source_prefix, std::string_view source_id,
-            std::uint64_t source_request, const double* total_force_n);
+            std::span<const ContactPoint> points, std::string_view source_prefix,
+            std::string_view source_id, std::uint64_t source_request, const double* total_force_n);
   /// Copies the state into @p out when it changed since @p version (then
   /// updated); false when it did not.
   bool copy_if_newer(std::uint64_t& version, Snapshot& out);

@@ -29,6 +29,10 @@ StreamPublisher::StreamPublisher(Sources sources, const DaemonConfig& config,
     ModelStream& s = streams_[i];
     s.shown = served.shown.make_snapshot();
     s.vertex_ids.resize(s.shown.indices.size());
+    s.contacts.resize(s.shown.points.size());
+    // The tools' ids never change: read once, not under the tools' lock.
+    const ToolContactEngine& engine = *served.tools.engine;
+    for (int t = 0; t < engine.tool_count(); ++t) s.tool_ids.push_back(engine.tool(t).id);
     s.displacement = Eigen::VectorXd::Zero(served.model.compliance_rows());
   }
 }
@@ -86,6 +90,15 @@ void StreamPublisher::publish_surfaces() {
                std::span<const std::uint32_t>(s.vertex_ids.data(), count));
     wire::view(sample.constrained_forces,
                std::span<const double>(s.shown.forces.data(), 3 * count));
+    const auto points = static_cast<std::size_t>(s.shown.point_count);
+    for (std::size_t c = 0; c < points; ++c) {
+      const ContactPoint& point = s.shown.points[c];
+      const auto tool = static_cast<std::size_t>(point.tool);
+      wire::to_idl(point, tool < s.tool_ids.size() ? std::string_view(s.tool_ids[tool]) : "",
+                   served.model.surface.vertex_ids, s.contacts[c]);
+    }
+    wire::view(sample.contact_points,
+               std::span<const palpate_SurfaceContact>(s.contacts.data(), points));
     if (const dds_return_t rc = dds_write(surface_writer_.get(), &sample); rc < 0)
       spdlog::error("event=dds_error what=\"writing the surface of {}\" error={}", served.model.id,
                     dds_strretcode(rc));

@@ -52,8 +52,10 @@ class StreamPublisher {
   struct ModelStream {
     ShownState::Snapshot shown;
     std::uint64_t published_version = 0;
-    palpate_SurfaceDisplacement sample{};   // its buffers are the vectors below
-    std::vector<std::uint32_t> vertex_ids;  // mesh vertex ids of shown.indices
+    palpate_SurfaceDisplacement sample{};          // its buffers are the vectors below
+    std::vector<std::uint32_t> vertex_ids;         // mesh vertex ids of shown.indices
+    std::vector<palpate_SurfaceContact> contacts;  // shown.points, as sent
+    std::vector<std::string> tool_ids;             // of the model's tools, by index
     Eigen::VectorXd displacement;
   };
 

@@ -240,7 +240,8 @@ void ToolServer::publish(ServedModel& served, int tool, std::uint64_t compute_ns
   const auto forces = engine.contact_forces();
   double total[3] = {0, 0, 0};
   for (std::size_t i = 0; i < forces.size(); ++i) total[i % 3] += forces[i];
-  served.shown.show(engine.contact_indices(), forces, "tool:", tool_id, out.sequence, total);
+  served.shown.show(engine.contact_indices(), forces, engine.contact_points(), "tool:", tool_id,
+                    out.sequence, total);
 
   if (served.tools.recorder) record(served, tool, compute_ns);
 }

@@ -4,6 +4,7 @@
 
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/surface_model.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 
 namespace palpate::wire {
 
@@ -150,6 +151,34 @@ Reply from_idl(const palpate_ConstraintReply& r) {
   return out;
 }
 
+void to_idl(const ContactPoint& point, std::string_view tool_id,
+            std::span<const std::uint32_t> vertex_ids, palpate_SurfaceContact& out) {
+  copy_bounded(out.tool_id, tool_id);
+  out.held = point.held;
+  const int n = std::clamp(point.vertex_count, 0, 3);
+  for (int i = 0; i < 3; ++i) {
+    const auto slot = static_cast<std::size_t>(i);
+    const int v = point.vertices[slot];
+    const bool used = i < n && v >= 0 && static_cast<std::size_t>(v) < vertex_ids.size();
+    out.vertices[i] =
+        used ? vertex_ids[static_cast<std::size_t>(v)] : SurfaceContactSample::kNoVertex;
+    out.weights[i] = used ? point.weights[slot] : 0.0;
+    out.position[i] = point.position_m[i];
+    out.force[i] = point.force_n[i];
+  }
+}
+
+SurfaceContactSample from_idl(const palpate_SurfaceContact& c) {
+  SurfaceContactSample out;
+  out.tool_id = bounded(c.tool_id);
+  out.held = c.held;
+  out.vertices = to_array(c.vertices);
+  out.weights = to_array(c.weights);
+  out.position_m = to_array(c.position);
+  out.force_n = to_array(c.force);
+  return out;
+}
+
 SurfaceSample from_idl(const palpate_SurfaceDisplacement& s) {
   SurfaceSample out;
   out.model_id = bounded(s.model_id);
@@ -160,6 +189,9 @@ SurfaceSample from_idl(const palpate_SurfaceDisplacement& s) {
   out.displacement_m = to_vector(s.displacement);
   out.constrained_vertices = to_vector(s.constrained_vertices);
   out.constrained_forces_n = to_vector(s.constrained_forces);
+  out.contact_points.reserve(s.contact_points._length);
+  for (std::uint32_t c = 0; c < s.contact_points._length; ++c)
+    out.contact_points.push_back(from_idl(s.contact_points._buffer[c]));
   return out;
 }
 

@@ -62,6 +62,19 @@ struct Reply {
   std::vector<double> surface_displacement_m;  ///< 3 per compliance vertex when asked
 };
 
+/// One point where a tool touches the organ, as the surface stream carries
+/// it (SurfaceContact): on the deformed surface of the sample it came with.
+struct SurfaceContactSample {
+  static constexpr std::uint32_t kNoVertex = 0xffffffffu;  ///< an unused slot of vertices
+  std::string tool_id;
+  bool held = false;  ///< held by the jaws (one vertex), else a tip contact
+  /// Mesh vertex ids of the corners with a non-zero weight; kNoVertex beyond them.
+  std::array<std::uint32_t, 3> vertices{kNoVertex, kNoVertex, kNoVertex};
+  std::array<double, 3> weights{};     ///< barycentric, summing to 1
+  std::array<double, 3> position_m{};  ///< on the deformed surface
+  std::array<double, 3> force_n{};     ///< the tool on the organ
+};
+
 struct SurfaceSample {
   std::string model_id;
   std::uint64_t sequence_number = 0;
@@ -71,6 +84,9 @@ struct SurfaceSample {
   std::vector<double> displacement_m;               ///< 3 per compliance vertex
   std::vector<std::uint32_t> constrained_vertices;  ///< mesh vertex ids; empty at rest
   std::vector<double> constrained_forces_n;         ///< 3 per constrained vertex
+  /// The tools' contact points; empty at rest, for a request's state and
+  /// from a palpated older than the field.
+  std::vector<SurfaceContactSample> contact_points;
 };
 
 struct LatencySummary {

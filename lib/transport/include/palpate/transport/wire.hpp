@@ -26,6 +26,7 @@
 
 namespace palpate {
 class ConstraintSolver;
+struct ContactPoint;
 struct SurfaceModel;
 }  // namespace palpate
 
@@ -86,6 +87,12 @@ Reply from_idl(const palpate_ConstraintReply& reply);
 
 // ---- palpate_surface, palpate_status -------------------------------------------
 
+/// Contact point @p point of tool @p tool_id as the surface stream carries
+/// it; @p vertex_ids maps drawn vertices to mesh vertex ids
+/// (DrawnSurface::vertex_ids). Allocates nothing.
+void to_idl(const ContactPoint& point, std::string_view tool_id,
+            std::span<const std::uint32_t> vertex_ids, palpate_SurfaceContact& out);
+SurfaceContactSample from_idl(const palpate_SurfaceContact& contact);
 SurfaceSample from_idl(const palpate_SurfaceDisplacement& sample);
 LatencySummary from_idl(const palpate_Latency& latency);
 palpate_Latency to_idl(const LatencySummary& latency);
