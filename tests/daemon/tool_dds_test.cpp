@@ -203,9 +203,6 @@ class ToolsOverDdsTest : public ::testing::Test {
       }
       EXPECT_GE(used, 1);
       EXPECT_NEAR(weight_sum, 1.0, 1e-12);
-      if (c.held) {
-        EXPECT_EQ(used, 1) << "a held point is one vertex";
-      }
       EXPECT_LE((at - expected).norm(), on_surface_m)
           << "contact point off its deformed triangle by " << (at - expected).norm() << " m";
       ++tools[c.tool_id].count;
@@ -340,8 +337,8 @@ TEST_F(ToolsOverDdsTest, GraspPullAndReleaseArriveInOrderAndReleaseRestoresTheOr
   left.hold(10);
   EXPECT_LT(left.force().z(), -0.05) << "the organ holds the pliers back";
   {
-    // The held vertices reach the surface stream as held contact points,
-    // each on its deformed vertex, their forces what the jaws feel. The
+    // The held points reach the surface stream as held contact points,
+    // each on its deformed triangle, their forces what the jaws feel. The
     // slew limit (500 N/s) has caught up after the hold: the feedback is
     // minus their sum, to rounding (1e-12 N on ~0.1 N).
     const auto [sample, feedback] = shown_tick(left);

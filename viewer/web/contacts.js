@@ -1,7 +1,7 @@
 // What the tools touch, and the force each exerts on the organ there.
 // A tool state carries its contact points (docs/viewer.md, "Surface
 // frame"): a sphere in the tool's colour where its tip presses a triangle,
-// a cube where its jaws hold a vertex, and an arrow of the tool's colour
+// a cube where its jaws hold the surface, and an arrow of the tool's colour
 // from each point. A request's state has no contact points: a red dot and a
 // red arrow on each constrained vertex instead. The force on each tool is
 // the yellow arrow at its tip (tools.js). Units: m and N.
