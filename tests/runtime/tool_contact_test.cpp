@@ -717,6 +717,81 @@ TEST_F(ToolContactTest, AGlideOverTrianglesIsNeverFreeAndFrictionlessItIsSmooth)
   }
 }
 
+TEST_F(ToolContactTest, APressBetweenVerticesIsFeltEveryTick) {
+  // A 2 mm sphere pressed 3 mm at the centroid of a top-face triangle of
+  // 12.5 mm, farther than its radius from every vertex: with contacts at
+  // vertices it met none. On the triangle it is touching on every tick of a
+  // 500-tick hold, with one point inside that triangle and a force that grows
+  // with depth.
+  const DrawnSurface& s = model().surface;
+  const int n = model().compliance_vertex_count();
+  int chosen = -1;
+  Vector3d centroid;
+  for (int t = 0; t < s.triangle_count() && chosen < 0; ++t) {
+    const auto* v = &s.triangles[3 * static_cast<std::size_t>(t)];
+    Vector3d c = Vector3d::Zero();
+    bool top = true;
+    for (int i = 0; i < 3; ++i) {
+      top &= static_cast<int>(v[i]) < n && std::abs(rest(static_cast<int>(v[i])).z() - 0.04) < 1e-9;
+      c += rest(static_cast<int>(v[i])) / 3;
+    }
+    if (top && c.x() > 0.06) chosen = t, centroid = c;
+  }
+  ASSERT_GE(chosen, 0);
+  ToolGeometry g = probe("finger", 0.3);
+  ToolContactEngine engine(model(), {g}, {}, {});
+  Driver driver(engine, 1);
+  start(driver, 0, centroid + Vector3d(0, 0, g.tip_radius_m + 0.001));
+  driver.move(0, centroid + Vector3d(0, 0, g.tip_radius_m - 0.0015), 0);
+  const double half_way = driver.last(0).force_n.z();
+  driver.move(0, centroid + Vector3d(0, 0, g.tip_radius_m - 0.003), 0);
+  const std::size_t from = driver.log.size();
+  driver.hold(500);
+  for (std::size_t i = from; i < driver.log.size(); ++i)
+    ASSERT_EQ(driver.log[i].state, ToolState::kTouching) << "free at tick " << i - from;
+  ASSERT_EQ(engine.contact_points().size(), 1u);
+  EXPECT_EQ(engine.contact_points()[0].triangle, chosen);
+  EXPECT_EQ(engine.contact_points()[0].vertex_count, 3);
+  EXPECT_GT(half_way, 0.01);
+  EXPECT_GT(driver.last(0).force_n.z(), 1.5 * half_way) << "deeper presses harder";
+}
+
+TEST_F(ToolContactTest, ATiltedPressMovedSidewaysNeverFlickers) {
+  // The default grasper tilted 20° from the vertical, pressed 8 mm, held,
+  // moved 10 mm sideways at 10 mm/s, held: touch once, never leave, never a
+  // free tick (with contacts at vertices it logged touch/leave/touch/leave).
+  ToolGeometry g;
+  g.id = "grasper";
+  g.force_limit_n = 100;
+  g.max_force_rate_n_per_s = 1e6;
+  ToolContactEngine engine(model(), {g}, {}, {});
+  Driver driver(engine, 1);
+  const Eigen::Quaterniond tilted =
+      Eigen::AngleAxisd(degrees(20), Vector3d::UnitY()) * Eigen::Quaterniond(0, 1, 0, 0);
+  const Vector3d axis = tilted.toRotationMatrix().col(2);  // into the organ
+  const Vector3d at = rest(top_vertex(62.5, 25)) + Vector3d(0.003, 0.004, 0);
+  const double reach = g.tip_length_m + g.tip_radius_m;
+  const Vector3d above = at - (reach + 0.002) * axis;
+  driver.poses[0] = pose_at(above);
+  driver.poses[0].orientation = tilted;
+  driver.move(0, above + 0.010 * axis, 0);  // 8 mm into the surface along the shaft
+  driver.hold(200);
+  ASSERT_EQ(driver.last(0).state, ToolState::kTouching);
+  const std::size_t from = driver.log.size();
+  driver.move(0, driver.poses[0].position_m + Vector3d(0, 0.010, 0), 0, 1e-5);
+  driver.hold(200);
+  for (std::size_t i = from; i < driver.log.size(); ++i)
+    ASSERT_EQ(driver.log[i].state, ToolState::kTouching) << "free at tick " << i - from;
+  int touches = 0, leaves = 0;
+  for (const ToolOutput& out : driver.log)
+    for (int e = 0; e < out.event_count; ++e) {
+      touches += out.events[static_cast<std::size_t>(e)] == ToolEventKind::kTouch;
+      leaves += out.events[static_cast<std::size_t>(e)] == ToolEventKind::kLeave;
+    }
+  EXPECT_EQ(touches, 1);
+  EXPECT_EQ(leaves, 0);
+}
+
 TEST_F(ToolContactTest, EveryStoredContactIsTheSolutionOfTheSetSolvedLast) {
   // Whatever the iteration limit, the contacts the engine stores and feeds
   // back are those of its last solve: each contact's deformed position is
