@@ -185,6 +185,15 @@ class CommandLines(unittest.TestCase):
             self.assertEqual(p.returncode, 2, p.stderr)
             self.assertIn(f"did you mean {meant}?", p.stderr)
 
+    def test_the_help_names_the_model_asked_for_when_none_is_given(self):
+        for sub in ("describe", "request", "demo"):
+            p = run("palpate-client", sub, "--help")
+            self.assertEqual(p.returncode, 0, p.stderr)
+            model = [line for line in p.stdout.splitlines() if "--model" in line]
+            self.assertEqual(len(model), 1, p.stdout)
+            # Debian's CLI11 writes the default as "--model TEXT=sample-organ".
+            self.assertIn("sample-organ", model[0], p.stdout)
+
     def test_an_attachment_box_error_speaks_the_unit_the_user_gave(self):
         p = run("palpate-precompute", "--mesh", WORK.mesh_mm, "--mesh-unit", "mm", "-E", "85e3",
                 "--nu", "0.45", "--fix-box", 500, 500, 500, 600, 600, 600, "-o",

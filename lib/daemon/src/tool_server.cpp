@@ -150,7 +150,7 @@ void ToolServer::refuse(const palpate_ToolPose& pose, PoseProblem reason,
   const std::size_t slot =
       (std::hash<std::string_view>{}(tool_id) ^ std::hash<std::string_view>{}(model_id)*31) %
       kNoticeSlots;
-  const auto kind = static_cast<std::size_t>(reason) % noticed_[slot].size();
+  const auto kind = static_cast<std::size_t>(reason) % kNoticeReasons;
   const auto now = Clock::now();
   if (noticed_[slot][kind] && now - last_notice_[slot][kind] < std::chrono::seconds(1)) return;
   noticed_[slot][kind] = true;

@@ -89,10 +89,16 @@ class ToolServer {
 
   WarningLimiter warnings_;  // the pose listener's only: Cyclone calls it from one thread at a time
   // When the last notice went, per (tool and model ids hashed, reason): the
-  // pose listener's only.
+  // pose listener's only. A reason is a PoseProblem, kNone's slot unused;
+  // kUnknownTool is the last one, as the wire's reading of a notice takes it.
   static constexpr std::size_t kNoticeSlots = 64;
-  std::array<std::array<Clock::time_point, 8>, kNoticeSlots> last_notice_{};
-  std::array<std::array<bool, 8>, kNoticeSlots> noticed_{};
+  static constexpr std::size_t kNoticeReasons =
+      static_cast<std::size_t>(PoseProblem::kUnknownTool) + 1;
+  static_assert(static_cast<std::size_t>(PoseProblem::kNone) == 0 &&
+                    static_cast<std::size_t>(PoseProblem::kUnknownTool) < kNoticeReasons,
+                "a notice slot for every PoseProblem, numbered from 0 to kUnknownTool");
+  std::array<std::array<Clock::time_point, kNoticeReasons>, kNoticeSlots> last_notice_{};
+  std::array<std::array<bool, kNoticeReasons>, kNoticeSlots> noticed_{};
   palpate_ToolNotice notice_{};
   char message_[256] = {};
   ServerStats stats_;

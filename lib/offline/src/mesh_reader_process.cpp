@@ -6,6 +6,7 @@
 // parent turns a child that dies into one InputError naming the file.
 
 #include <fmt/format.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -189,6 +190,7 @@ TetMesh read_mesh_isolated(const std::filesystem::path& file, const MeshReadOpti
     throw SystemError(
         fmt::format("reading {}: cannot make a pipe: {}", file.string(), std::strerror(errno)));
   std::fflush(nullptr);
+  const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
   if (pid < 0) {
     ::close(fds[0]);
@@ -197,6 +199,12 @@ TetMesh read_mesh_isolated(const std::filesystem::path& file, const MeshReadOpti
                                   std::strerror(errno)));
   }
   if (pid == 0) {
+    // A killed palpate-precompute takes its reader with it, even in a long
+    // read. The signal follows the forking thread, which waits here for the
+    // child; a parent already gone before the prctl leaves the child to end
+    // itself.
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (::getppid() != parent) _exit(125);
     ::close(fds[0]);
     child(fds[1], file, options);
   }
