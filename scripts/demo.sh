@@ -13,6 +13,8 @@
 #              PALPATE_DEMO_REPEAT   times the gesture is played (default 2)
 #              PALPATE_DEMO_NETNS    "private" (default) or "host" (below)
 #              PALPATE_BUILD_DIR     the build directory (default build)
+#              PALPATE_DEMO_OUT      the folder of its outputs (default out/demo; the
+#                                    sample organ stays in out/, where its job writes it)
 # Outputs: out/demo/ (the script lists them at the end). A second run reuses
 # the compliance file when its input hash shows the same problem
 # (palpate-precompute --reuse) and keeps the earlier sessions' recordings
@@ -56,7 +58,7 @@ install_ms=$(($(now_ms) - script_start_ns / 1000000))
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build" -j2 --target palpate_bin
 build_ms=$(($(now_ms) - script_start_ns / 1000000 - install_ms))
-out=out/demo
+out=${PALPATE_DEMO_OUT:-out/demo}
 # The screenshots are this run's; the recordings and their plots are kept.
 rm -f "$out"/viewer*.png
 mkdir -p "$out/recordings"
