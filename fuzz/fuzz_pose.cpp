@@ -110,7 +110,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     PALPATE_FUZZ_CHECK(out.event_count >= 0 &&
                        out.event_count <= static_cast<int>(out.events.size()));
     const auto indices = engine.contact_indices();
-    PALPATE_FUZZ_CHECK(static_cast<int>(indices.size()) <= limits.max_constraints);
+    // Each point loads up to three vertices (a point of a triangle).
+    PALPATE_FUZZ_CHECK(static_cast<int>(engine.contact_points().size()) <= limits.max_constraints);
+    PALPATE_FUZZ_CHECK(static_cast<int>(indices.size()) <= 3 * limits.max_constraints);
     PALPATE_FUZZ_CHECK(engine.contact_forces().size() == 3 * indices.size());
     for (const double f : engine.contact_forces()) PALPATE_FUZZ_CHECK(std::isfinite(f));
     for (const palpate::ContactPoint& c : engine.contact_points()) {
