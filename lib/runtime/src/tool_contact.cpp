@@ -99,7 +99,6 @@ struct ToolContactEngine::Impl {
   std::vector<Vector3d> candidate_position;
   std::vector<TipCandidate> found;
   detail::JawGrasp grasp;
-  static constexpr double kTurnedDepth = 0.01;
   std::vector<int> grasp_triangles;     // near the closing jaws
   std::vector<Vector3d> grasp_corners;  // 3 per grasp triangle, deformed
   std::vector<HeldPoint> touched;       // the tip's points at the last tick
@@ -633,71 +632,6 @@ struct ToolContactEngine::Impl {
           any = true;
         }
       }
-      // Signorini on the whole triangle: the solve turns a contact's
-      // triangle about the point that was constrained, and another of its
-      // points may now be in the tip. That point joins the set as a
-      // contact of its own (the triangle's deepest point under this solve).
-      const int built = building;
-      for (int b = 0; b < built; ++b) {
-        const auto bb = static_cast<std::size_t>(b);
-        // A sliding point moves along the tip's tangent plane and its
-        // triangle turns about it; a sticking one stays where it was put.
-        // Frictionless tools only: with friction, points that turned
-        // switched contacts between stick and slide on round-off (the glide
-        // gesture's trace then differed under G ± 1e-12 in its last 0.4 s).
-        if (b_tip[bb] < 0 || released[bb] != 0 || b_kind[bb] != ConstraintKind::kNormalDisplacement)
-          continue;
-        if (building >= limits.max_constraints) break;
-        const int t = b_tool[bb];
-        Tool& tool = tools[static_cast<std::size_t>(t)];
-        if (tool.geometry.friction > 0) continue;
-        if (tool.tip_count + static_cast<int>(tool.held.size()) >= per_tool_cap) continue;
-        const ToolGeometry& g = tool.geometry;
-        const double r = g.tip_radius_m;
-        const TipCandidate& tip = tool.tips[static_cast<std::size_t>(b_tip[bb])];
-        const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tip.triangle)];
-        std::array<Vector3d, 3> x;
-        for (int i = 0; i < 3; ++i)
-          x[static_cast<std::size_t>(i)] = rest[static_cast<std::size_t>(corner[i])] +
-                                           vertex_displacement_under_solve(corner[i]);
-        const Vector3d axis = tool.rotation.col(2);
-        const detail::SegmentTrianglePair pair = detail::closest_segment_triangle(
-            tool.pose.position_m, axis, tip_length(g), x[0], x[1], x[2]);
-        if (pair.distance >= r - kTurnedDepth * r) continue;
-        TipCandidate added{
-            tip.triangle,     0,   {}, {}, r - pair.distance, Vector3d::Zero(), Vector3d::Zero(),
-            Vector3d::Zero(), true};
-        for (int i = 0; i < 3; ++i) {
-          const double w = pair.on_triangle.weights[static_cast<std::size_t>(i)];
-          if (w == 0) continue;
-          added.vertices[static_cast<std::size_t>(added.count)] = corner[i];
-          added.weights[static_cast<std::size_t>(added.count)] = w;
-          added.rest += w * rest[static_cast<std::size_t>(corner[i])];
-          ++added.count;
-        }
-        // Not a point already in the set (a shared edge or vertex, or the
-        // same point again): at rest, farther than the tick's spacing.
-        const double spacing2 = (g.friction > 0 ? 0.09 : 0.0025) * r * r;
-        bool near = false;
-        for (int c = 0; c < tool.tip_count && !near; ++c)
-          near =
-              (tool.tips[static_cast<std::size_t>(c)].rest - added.rest).squaredNorm() < spacing2;
-        if (near) continue;
-        const Vector3d outward = (x[1] - x[0]).cross(x[2] - x[0]);
-        added.normal =
-            pair.distance > 1e-9 * r && (pair.on_triangle.point - pair.on_segment).dot(outward) <= 0
-                ? Vector3d((pair.on_triangle.point - pair.on_segment) / pair.distance)
-                : Vector3d(-outward.normalized());
-        added.target = pair.on_segment + r * added.normal;
-        const int index = tool.tip_count++;
-        tool.tips[static_cast<std::size_t>(index)] = added;
-        const Vector3d u = tool.scale * (added.target - added.rest);
-        // Normal-only: it keeps the triangle out of the tip; the triangle's
-        // first point carries the friction.
-        add(t, index, -1, ConstraintKind::kNormalDisplacement, Vector3d(added.normal.dot(u), 0, 0),
-            added.normal);
-        any = true;
-      }
       if (!any) break;
     }
     for (int t = 0; t < static_cast<int>(tools.size()); ++t)
@@ -729,18 +663,6 @@ struct ToolContactEngine::Impl {
         u_v.noalias() += model.G_block(v, loads[l]) * Eigen::Map<const Vector3d>(&forces[3 * l]);
       u += tip.weights[static_cast<std::size_t>(i)] * u_v;
     }
-    return u;
-  }
-
-  /// Displacement of drawn vertex @p v under the solve just made (a fixed
-  /// vertex: none).
-  Vector3d vertex_displacement_under_solve(int v) const {
-    Vector3d u = Vector3d::Zero();
-    if (v >= compliance_count) return u;
-    const auto loads = solver.load_indices();
-    const auto forces = solver.load_forces();
-    for (std::size_t l = 0; l < loads.size(); ++l)
-      u.noalias() += model.G_block(v, loads[l]) * Eigen::Map<const Vector3d>(&forces[3 * l]);
     return u;
   }
 
