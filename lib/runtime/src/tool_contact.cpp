@@ -99,6 +99,7 @@ struct ToolContactEngine::Impl {
   std::vector<Vector3d> candidate_position;
   std::vector<TipCandidate> found;
   detail::JawGrasp grasp;
+  std::vector<int> near_triangles;      // around the candidates, distinct
   std::vector<int> grasp_triangles;     // near the closing jaws
   std::vector<Vector3d> grasp_corners;  // 3 per grasp triangle, deformed
   std::vector<HeldPoint> touched;       // the tip's points at the last tick
@@ -197,6 +198,7 @@ struct ToolContactEngine::Impl {
     candidate_position.resize(static_cast<std::size_t>(drawn));
     found.resize(static_cast<std::size_t>(triangles));
     grasp_triangles.resize(static_cast<std::size_t>(triangles));
+    near_triangles.resize(static_cast<std::size_t>(triangles));
     grasp_corners.resize(3 * static_cast<std::size_t>(triangles));
     const auto k = static_cast<std::size_t>(limits.max_constraints);
     touched.reserve(k);
@@ -265,6 +267,27 @@ struct ToolContactEngine::Impl {
     return n;
   }
 
+  /// The distinct surface triangles around the first @p n candidates, into
+  /// near_triangles, in the order met; returns their count.
+  int gather_triangles(int n) {
+    if (++triangle_epoch == 0) {
+      std::fill(triangle_seen.begin(), triangle_seen.end(), 0);
+      triangle_epoch = 1;
+    }
+    int count = 0;
+    for (int c = 0; c < n; ++c) {
+      const int v = candidates[static_cast<std::size_t>(c)];
+      for (int e = vertex_triangles_begin[static_cast<std::size_t>(v)];
+           e < vertex_triangles_begin[static_cast<std::size_t>(v) + 1]; ++e) {
+        const int tri = vertex_triangles[static_cast<std::size_t>(e)];
+        if (triangle_seen[static_cast<std::size_t>(tri)] == triangle_epoch) continue;
+        triangle_seen[static_cast<std::size_t>(tri)] = triangle_epoch;
+        near_triangles[static_cast<std::size_t>(count++)] = tri;
+      }
+    }
+    return count;
+  }
+
   /// Is the deformed point @p x between the jaws of @p tool opened at @p angle?
   static bool between_jaws(const Tool& tool, const Vector3d& x, double angle) {
     return detail::JawGrasp::between(jaws_of(tool, angle), x, angle);
@@ -292,33 +315,24 @@ struct ToolContactEngine::Impl {
     const int n = gather_candidates(tool);
     // The triangles near the jaws that this tool may hold: not wholly fixed,
     // no vertex of a point another tool holds.
-    if (++triangle_epoch == 0) {
-      std::fill(triangle_seen.begin(), triangle_seen.end(), 0);
-      triangle_epoch = 1;
-    }
     std::size_t near = 0;
-    for (int c = 0; c < n; ++c) {
-      const int v = candidates[static_cast<std::size_t>(c)];
-      for (int e = vertex_triangles_begin[static_cast<std::size_t>(v)];
-           e < vertex_triangles_begin[static_cast<std::size_t>(v) + 1]; ++e) {
-        const int tri = vertex_triangles[static_cast<std::size_t>(e)];
-        if (triangle_seen[static_cast<std::size_t>(tri)] == triangle_epoch) continue;
-        triangle_seen[static_cast<std::size_t>(tri)] = triangle_epoch;
-        const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
-        int fixed = 0;
-        bool elsewhere = false;
-        for (int i = 0; i < 3; ++i) {
-          if (corner[i] >= compliance_count)
-            ++fixed;
-          else
-            elsewhere |= owner_held_elsewhere(corner[i], t);
-        }
-        if (fixed == 3 || elsewhere) continue;
-        grasp_triangles[near] = tri;
-        for (int i = 0; i < 3; ++i)
-          grasp_corners[3 * near + static_cast<std::size_t>(i)] = deformed(corner[i]);
-        ++near;
+    const int m = gather_triangles(n);
+    for (int k = 0; k < m; ++k) {
+      const int tri = near_triangles[static_cast<std::size_t>(k)];
+      const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
+      int fixed = 0;
+      bool elsewhere = false;
+      for (int i = 0; i < 3; ++i) {
+        if (corner[i] >= compliance_count)
+          ++fixed;
+        else
+          elsewhere |= owner_held_elsewhere(corner[i], t);
       }
+      if (fixed == 3 || elsewhere) continue;
+      grasp_triangles[near] = tri;
+      for (int i = 0; i < 3; ++i)
+        grasp_corners[3 * near + static_cast<std::size_t>(i)] = deformed(corner[i]);
+      ++near;
     }
     // What the tip pressed at the last tick.
     touched.clear();
@@ -367,73 +381,63 @@ struct ToolContactEngine::Impl {
     const double near = 0.25 * r;   // triangles this close are watched during the solve
     const bool jaws_open = g.jaw_length_m > 0 && tool.pose.jaw_angle_rad > g.grasp_angle_rad;
     const int n = gather_candidates(tool);
-    if (++triangle_epoch == 0) {
-      std::fill(triangle_seen.begin(), triangle_seen.end(), 0);
-      triangle_epoch = 1;
-    }
     int total = 0;
-    for (int c = 0; c < n; ++c) {
-      const int v = candidates[static_cast<std::size_t>(c)];
-      for (int e = vertex_triangles_begin[static_cast<std::size_t>(v)];
-           e < vertex_triangles_begin[static_cast<std::size_t>(v) + 1]; ++e) {
-        const int tri = vertex_triangles[static_cast<std::size_t>(e)];
-        if (triangle_seen[static_cast<std::size_t>(tri)] == triangle_epoch) continue;
-        triangle_seen[static_cast<std::size_t>(tri)] = triangle_epoch;
-        const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
-        bool blocked = false;  // a vertex of a held point, or the whole triangle fixed
-        int fixed = 0;
-        for (int i = 0; i < 3; ++i) {
-          if (corner[i] >= compliance_count)
-            ++fixed;
-          else if (owner[static_cast<std::size_t>(corner[i])] >= 0)
-            blocked = true;
-        }
-        if (blocked || fixed == 3) continue;
-        const Vector3d& a = deformed(corner[0]);
-        const Vector3d& b = deformed(corner[1]);
-        const Vector3d& cc = deformed(corner[2]);
-        const detail::SegmentTrianglePair pair =
-            detail::closest_segment_triangle(tool.pose.position_m, axis, tip_length(g), a, b, cc);
-        const bool was = previous_triangle_owner[static_cast<std::size_t>(tri)] == t;
-        const bool active = pair.distance < r || (was && pair.distance < r + shell);
-        if (!active && pair.distance >= r + near) continue;
-        const Vector3d& p = pair.on_triangle.point;
-        // Tissue between open jaws is not pushed: it may be grasped.
-        if (jaws_open && tool.held.empty() && !was &&
-            between_jaws(tool, p, tool.pose.jaw_angle_rad))
-          continue;
-        // Pushed from the axis to the point, onto the tip's surface. That
-        // normal's tangent plane bounds the tip (it is convex), so a sliding
-        // contact never pulls while the tissue would spring into the tip.
-        // An axis on the triangle, or beyond it (the tip pushed through in
-        // one tick), pushes along the triangle's inward normal.
-        const Vector3d outward = (b - a).cross(cc - a);
-        Vector3d normal = outward.squaredNorm() > 0 ? Vector3d(-outward.normalized())
-                                                    : Vector3d(-vertex_normal_of(corner));
-        if (pair.distance > 1e-9 * r && (p - pair.on_segment).dot(outward) <= 0)
-          normal = (p - pair.on_segment) / pair.distance;
-        TipCandidate candidate{tri,
-                               0,
-                               {},
-                               {},
-                               r - pair.distance,
-                               normal,
-                               pair.on_segment + r * normal,
-                               Vector3d::Zero(),
-                               active};
-        bool movable = false;
-        for (int i = 0; i < 3; ++i) {
-          const double w = pair.on_triangle.weights[static_cast<std::size_t>(i)];
-          if (w == 0) continue;  // on the opposite edge: not part of the point
-          candidate.vertices[static_cast<std::size_t>(candidate.count)] = corner[i];
-          candidate.weights[static_cast<std::size_t>(candidate.count)] = w;
-          ++candidate.count;
-          candidate.rest += w * rest[static_cast<std::size_t>(corner[i])];
-          movable |= corner[i] < compliance_count;
-        }
-        if (!movable) continue;  // a point of the attachment's edge
-        found[static_cast<std::size_t>(total++)] = candidate;
+    const int m = gather_triangles(n);
+    for (int k = 0; k < m; ++k) {
+      const int tri = near_triangles[static_cast<std::size_t>(k)];
+      const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
+      bool blocked = false;  // a vertex of a held point, or the whole triangle fixed
+      int fixed = 0;
+      for (int i = 0; i < 3; ++i) {
+        if (corner[i] >= compliance_count)
+          ++fixed;
+        else if (owner[static_cast<std::size_t>(corner[i])] >= 0)
+          blocked = true;
       }
+      if (blocked || fixed == 3) continue;
+      const Vector3d& a = deformed(corner[0]);
+      const Vector3d& b = deformed(corner[1]);
+      const Vector3d& cc = deformed(corner[2]);
+      const detail::SegmentTrianglePair pair =
+          detail::closest_segment_triangle(tool.pose.position_m, axis, tip_length(g), a, b, cc);
+      const bool was = previous_triangle_owner[static_cast<std::size_t>(tri)] == t;
+      const bool active = pair.distance < r || (was && pair.distance < r + shell);
+      if (!active && pair.distance >= r + near) continue;
+      const Vector3d& p = pair.on_triangle.point;
+      // Tissue between open jaws is not pushed: it may be grasped.
+      if (jaws_open && tool.held.empty() && !was && between_jaws(tool, p, tool.pose.jaw_angle_rad))
+        continue;
+      // Pushed from the axis to the point, onto the tip's surface. That
+      // normal's tangent plane bounds the tip (it is convex), so a sliding
+      // contact never pulls while the tissue would spring into the tip.
+      // An axis on the triangle, or beyond it (the tip pushed through in
+      // one tick), pushes along the triangle's inward normal.
+      const Vector3d outward = (b - a).cross(cc - a);
+      Vector3d normal = outward.squaredNorm() > 0 ? Vector3d(-outward.normalized())
+                                                  : Vector3d(-vertex_normal_of(corner));
+      if (pair.distance > 1e-9 * r && (p - pair.on_segment).dot(outward) <= 0)
+        normal = (p - pair.on_segment) / pair.distance;
+      TipCandidate candidate{tri,
+                             0,
+                             {},
+                             {},
+                             r - pair.distance,
+                             normal,
+                             pair.on_segment + r * normal,
+                             Vector3d::Zero(),
+                             active};
+      bool movable = false;
+      for (int i = 0; i < 3; ++i) {
+        const double w = pair.on_triangle.weights[static_cast<std::size_t>(i)];
+        if (w == 0) continue;  // on the opposite edge: not part of the point
+        candidate.vertices[static_cast<std::size_t>(candidate.count)] = corner[i];
+        candidate.weights[static_cast<std::size_t>(candidate.count)] = w;
+        ++candidate.count;
+        candidate.rest += w * rest[static_cast<std::size_t>(corner[i])];
+        movable |= corner[i] < compliance_count;
+      }
+      if (!movable) continue;  // a point of the attachment's edge
+      found[static_cast<std::size_t>(total++)] = candidate;
     }
     // Deepest first; a point on an edge or a vertex is found from every
     // triangle around it: keep it once. Points closer than 0.05 r to a
