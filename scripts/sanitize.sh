@@ -64,8 +64,12 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   echo "sanitize: the whole suite under ASan+UBSan"
   # load_short is left out: 8 instrumented tools at 1 kHz, 4 viewers and
   # 100 requests/s saturate two cores, and what it then reports is the
-  # machine's throughput, not a memory error (docs/sanitizers.md).
-  PALPATE_TEST_TIME_SCALE=3 run_ctest "$dir" -j2 -E '^load_short$' "$@" || status=1
+  # machine's throughput, not a memory error. faults_end_to_end too: its
+  # two tools at 1 kHz beside the other tests made it fail on liveness
+  # windows (no feedback for the surviving tool around the kill) in about
+  # one run of two, with contact ticks of ~1 ms instrumented
+  # (docs/sanitizers.md). Both run in the Release suite.
+  PALPATE_TEST_TIME_SCALE=3 run_ctest "$dir" -j2 -E '^(load_short|faults_end_to_end)$' "$@" || status=1
 fi
 if [ "$which" = tsan ] || [ "$which" = all ]; then
   dir=${PALPATE_TSAN_BUILD_DIR:-build-tsan}

@@ -26,6 +26,7 @@
 #include "support/child_process.hpp"
 #include "support/daemon_process.hpp"
 #include "support/test_meshes.hpp"
+#include "support/time_scale.hpp"
 
 namespace palpate {
 namespace {
@@ -37,6 +38,12 @@ using testing::ChildProcess;
 using testing::Daemon;
 using testing::TempDir;
 
+// Poses at 1 kHz; slower under a sanitizer (1 kHz / PALPATE_TEST_TIME_SCALE),
+// where two instrumented tools at 1 kHz saturate two cores and what the
+// tests then measure is the machine's throughput (docs/sanitizers.md).
+const Clock::duration kPosePeriod =
+    std::chrono::duration_cast<Clock::duration>(1ms * testing::time_scale());
+const std::string kPliersRate = std::to_string(1000.0 / testing::time_scale());
 constexpr auto kLiveness = 10s;  // bound for "it happens" (expected: about a second)
 const std::array<double, 4> kPointingDown{0, 1, 0, 0};  // tool +z along the model's −z
 constexpr double kReach = 0.019;  // default tool: hinge to the capsule's distal end, m
@@ -156,7 +163,7 @@ class Hand {
       client.send_pose(tool_, model_, ++sequence, {hinge.x(), hinge.y(), hinge.z()}, kPointingDown,
                        0);
       ++poses_;
-      tick += 1ms;
+      tick += kPosePeriod;
       const auto f = client.wait_feedback(tool_, sequence, tick);
       auto events = client.take_events();
       {
@@ -274,7 +281,7 @@ TEST(Faults, AClientKilledMidSessionLetsGoOfItsToolAfterTheWatchdogAndTheOtherTo
 
   ChildProcess pliers(PLIERS_PATH,
                       {write_hold_gesture(dir, box.id(left_vertex), 8).string(), "--model", "box",
-                       "--timeout", "20"},
+                       "--timeout", "20", "--rate", kPliersRate},
                       dir / "pliers.out");
   if (!pliers.wait_for_output("left   touch", Clock::now() + kLiveness)) {
     pliers.signal(SIGINT);
@@ -296,7 +303,10 @@ TEST(Faults, AClientKilledMidSessionLetsGoOfItsToolAfterTheWatchdogAndTheOtherTo
   ASSERT_EQ(pliers.wait(kLiveness), 128 + SIGKILL);
 
   // Its contacts are released: a surface sample without any near the left tool.
-  const auto bound = 50ms + 300ms + 3s;  // watchdog timeout + ramp + margin
+  // Watchdog timeout + ramp + margin; stretched under a sanitizer, where
+  // two tools at 1 kHz keep palpated's cores busy (docs/sanitizers.md).
+  const auto bound =
+      std::chrono::duration_cast<Clock::duration>((50ms + 300ms + 3s) * testing::time_scale());
   Clock::time_point released{};
   while (released == Clock::time_point{} && Clock::now() < killed + bound) {
     for (const auto& s : surface.samples()) {
@@ -410,11 +420,11 @@ TEST(Faults, ClientsSeeTheDaemonGoAndComeBackAndResumeWithoutRestarting) {
   };
 
   // The other clients, as processes: a tool loop, a palpation demo and a watcher.
-  ChildProcess pliers(
-      PLIERS_PATH,
-      {write_hold_gesture(dir, box.id(box.drawn(75, 25))).string(), "--model", "box", "--timeout",
-       "20", "--csv", (dir / "pliers.csv").string(), "--json", (dir / "pliers.json").string()},
-      dir / "pliers.out");
+  ChildProcess pliers(PLIERS_PATH,
+                      {write_hold_gesture(dir, box.id(box.drawn(75, 25))).string(), "--model",
+                       "box", "--timeout", "20", "--rate", kPliersRate, "--csv",
+                       (dir / "pliers.csv").string(), "--json", (dir / "pliers.json").string()},
+                      dir / "pliers.out");
   ChildProcess demo(CLIENT_PATH, {"demo", "--model", "box", "--rate", "100", "--repeat", "1000"},
                     dir / "demo.out");
   ChildProcess watch(CLIENT_PATH, {"watch"}, dir / "watch.out");
