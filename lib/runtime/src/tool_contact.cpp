@@ -715,22 +715,16 @@ struct ToolContactEngine::Impl {
       ContactPoint& point = points[c];
       point.tool = t;
       point.held = b_tip[bb] < 0;
-      Vector3d at_rest;
-      if (point.held) {
-        const HeldPoint& held = tool.held[static_cast<std::size_t>(b_held[bb])];
-        point.triangle = held.triangle;
-        point.vertex_count = held.count;
-        point.vertices = held.vertices;
-        point.weights = held.weights;
-        at_rest = held.rest;
-      } else {
-        const TipCandidate& tip = tool.tips[static_cast<std::size_t>(b_tip[bb])];
-        point.triangle = tip.triangle;
-        point.vertex_count = tip.count;
-        point.vertices = tip.vertices;
-        point.weights = tip.weights;
-        at_rest = tip.rest;
-      }
+      // A held point and a tip's point are both a point of a triangle.
+      const auto take = [&point](const auto& from) {
+        point.triangle = from.triangle;
+        point.vertex_count = from.count;
+        point.vertices = from.vertices;
+        point.weights = from.weights;
+        return from.rest;
+      };
+      const Vector3d at_rest = point.held ? take(tool.held[static_cast<std::size_t>(b_held[bb])])
+                                          : take(tool.tips[static_cast<std::size_t>(b_tip[bb])]);
       tip_of[c] = b_tip[bb];
       point.force_n = f.segment<3>(3 * count);
       const Vector3d displacement = u.segment<3>(3 * count);
