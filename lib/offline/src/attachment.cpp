@@ -155,12 +155,23 @@ void check_attachment_stops_rigid_motion(const TetMesh& mesh, const std::vector<
           p + 1, parts, first_tet[static_cast<size_t>(p)]);
     bool spread = false;
     if (f.size() >= 3) {
-      Eigen::MatrixX3d X(static_cast<Eigen::Index>(f.size()), 3);
-      for (size_t i = 0; i < f.size(); ++i)
-        X.row(static_cast<Eigen::Index>(i)) = mesh.vertices.row(f[i]);
-      X.rowwise() -= X.colwise().mean();
-      const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::MatrixX3d>(X).singularValues();
-      spread = sv[1] > 1e-6 * sv[0];  // not all on one line
+      // The scatter of the fixed points about their mean: its second
+      // eigenvalue is the square of the second singular value of the
+      // centred points, zero when they all lie on one line. (A 3×3 symmetric
+      // eigensolver: an SVD of the n×3 points cost a minute of compilation
+      // under ASan for the same answer.)
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (const auto v : f) mean += mesh.vertices.row(v).transpose();
+      mean /= static_cast<double>(f.size());
+      Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+      for (const auto v : f) {
+        const Eigen::Vector3d d = mesh.vertices.row(v).transpose() - mean;
+        scatter += d * d.transpose();
+      }
+      const Eigen::Vector3d ev =
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter, Eigen::EigenvaluesOnly)
+              .eigenvalues();                // ascending
+      spread = ev[1] > 1e-12 * ev[2];  // σ₂ > 1e-6 σ₁: not all on one line
     }
     if (!spread)
       throw InputError(fmt::format(
