@@ -170,7 +170,7 @@ void check_attachment_stops_rigid_motion(const TetMesh& mesh, const std::vector<
       }
       const Eigen::Vector3d ev =
           Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter, Eigen::EigenvaluesOnly)
-              .eigenvalues();                // ascending
+              .eigenvalues();          // ascending
       spread = ev[1] > 1e-12 * ev[2];  // σ₂ > 1e-6 σ₁: not all on one line
     }
     if (!spread)
