@@ -17,7 +17,7 @@ namespace palpate {
 
 /// How a warped request iterates.
 struct WarpingLimits {
-  int max_iterations = 60;      ///< solves per request, the first one linear
+  int max_iterations = 100;     ///< solves per request, the first one linear
   double tolerance_rad = 1e-9;  ///< largest change of ω between the last two solves
   /// ω ← ω + relaxation (ω_new − ω) after each solve: 1 is plain fixed point;
   /// ½ settles grasps that plain iteration sends into oscillation.
