@@ -160,6 +160,38 @@ double default_smoothing_radius(const DrawnSurface& surface) {
   return 1.5 * edges[edges.size() / 2];
 }
 
+void RotationField::support(int v, std::vector<char>& mark, std::vector<int>& out) const {
+  for (int k = smooth_start_[static_cast<std::size_t>(v)];
+       k < smooth_start_[static_cast<std::size_t>(v) + 1]; ++k) {
+    const int b = smooth_vertex_[static_cast<std::size_t>(k)];
+    for (int i = fit_start_[static_cast<std::size_t>(b)];
+         i < fit_start_[static_cast<std::size_t>(b) + 1]; ++i) {
+      const int j = fit_vertex_[static_cast<std::size_t>(i)];
+      if (!mark[static_cast<std::size_t>(j)]) {
+        mark[static_cast<std::size_t>(j)] = 1;
+        out.push_back(j);
+      }
+    }
+  }
+}
+
+Eigen::Vector3d RotationField::rotation_at(int v, std::span<const double> u_m) const {
+  Eigen::Vector3d w = Eigen::Vector3d::Zero();
+  for (int k = smooth_start_[static_cast<std::size_t>(v)];
+       k < smooth_start_[static_cast<std::size_t>(v) + 1]; ++k) {
+    const int b = smooth_vertex_[static_cast<std::size_t>(k)];
+    Eigen::Vector3d fitted = Eigen::Vector3d::Zero();
+    for (int i = fit_start_[static_cast<std::size_t>(b)];
+         i < fit_start_[static_cast<std::size_t>(b) + 1]; ++i) {
+      const Eigen::Map<const Eigen::Matrix3d> block(&fit_block_[9 * static_cast<std::size_t>(i)]);
+      fitted += block * Eigen::Map<const Eigen::Vector3d>(
+                            &u_m[3 * static_cast<std::size_t>(fit_vertex_[static_cast<std::size_t>(i)])]);
+    }
+    w += smooth_weight_[static_cast<std::size_t>(k)] * fitted;
+  }
+  return w;
+}
+
 double RotationField::mean_neighbourhood() const {
   return n_ > 0 ? static_cast<double>(smooth_vertex_.size()) / n_ : 0.0;
 }

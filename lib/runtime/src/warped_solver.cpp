@@ -43,9 +43,10 @@ WarpedSolver::WarpedSolver(const SurfaceModel& model, const SolverLimits& limits
   force_.assign(3 * k, 0.0);
   displacement_.assign(3 * k, 0.0);
   const auto n3 = static_cast<std::size_t>(model.compliance_rows());
-  u_hat_ = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n3));
-  omega_.assign(n3, 0.0);
-  omega_next_.assign(n3, 0.0);
+  const auto n = static_cast<Eigen::Index>(n3);
+  u_hat_ = omega_ = fresh_ = field_u_ = field_omega_ = Eigen::VectorXd::Zero(n);
+  point_mark_.assign(n3 / 3, 0);
+  support_mark_.assign(n3 / 3, 0);
 }
 
 RequestStatus WarpedSolver::begin(std::size_t count) {
@@ -95,14 +96,13 @@ RequestStatus WarpedSolver::add_point(std::span<const std::uint32_t> vertex_ids,
   return status;
 }
 
-Eigen::Vector3d WarpedSolver::point_omega(int j) const {
+Eigen::Vector3d WarpedSolver::point_omega(const Eigen::VectorXd& omega, int j) const {
   const auto jj = static_cast<std::size_t>(j);
   Eigen::Vector3d w = Eigen::Vector3d::Zero();
   for (int i = 0; i < point_count_[jj]; ++i) {
     const int a = point_index_[3 * jj + std::size_t(i)];
     if (a >= 0)  // a fixed vertex does not rotate
-      w += point_weight_[3 * jj + std::size_t(i)] *
-           Eigen::Map<const Eigen::Vector3d>(&omega_[3 * std::size_t(a)]);
+      w += point_weight_[3 * jj + std::size_t(i)] * omega.segment<3>(3 * a);
   }
   return w;
 }
@@ -132,6 +132,35 @@ RequestStatus WarpedSolver::add_rotated(int j, const Eigen::Matrix3d& Rt) {
                                    point_count_[jj], kind_[jj], v.data(), n.data());
 }
 
+void WarpedSolver::gather_support() {
+  // The distinct compliance vertices of the points, and what their ω reads.
+  points_.clear();
+  support_.clear();
+  std::fill(point_mark_.begin(), point_mark_.end(), 0);
+  std::fill(support_mark_.begin(), support_mark_.end(), 0);
+  for (int j = 0; j < count_; ++j)
+    for (int i = 0; i < point_count_[std::size_t(j)]; ++i) {
+      const int a = point_index_[3 * std::size_t(j) + std::size_t(i)];
+      if (a >= 0 && !point_mark_[std::size_t(a)]) {
+        point_mark_[std::size_t(a)] = 1;
+        points_.push_back(a);
+        field_.support(a, support_mark_, support_);
+      }
+    }
+}
+
+void WarpedSolver::material_field_on_support(const ConstraintSolver& solver) {
+  // û_s = Σ_l G^{s l} f̂_l over the loads: the field where ω reads it only.
+  const auto loads = solver.load_indices();
+  const auto forces = solver.load_forces();
+  for (const int s : support_) {
+    Eigen::Vector3d u = Eigen::Vector3d::Zero();
+    for (std::size_t l = 0; l < loads.size(); ++l)
+      u += model_.G_block(s, loads[l]) * Eigen::Map<const Eigen::Vector3d>(&forces[3 * l]);
+    u_hat_.segment<3>(3 * s) = u;
+  }
+}
+
 RequestStatus WarpedSolver::solve() {
   solved_ = false;
   iterations_ = 0;
@@ -144,21 +173,23 @@ RequestStatus WarpedSolver::solve() {
     *end.out = '\0';
     return status;
   }
-  const ConstraintSolver* last = &linear_;
+  last_ = &linear_;
   for (int j = 0; j < count_; ++j) {
     Eigen::Map<Eigen::Matrix3d> Rt(&rotation_[9 * std::size_t(j)]);
     Rt.setIdentity();
   }
-  std::fill(omega_.begin(), omega_.end(), 0.0);
+  gather_support();
+  for (const int a : points_) omega_.segment<3>(3 * a).setZero();
   for (;;) {
-    last->surface_displacement(u_hat_);
-    field_.rotations({u_hat_.data(), std::size_t(u_hat_.size())}, omega_next_);
+    material_field_on_support(*last_);
     change_ = 0;
     const double r = iterations_ == 1 ? 1.0 : warping_.relaxation;  // the first from ω = 0
-    for (std::size_t i = 0; i < omega_.size(); ++i) {
-      const double step = r * (omega_next_[i] - omega_[i]);
-      change_ = std::max(change_, std::abs(step));
-      omega_[i] += step;
+    for (const int a : points_) {
+      fresh_.segment<3>(3 * a) =
+          field_.rotation_at(a, {u_hat_.data(), static_cast<std::size_t>(u_hat_.size())});
+      const Eigen::Vector3d step = r * (fresh_.segment<3>(3 * a) - omega_.segment<3>(3 * a));
+      change_ = std::max(change_, step.cwiseAbs().maxCoeff());
+      omega_.segment<3>(3 * a) += step;
     }
     if (change_ <= warping_.tolerance_rad) break;
     if (iterations_ >= warping_.max_iterations) {
@@ -172,7 +203,7 @@ RequestStatus WarpedSolver::solve() {
     }
     if ((status = warped_.begin(std::size_t(count_))) != RequestStatus::kOk) break;
     for (int j = 0; j < count_ && status == RequestStatus::kOk; ++j) {
-      const Eigen::Matrix3d Rt = integrated_rotation(point_omega(j));
+      const Eigen::Matrix3d Rt = integrated_rotation(point_omega(omega_, j));
       Eigen::Map<Eigen::Matrix3d> stored(&rotation_[9 * std::size_t(j)]);
       stored = Rt;
       status = add_rotated(j, Rt);
@@ -186,12 +217,13 @@ RequestStatus WarpedSolver::solve() {
       *end.out = '\0';
       return status;
     }
-    last = &warped_;
+    last_ = &warped_;
   }
   if (status != RequestStatus::kOk) return status;
-  // Back to the world: f = R̃⁻ᵀ f̂ (a given force stays as given), x − p = R̃ û.
-  const auto f_hat = last->forces();
-  const auto u_point = last->displacements();
+  // Back to the world: f = R̃⁻ᵀ f̂ (a given force stays as given), x − p = R̃ û
+  // with ω from the final field (fresh_), as surface_displacement() carries it.
+  const auto f_hat = last_->forces();
+  const auto u_point = last_->displacements();
   for (int j = 0; j < count_; ++j) {
     const auto jj = static_cast<std::size_t>(j);
     const Eigen::Map<const Eigen::Matrix3d> Rt(&rotation_[9 * jj]);
@@ -200,9 +232,8 @@ RequestStatus WarpedSolver::solve() {
       f = Eigen::Map<const Eigen::Vector3d>(&value_[3 * jj]);
     else
       f = Rt.transpose().inverse() * f_hat.segment<3>(3 * j);
-    // With the final ω, as surface_displacement() carries the field.
     Eigen::Map<Eigen::Vector3d> x(&displacement_[3 * jj]);
-    x = integrated_rotation(point_omega(j)) * u_point.segment<3>(3 * j);
+    x = integrated_rotation(point_omega(fresh_, j)) * u_point.segment<3>(3 * j);
   }
   solved_ = true;
   return RequestStatus::kOk;
@@ -216,11 +247,13 @@ Eigen::Vector3d WarpedSolver::total_force() const {
 
 void WarpedSolver::surface_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const {
   PALPATE_DEMAND(solved_ && u_m.size() == u_hat_.size());
-  // û of the last solve is in u_hat_ (the field the final ω came from).
+  // The whole material field of the last solve, its rotations, then R̃ û.
+  last_->surface_displacement(field_u_);
+  field_.rotations({field_u_.data(), static_cast<std::size_t>(field_u_.size())},
+                   {field_omega_.data(), static_cast<std::size_t>(field_omega_.size())});
   for (Eigen::Index v = 0; v < u_hat_.size() / 3; ++v)
-    u_m.segment<3>(3 * v) =
-        integrated_rotation(Eigen::Map<const Eigen::Vector3d>(&omega_[3 * std::size_t(v)])) *
-        u_hat_.segment<3>(3 * v);
+    u_m.segment<3>(3 * v) = integrated_rotation(field_omega_.segment<3>(3 * v)) *
+                            field_u_.segment<3>(3 * v);
 }
 
 }  // namespace palpate

@@ -40,6 +40,14 @@ class RotationField {
   /// Allocation-free.
   void rotations(std::span<const double> u_m, std::span<double> omega) const;
 
+  /// The compliance vertices whose displacement rotation_at(@p v) reads,
+  /// appended to @p out once each (@p mark, one per compliance vertex, says
+  /// which are in; the caller clears it).
+  void support(int v, std::vector<char>& mark, std::vector<int>& out) const;
+  /// ω at compliance vertex @p v alone, reading u (3 per compliance vertex)
+  /// only on support(v): equal to rotations() there.
+  Eigen::Vector3d rotation_at(int v, std::span<const double> u_m) const;
+
   int vertex_count() const { return n_; }
   double smoothing_radius_m() const { return radius_; }
   /// Average number of vertices in one smoothing neighbourhood.

@@ -73,14 +73,20 @@ class WarpedSolver {
   Eigen::Vector3d total_force() const;
   /// World displacement of every compliance vertex, R̃_v û_v, 3N_S, m.
   void surface_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const;
-  /// ω of every compliance vertex in the last solve, 3N_S, rad.
-  std::span<const double> rotations() const { return omega_; }
+  /// ω from the last solve's field, 3 per compliance vertex, rad: valid at
+  /// the vertices of the constraints' points (the only ones the fixed point
+  /// reads), zero elsewhere.
+  std::span<const double> rotations() const {
+    return {fresh_.data(), static_cast<std::size_t>(fresh_.size())};
+  }
   int iterations() const { return iterations_; }  ///< solves of the last request
   double rotation_change() const { return change_; }  ///< last max |Δω|, rad
 
  private:
   RequestStatus add_rotated(int j, const Eigen::Matrix3d& Rt);
-  Eigen::Vector3d point_omega(int j) const;
+  Eigen::Vector3d point_omega(const Eigen::VectorXd& omega, int j) const;
+  void gather_support();
+  void material_field_on_support(const ConstraintSolver& solver);
 
   const SurfaceModel& model_;
   const RotationField& field_;
@@ -95,8 +101,13 @@ class WarpedSolver {
   std::vector<double> value_, normal_;  // world, 3 per constraint
   std::vector<double> rotation_;        // R̃ per constraint, 9, column-major
   std::vector<double> force_, displacement_;
-  Eigen::VectorXd u_hat_;  // material field, 3N_S
-  std::vector<double> omega_, omega_next_;
+  // The points' compliance vertices and the vertices their ω reads; û on
+  // those only (3N_S storage), ω relaxed and fresh at the points.
+  std::vector<int> points_, support_;
+  std::vector<char> point_mark_, support_mark_;
+  Eigen::VectorXd u_hat_, omega_, fresh_;
+  const ConstraintSolver* last_ = nullptr;  // the solver of the last solve
+  mutable Eigen::VectorXd field_u_, field_omega_;  // surface_displacement()
   int iterations_ = 0;
   double change_ = 0;
   bool solved_ = false;
