@@ -94,7 +94,13 @@ def write_msh2(path, vertices, tets):
 def read_msh2(path):
     """Read back an MSH 2.2 ASCII file with only 4-node tetrahedra (other elements skipped)."""
     with open(path) as f:
-        lines = f.read().split("\n")
+        lines = [line.strip() for line in f.read().split("\n")]
+    try:
+        version, binary = lines[lines.index("$MeshFormat") + 1].split()[:2]
+    except (ValueError, IndexError):
+        raise ValueError(f"{path}: no $MeshFormat section; accepted: Gmsh MSH 2.2 ASCII")
+    if not version.startswith("2") or binary != "0":
+        raise ValueError(f"{path}: MSH version {version}{' binary' if binary != '0' else ''}; accepted: MSH 2.2 ASCII")
     i = lines.index("$Nodes")
     n = int(lines[i + 1])
     tags, coords = [], []
@@ -112,6 +118,8 @@ def read_msh2(path):
             continue
         ntags = parts[2]
         tets.append([rank[t] for t in parts[3 + ntags : 7 + ntags]])
+    if not tets:
+        raise ValueError(f"{path}: no 4-node tetrahedron (element type 4)")
     return np.array(coords), np.array(tets, dtype=np.int64)
 
 

@@ -109,6 +109,16 @@ def linear_forces_from_compliance(h5path, grasped, displacements):
     return [np.linalg.solve(W, d.ravel()).reshape(-1, 3).sum(axis=0) for d in displacements]
 
 
+def check_same_mesh(h5path, vertices):
+    """The compliance file's vertices must be the mesh's, in the same order (to 1e-9 m)."""
+    import h5py
+
+    with h5py.File(h5path, "r") as f:
+        stored = f["/mesh/vertices"][()]
+    if stored.shape != vertices.shape or np.max(np.abs(stored - vertices)) > 1e-9:
+        raise ValueError(f"{h5path}: its /mesh/vertices are not the mesh's (same count and order, in metres, are needed)")
+
+
 def load_mesh(path, fix_box):
     if path.endswith(".h5"):
         import h5py
@@ -135,12 +145,15 @@ def run(args):
     solid = nh.Solid(X, T, E, nu, args.law)
     surface = nh.boundary_vertices(T)
     grasped = np.setdiff1d(select_grasp(args.grasp, X, surface), fixed)
+    if len(grasped) == 0:
+        raise ValueError(f"--grasp {args.grasp!r} selects only fixed vertices")
     angles = [float(a) for a in args.angles.split(",")]
     target = motion(args.motion, X[grasped], args.axis_point, args.axis_direction)
     rad = [math.radians(a) for a in angles]
     displacements = [target(t) - X[grasped] for t in rad]
     compliance = args.compliance or (args.mesh if args.mesh.endswith(".h5") else None)
     if compliance:
+        check_same_mesh(compliance, X)
         linear = linear_forces_from_compliance(compliance, grasped, displacements)
     else:
         linear = [nh.linear_reaction(solid, fixed, grasped, d) for d in displacements]
@@ -183,7 +196,18 @@ def main(argv):
     ap.add_argument("--max-step", type=float, default=15.0, help="largest angle increment, degrees (default 15)")
     ap.add_argument("-v", "--verbose", action="store_true")
     args = ap.parse_args(argv)
-    info, angles, results, linear, _ = run(args)
+    try:
+        angles = [float(x) for x in args.angles.split(",")]
+    except ValueError:
+        angles = []
+    if not angles or not all(a < b for a, b in zip([0.0] + angles, angles)) or angles[-1] > 180:
+        sys.exit(f"lift.py: bad --angles {args.angles!r}; accepted: increasing degrees in (0, 180], comma-separated")
+    try:
+        info, angles, results, linear, _ = run(args)
+    except (OSError, ValueError, KeyError) as e:
+        sys.exit(f"lift.py: {e}")
+    except nh.NotConverged as e:
+        sys.exit(f"lift.py: the nonlinear solve did not converge ({e}); try a smaller --max-step")
     print(info)
     print("angle_deg,fx_n,fy_n,fz_n,f_n,linear_fx_n,linear_fy_n,linear_fz_n,linear_f_n,newton_iterations,seconds")
     for a, r, lf in zip(angles, results, linear):

@@ -21,6 +21,11 @@ with these E, nu for small strains):
       W = mu/2 (J^(-2/3) I1 - 3) + K/2 (J - 1)^2
       P = mu J^(-2/3) (F - I1/3 F^-T) + K (J - 1) J F^-T
 
+  "svk" (St Venant-Kirchhoff, for comparison: not polyconvex, softens and
+  fails in strong compression)
+      W = lambda/2 (tr E)^2 + mu tr(E^2),   E = (F^T F - I) / 2
+      P = F S,   S = lambda tr(E) I + 2 mu E
+
 P is the first Piola-Kirchhoff stress. The internal (elastic) force on
 vertex a is f_a = V P g_a: at equilibrium it is the external force applied
 on the vertex, so on an imposed vertex it is the force the grasp exerts on
@@ -41,7 +46,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-LAWS = ("neo-hookean", "ccx")
+LAWS = ("neo-hookean", "ccx", "svk")
 
 
 def lame(young_modulus_pa, poisson_ratio):
@@ -92,6 +97,22 @@ def _stress_and_tangent(F, mu, lam, law, want_tangent=True):
                 - mu / 3 * C(Jm) * (-2.0 / 3.0 * C(I1) * a_ij_kl + 2 * FiT_ij_F_kl - C(I1) * a_il_kj)
                 + kappa * (C(2 * Jsafe**2 - Jsafe) * a_ij_kl - C(Jsafe**2 - Jsafe) * a_il_kj)
             )
+    elif law == "svk":
+        Egl = 0.5 * (np.einsum("tki,tkj->tij", F, F) - np.eye(3))
+        trE = np.trace(Egl, axis1=1, axis2=2)
+        W = lam / 2 * trE**2 + mu * np.einsum("tij,tij->t", Egl, Egl)
+        S = (lam * trE)[:, None, None] * np.eye(3) + 2 * mu * Egl
+        P = np.einsum("tiM,tMJ->tiJ", F, S)
+        if want_tangent:
+            # dP_iJ/dF_kL = delta_ik S_JL + F_iM C_MJNL F_kN,
+            # C_MJNL = lambda delta_MJ delta_NL + mu (delta_MN delta_JL + delta_ML delta_JN)
+            A = (
+                np.einsum("ik,tJL->tiJkL", np.eye(3), S)
+                + lam * np.einsum("tiJ,tkL->tiJkL", F, F)
+                + mu * np.einsum("tiN,tkN,JL->tiJkL", F, F, np.eye(3))
+                + mu * np.einsum("tiL,tkJ->tiJkL", F, F)
+            )
+        # SVK has finite energy for J <= 0; keep inverted elements out all the same.
     else:
         raise ValueError(f"unknown law {law!r}; accepted: {', '.join(LAWS)}")
     W = np.where(bad, np.inf, W)
