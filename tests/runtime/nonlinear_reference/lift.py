@@ -22,7 +22,10 @@ about the axis through --axis-point along --axis-direction (right-handed):
              vertices' centroid c: a + R(theta) (c - a) - c (no rotation)
 The fixed vertices stay; every other vertex is free of force.
 
-Output: CSV on stdout, one row per angle: the summed force that the grasp
+Numbers that start with "-" need the "=" form (--axis-point=-0.1,0,0).
+
+Output on stdout: a line starting with "#" (mesh, grasp and law, time), then
+CSV with a header, one row per angle: the summed force that the grasp
 exerts on the body (N), nonlinear (law --law) and linear (W^-1 d from the
 compliance file's G when there is one, W the grasped vertices' block; else
 from this program's own small-strain stiffness), then the solver's
