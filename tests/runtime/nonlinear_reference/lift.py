@@ -3,7 +3,7 @@
 
     lift.py --mesh MESH [--fix-box X0,Y0,Z0,X1,Y1,Z1] --grasp SPEC --angles 5,15,45
             [--axis-point PX,PY,PZ] [--axis-direction AX,AY,AZ] [--motion rigid|translate]
-            [-E 20e3] [--nu 0.45] [--law neo-hookean|ccx] [--compliance FILE.h5]
+            [-E 20e3] [--nu 0.45] [--law neo-hookean|ccx|svk] [--compliance FILE.h5]
 
 MESH is a Gmsh MSH 2.2 ASCII tetrahedral mesh in metres (flap_mesh.py writes
 one; then --fix-box gives the fixed vertices) or a palpate compliance file
