@@ -48,8 +48,7 @@ struct Lift {
       if ((s.rest_position(v) - pivot).norm() > (s.rest_position(far) - pivot).norm()) far = v;
     const auto patch = palpate::bench::nearest_patch(s, far, 6);
     ids = patch.vertex_ids;
-    for (const auto id : ids)
-      rest.push_back(s.rest_position(model.compliance_index_of_vertex[id]));
+    for (const auto id : ids) rest.push_back(s.rest_position(model.compliance_index_of_vertex[id]));
     const Eigen::Vector3d lever = s.rest_position(far) - pivot;
     const Eigen::Vector3d n(-patch.inward_normal[0], -patch.inward_normal[1],
                             -patch.inward_normal[2]);

@@ -86,9 +86,10 @@ TEST(IntegratedRotation, TurnsAnInfinitesimalRotationIntoTheFiniteOne) {
       const Eigen::Matrix3d R = rotation_matrix(omega);
       const Eigen::Matrix3d expected = Eigen::AngleAxisd(angle, axis).toRotationMatrix();
       EXPECT_LT((R - expected).norm(), 1e-14) << angle;
-      EXPECT_LT((integrated_rotation(omega) * omega.cross(r) - (R - Eigen::Matrix3d::Identity()) * r)
-                    .norm(),
-                1e-14)
+      EXPECT_LT(
+          (integrated_rotation(omega) * omega.cross(r) - (R - Eigen::Matrix3d::Identity()) * r)
+              .norm(),
+          1e-14)
           << angle;
     }
   }
@@ -104,8 +105,7 @@ TEST_F(WarpingTest, RotationsOfARigidFieldAreItsRotation) {
   const int n = surface().compliance_vertex_count;
   const Eigen::Vector3d theta(0.01, -0.02, 0.015), c(0.03, 0.01, -0.02);
   std::vector<double> u(3 * static_cast<std::size_t>(n)), omega(u.size());
-  for (int v = 0; v < n; ++v)
-  {
+  for (int v = 0; v < n; ++v) {
     Eigen::Map<Eigen::Vector3d> uv(&u[3 * static_cast<std::size_t>(v)]);
     uv = theta.cross(surface().rest_position(v) - c);
   }
@@ -213,7 +213,8 @@ TEST_F(WarpingTest, ANormalDisplacementStaysNormalOnARotatedPart) {
   EXPECT_LT(f.cross(n).norm(), 1e-12 * f.norm());
   EXPECT_NEAR(n.dot(x), delta, 1e-9 * std::abs(delta));
   // The rotation there is the lift's, roughly: the frame is not the rest one.
-  const Eigen::Map<const Eigen::Vector3d> w(&warped.rotations()[3 * static_cast<std::size_t>(probe)]);
+  const Eigen::Map<const Eigen::Vector3d> w(
+      &warped.rotations()[3 * static_cast<std::size_t>(probe)]);
   EXPECT_GT(w.norm(), 0.2);
 }
 

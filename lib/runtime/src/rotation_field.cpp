@@ -1,12 +1,11 @@
 #include "palpate/runtime/rotation_field.hpp"
 
-#include <algorithm>
-#include <cmath>
-#include <numeric>
-
 #include <fmt/format.h>
 
 #include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
 
 #include "palpate/core/error.hpp"
 
@@ -57,9 +56,9 @@ std::vector<std::vector<int>> rings(const DrawnSurface& surface) {
 RotationField::RotationField(const DrawnSurface& surface, double smoothing_radius_m)
     : n_(surface.compliance_vertex_count), radius_(smoothing_radius_m) {
   if (!(smoothing_radius_m > 0) || !std::isfinite(smoothing_radius_m))
-    throw InputError(fmt::format(
-        "warping: smoothing radius {:g} m; a positive length in metres is accepted",
-        smoothing_radius_m));
+    throw InputError(
+        fmt::format("warping: smoothing radius {:g} m; a positive length in metres is accepted",
+                    smoothing_radius_m));
   const auto normals = vertex_normals(surface);
   const auto ring = rings(surface);
   const Matrix39d skew = axial_of_skew();
@@ -114,7 +113,8 @@ RotationField::RotationField(const DrawnSurface& surface, double smoothing_radiu
            surface.rest_positions_m[3 * static_cast<std::size_t>(b)];
   });
   std::vector<int> rank(static_cast<std::size_t>(n_));
-  for (int k = 0; k < n_; ++k) rank[static_cast<std::size_t>(order[static_cast<std::size_t>(k)])] = k;
+  for (int k = 0; k < n_; ++k)
+    rank[static_cast<std::size_t>(order[static_cast<std::size_t>(k)])] = k;
   const double reach = 2 * radius_, reach2 = reach * reach;
   smooth_start_.assign(1, 0);
   for (int v = 0; v < n_; ++v) {
@@ -184,8 +184,9 @@ Eigen::Vector3d RotationField::rotation_at(int v, std::span<const double> u_m) c
     for (int i = fit_start_[static_cast<std::size_t>(b)];
          i < fit_start_[static_cast<std::size_t>(b) + 1]; ++i) {
       const Eigen::Map<const Eigen::Matrix3d> block(&fit_block_[9 * static_cast<std::size_t>(i)]);
-      fitted += block * Eigen::Map<const Eigen::Vector3d>(
-                            &u_m[3 * static_cast<std::size_t>(fit_vertex_[static_cast<std::size_t>(i)])]);
+      fitted +=
+          block * Eigen::Map<const Eigen::Vector3d>(
+                      &u_m[3 * static_cast<std::size_t>(fit_vertex_[static_cast<std::size_t>(i)])]);
     }
     w += smooth_weight_[static_cast<std::size_t>(k)] * fitted;
   }

@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <Eigen/LU>
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -128,8 +127,8 @@ RequestStatus WarpedSolver::add_rotated(int j, const Eigen::Matrix3d& Rt) {
       break;
     }
   }
-  return warped_.add_surface_point(&point_index_[3 * jj], &point_weight_[3 * jj],
-                                   point_count_[jj], kind_[jj], v.data(), n.data());
+  return warped_.add_surface_point(&point_index_[3 * jj], &point_weight_[3 * jj], point_count_[jj],
+                                   kind_[jj], v.data(), n.data());
 }
 
 void WarpedSolver::gather_support() {
@@ -211,9 +210,9 @@ RequestStatus WarpedSolver::solve() {
     if (status == RequestStatus::kOk) status = warped_.solve();
     ++iterations_;
     if (status != RequestStatus::kOk) {
-      const auto end = fmt::format_to_n(message_.data(), message_.size() - 1,
-                                        "the warped solve, after {} solves: {}", iterations_,
-                                        warped_.message());
+      const auto end =
+          fmt::format_to_n(message_.data(), message_.size() - 1,
+                           "the warped solve, after {} solves: {}", iterations_, warped_.message());
       *end.out = '\0';
       return status;
     }
@@ -241,7 +240,8 @@ RequestStatus WarpedSolver::solve() {
 
 Eigen::Vector3d WarpedSolver::total_force() const {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (int j = 0; j < count_; ++j) sum += Eigen::Map<const Eigen::Vector3d>(&force_[3 * std::size_t(j)]);
+  for (int j = 0; j < count_; ++j)
+    sum += Eigen::Map<const Eigen::Vector3d>(&force_[3 * std::size_t(j)]);
   return sum;
 }
 
@@ -252,8 +252,8 @@ void WarpedSolver::surface_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const {
   field_.rotations({field_u_.data(), static_cast<std::size_t>(field_u_.size())},
                    {field_omega_.data(), static_cast<std::size_t>(field_omega_.size())});
   for (Eigen::Index v = 0; v < u_hat_.size() / 3; ++v)
-    u_m.segment<3>(3 * v) = integrated_rotation(field_omega_.segment<3>(3 * v)) *
-                            field_u_.segment<3>(3 * v);
+    u_m.segment<3>(3 * v) =
+        integrated_rotation(field_omega_.segment<3>(3 * v)) * field_u_.segment<3>(3 * v);
 }
 
 }  // namespace palpate

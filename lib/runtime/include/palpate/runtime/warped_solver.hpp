@@ -79,7 +79,7 @@ class WarpedSolver {
   std::span<const double> rotations() const {
     return {fresh_.data(), static_cast<std::size_t>(fresh_.size())};
   }
-  int iterations() const { return iterations_; }  ///< solves of the last request
+  int iterations() const { return iterations_; }      ///< solves of the last request
   double rotation_change() const { return change_; }  ///< last max |Δω|, rad
 
  private:
@@ -106,7 +106,7 @@ class WarpedSolver {
   std::vector<int> points_, support_;
   std::vector<char> point_mark_, support_mark_;
   Eigen::VectorXd u_hat_, omega_, fresh_;
-  const ConstraintSolver* last_ = nullptr;  // the solver of the last solve
+  const ConstraintSolver* last_ = nullptr;         // the solver of the last solve
   mutable Eigen::VectorXd field_u_, field_omega_;  // surface_displacement()
   int iterations_ = 0;
   double change_ = 0;
