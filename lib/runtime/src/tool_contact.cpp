@@ -7,6 +7,7 @@
 #include <cstring>
 #include <limits>
 
+#include "active_set.hpp"
 #include "contact_geometry.hpp"
 #include "jaw_grasp.hpp"
 #include "palpate/core/error.hpp"
@@ -48,7 +49,7 @@ struct ToolContactEngine::Impl {
   const SurfaceModel& model;
   ContactSettings settings;
   SolverLimits limits;
-  ConstraintSolver solver;
+  detail::ActiveSet active_set;
   int per_tool_cap = 0;
 
   struct Tool {
@@ -114,7 +115,6 @@ struct ToolContactEngine::Impl {
   std::vector<double> load_force;  // 3 per load, N
   std::vector<int> load_slot;      // per compliance vertex: its load this tool, or -1
   double max_displacement = 0;     // over the points, m
-  std::uint64_t solve_count = 0;
   char message[256] = {};
   mutable char problem[256] = {};  // why check() refused the last pose it refused
 
@@ -129,19 +129,14 @@ struct ToolContactEngine::Impl {
   // The constraint set being built: a held point (tip -1) or a tip point.
   int building = 0;
   std::vector<int> b_tool, b_tip, b_held;
-  std::vector<ConstraintKind> b_kind;
-  std::vector<double> b_value, b_normal;
-  // Per built constraint: solved (0), let go for adhesion this tick, or a
-  // near triangle not (yet) pressed.
-  static constexpr char kReleased = 1, kDormant = 2;
-  std::vector<char> released;
+  std::vector<detail::ActiveRow> rows;  // the active set's rows, one per built constraint
 
   Impl(const SurfaceModel& m, std::vector<ToolGeometry> geometries, const ContactSettings& s,
        const SolverLimits& l)
       : model(m),
         settings(s),
         limits(l),
-        solver(m, l),
+        active_set(m, l),
         grasp(std::max(1, l.max_constraints), m.compliance_vertex_count()) {
     const DrawnSurface& surface = m.surface;
     compliance_count = m.compliance_vertex_count();
@@ -211,10 +206,7 @@ struct ToolContactEngine::Impl {
     b_tool.resize(k);
     b_tip.resize(k);
     b_held.resize(k);
-    b_kind.resize(k);
-    b_value.resize(3 * k);
-    b_normal.resize(3 * k);
-    released.resize(k);
+    rows.resize(k);
   }
 
   /// Forgets the deformed positions (the loads changed).
@@ -494,16 +486,29 @@ struct ToolContactEngine::Impl {
   /// Builds, solves (with adhesion release) and stores every tool's constraints.
   RequestStatus solve_all() {
     building = 0;
-    auto add = [&](int t, int tip, int held, ConstraintKind kind, const Vector3d& value,
-                   const Vector3d& normal) {
+    // A point on its vertices, a fixed one as −1 (its share goes to the attachment).
+    auto add = [&](int t, int tip, int held, const auto& point, ConstraintKind kind,
+                   const Vector3d& value, const Vector3d& normal) {
       const auto b = static_cast<std::size_t>(building++);
       b_tool[b] = t;
       b_tip[b] = tip;
       b_held[b] = held;
-      b_kind[b] = kind;
-      Eigen::Map<Vector3d>{&b_value[3 * b]} = value;
-      Eigen::Map<Vector3d>{&b_normal[3 * b]} = normal;
-      released[b] = 0;
+      const Tool& tool = tools[static_cast<std::size_t>(t)];
+      detail::ActiveRow& row = rows[b];
+      row.count = point.count;
+      for (std::size_t i = 0; i < 3; ++i) {
+        const int v = static_cast<int>(i) < point.count ? point.vertices[i] : -1;
+        row.index[i] = v < compliance_count ? v : -1;
+        row.weights[i] = static_cast<int>(i) < point.count ? point.weights[i] : 0.0;
+      }
+      row.kind = kind;
+      row.value = value;
+      row.normal = normal;
+      row.tip = tip >= 0;
+      row.friction = tool.geometry.friction;
+      row.depth = row.tip ? tool.tips[static_cast<std::size_t>(tip)].depth : 0.0;
+      row.join_gap_m = 1e-3 * tool.geometry.tip_radius_m;
+      row.state = detail::ActiveRow::kActive;
     };
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
       const Tool& tool = tools[static_cast<std::size_t>(t)];
@@ -511,7 +516,7 @@ struct ToolContactEngine::Impl {
       for (int h = 0; h < static_cast<int>(tool.held.size()); ++h) {
         const HeldPoint& held = tool.held[static_cast<std::size_t>(h)];
         const Vector3d target = tool.pose.position_m + tool.rotation * held.local;
-        add(t, -1, h, ConstraintKind::kDisplacement, tool.scale * (target - held.rest),
+        add(t, -1, h, held, ConstraintKind::kDisplacement, tool.scale * (target - held.rest),
             Vector3d::Zero());
       }
     }
@@ -522,130 +527,26 @@ struct ToolContactEngine::Impl {
         const TipCandidate& tip = tool.tips[static_cast<std::size_t>(c)];
         const Vector3d u = tool.scale * (tip.target - tip.rest);
         if (tool.geometry.friction > 0)
-          add(t, c, -1, ConstraintKind::kDisplacement, u, tip.normal);
+          add(t, c, -1, tip, ConstraintKind::kDisplacement, u, tip.normal);
         else
-          add(t, c, -1, ConstraintKind::kNormalDisplacement, Vector3d(tip.normal.dot(u), 0, 0),
+          add(t, c, -1, tip, ConstraintKind::kNormalDisplacement, Vector3d(tip.normal.dot(u), 0, 0),
               tip.normal);
-        if (!tip.active) released[static_cast<std::size_t>(building - 1)] = kDormant;
+        if (!tip.active)
+          rows[static_cast<std::size_t>(building - 1)].state = detail::ActiveRow::kDormant;
       }
     }
-
-    RequestStatus status = RequestStatus::kOk;
-    bool softened = false;
-    const int iterations = std::max(1, settings.max_iterations);
-    for (int iteration = 0; iteration < iterations; ++iteration) {
-      int k = 0;
-      for (int b = 0; b < building; ++b) k += released[static_cast<std::size_t>(b)] ? 0 : 1;
-      status = solver.begin(static_cast<std::size_t>(k));
-      for (int b = 0; b < building && status == RequestStatus::kOk; ++b) {
-        const auto bb = static_cast<std::size_t>(b);
-        if (released[bb]) continue;
-        status = add_to_solver(bb);
-      }
-      if (status == RequestStatus::kOk) status = solver.solve();
-      ++solve_count;
-      // Sticking points fix three components each: more of them than their
-      // triangles' vertices can move (a tip in a dip meets several triangles
-      // around the same vertices) is a singular system. They slide instead:
-      // one row each, the normal.
-      if (status == RequestStatus::kIllConditioned && !softened) {
-        softened = true;
-        bool any_stick = false;
-        for (int b = 0; b < building; ++b) {
-          const auto bb = static_cast<std::size_t>(b);
-          if (b_tip[bb] < 0 || b_kind[bb] != ConstraintKind::kDisplacement) continue;
-          const Eigen::Map<const Vector3d> n(&b_normal[3 * bb]);
-          b_kind[bb] = ConstraintKind::kNormalDisplacement;
-          b_value[3 * bb] = n.dot(Eigen::Map<const Vector3d>(&b_value[3 * bb]));
-          b_value[3 * bb + 1] = b_value[3 * bb + 2] = 0;
-          any_stick = true;
-        }
-        if (any_stick) {
-          --iteration;  // the same iteration, on rows that can be solved
-          continue;
-        }
-      }
-      // Still singular (more rows than their vertices can take: points on
-      // edges and corners of the same few vertices, or on triangles whose
-      // other corners are fixed): the shallowest tip contact goes, and the
-      // rest is solved again, within the same iteration.
-      if (status == RequestStatus::kIllConditioned && softened) {
-        int shallowest = -1;
-        double depth = INFINITY;
-        for (int b = 0; b < building; ++b) {
-          const auto bb = static_cast<std::size_t>(b);
-          if (b_tip[bb] < 0 || released[bb] != 0) continue;
-          const double d = tools[static_cast<std::size_t>(b_tool[bb])]
-                               .tips[static_cast<std::size_t>(b_tip[bb])]
-                               .depth;
-          if (d < depth) depth = d, shallowest = b;
-        }
-        if (shallowest >= 0) {
-          released[static_cast<std::size_t>(shallowest)] = kReleased;
-          --iteration;
-          continue;
-        }
-      }
-      if (status != RequestStatus::kOk) break;
-      // The last allowed solve stands as solved: the contacts stored are
-      // exactly its constraints, and their forces its forces (changing the
-      // set now would pair each force with another point).
-      if (iteration + 1 == iterations) break;
-      // Adhesion: a tip contact whose force pulls the tissue towards the
-      // tool lets go. Friction: a sticking one whose tangential force
-      // exceeds friction × normal force slides.
-      bool any = false;
-      const auto f = solver.forces();
-      int j = 0;
-      for (int b = 0; b < building; ++b) {
-        const auto bb = static_cast<std::size_t>(b);
-        if (released[bb]) continue;
-        if (b_tip[bb] >= 0) {
-          const Eigen::Map<const Vector3d> n(&b_normal[3 * bb]);
-          const Vector3d fc = f.segment<3>(3 * j);
-          const double normal_force = fc.dot(n);
-          if (b_kind[bb] == ConstraintKind::kDisplacement &&
-              (normal_force < 0 ||
-               (fc - normal_force * n).norm() >
-                   tools[static_cast<std::size_t>(b_tool[bb])].geometry.friction * normal_force)) {
-            // Outside the friction cone (a pull included): it slides first.
-            b_kind[bb] = ConstraintKind::kNormalDisplacement;
-            b_value[3 * bb] = n.dot(Eigen::Map<const Vector3d>(&b_value[3 * bb]));
-            b_value[3 * bb + 1] = b_value[3 * bb + 2] = 0;
-            any = true;
-          } else if (normal_force < 0) {
-            released[bb] = kReleased;  // a sliding contact that pulls: adhesion, let go
-            any = true;
-          }
-        }
-        ++j;
-      }
-      // Signorini on the watched triangles: one the solve pushed into the
-      // tip (its linearized gap now negative) joins the set.
-      for (int b = 0; b < building; ++b) {
-        const auto bb = static_cast<std::size_t>(b);
-        if (released[bb] != kDormant) continue;
-        const Eigen::Map<const Vector3d> n(&b_normal[3 * bb]);
-        const double wanted = b_kind[bb] == ConstraintKind::kNormalDisplacement
-                                  ? b_value[3 * bb]
-                                  : n.dot(Eigen::Map<const Vector3d>(&b_value[3 * bb]));
-        const Tool& tool = tools[static_cast<std::size_t>(b_tool[bb])];
-        if (n.dot(displacement_under_solve(tool.tips[static_cast<std::size_t>(b_tip[bb])])) <
-            wanted - 1e-3 * tool.geometry.tip_radius_m) {
-          released[bb] = 0;
-          any = true;
-        }
-      }
-      if (!any) break;
-    }
+    const RequestStatus status =
+        active_set.solve({rows.data(), static_cast<std::size_t>(building)}, settings.max_iterations,
+                         settings.incremental_active_set ? detail::ActiveSetMethod::kIncremental
+                                                         : detail::ActiveSetMethod::kRefactor);
     for (int t = 0; t < static_cast<int>(tools.size()); ++t)
       for (const auto& h : tools[static_cast<std::size_t>(t)].held)
         for (int i = 0; i < h.count; ++i)
           if (h.vertices[static_cast<std::size_t>(i)] < compliance_count)
             owner[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = -1;
     if (status != RequestStatus::kOk) {
-      const std::size_t length = strnlen(solver.message(), sizeof message - 1);
-      std::memcpy(message, solver.message(), length);
+      const std::size_t length = strnlen(active_set.message(), sizeof message - 1);
+      std::memcpy(message, active_set.message(), length);
       message[length] = '\0';
       return status;
     }
@@ -653,46 +554,7 @@ struct ToolContactEngine::Impl {
     return RequestStatus::kOk;
   }
 
-  /// Displacement of a tip candidate's point under the forces of the solve
-  /// just made: Σ_i w_i Σ_l G_{v_i l} f_l over the solver's loads.
-  Vector3d displacement_under_solve(const TipCandidate& tip) const {
-    const auto loads = solver.load_indices();
-    const auto forces = solver.load_forces();
-    Vector3d u = Vector3d::Zero();
-    for (int i = 0; i < tip.count; ++i) {
-      const int v = tip.vertices[static_cast<std::size_t>(i)];
-      if (v >= compliance_count) continue;
-      Vector3d u_v = Vector3d::Zero();
-      for (std::size_t l = 0; l < loads.size(); ++l)
-        u_v.noalias() += model.G_block(v, loads[l]) * Eigen::Map<const Vector3d>(&forces[3 * l]);
-      u += tip.weights[static_cast<std::size_t>(i)] * u_v;
-    }
-    return u;
-  }
-
-  /// Adds built constraint @p b to the solver: a held point or a tip's
-  /// point, on its vertices (a fixed one as −1: its share goes to the
-  /// attachment).
-  RequestStatus add_to_solver(std::size_t b) {
-    const Tool& tool = tools[static_cast<std::size_t>(b_tool[b])];
-    const bool held = b_tip[b] < 0;
-    const HeldPoint* h = held ? &tool.held[static_cast<std::size_t>(b_held[b])] : nullptr;
-    const TipCandidate* tip = held ? nullptr : &tool.tips[static_cast<std::size_t>(b_tip[b])];
-    const int count = held ? h->count : tip->count;
-    const std::array<int, 3>& vertices = held ? h->vertices : tip->vertices;
-    const std::array<double, 3>& weights = held ? h->weights : tip->weights;
-    std::array<int, 3> index{};
-    for (int i = 0; i < count; ++i)
-      index[static_cast<std::size_t>(i)] = vertices[static_cast<std::size_t>(i)] < compliance_count
-                                               ? vertices[static_cast<std::size_t>(i)]
-                                               : -1;
-    return solver.add_surface_point(index.data(), weights.data(), count, b_kind[b], &b_value[3 * b],
-                                    &b_normal[3 * b]);
-  }
-
   void store_solution() {
-    const auto f = solver.forces();
-    const auto u = solver.displacements();
     // Forget last tick's tip contacts' triangles (for the hysteresis shell).
     for (int c = 0; c < count; ++c) {
       const ContactPoint& old = points[static_cast<std::size_t>(c)];
@@ -708,7 +570,8 @@ struct ToolContactEngine::Impl {
     }
     for (int b = 0; b < building; ++b) {
       const auto bb = static_cast<std::size_t>(b);
-      if (released[bb]) continue;
+      const detail::ActiveRow& row = rows[bb];
+      if (row.state != detail::ActiveRow::kActive) continue;
       const auto c = static_cast<std::size_t>(count);
       const int t = b_tool[bb];
       Tool& tool = tools[static_cast<std::size_t>(t)];
@@ -726,12 +589,11 @@ struct ToolContactEngine::Impl {
       const Vector3d at_rest = point.held ? take(tool.held[static_cast<std::size_t>(b_held[bb])])
                                           : take(tool.tips[static_cast<std::size_t>(b_tip[bb])]);
       tip_of[c] = b_tip[bb];
-      point.force_n = f.segment<3>(3 * count);
-      const Vector3d displacement = u.segment<3>(3 * count);
+      point.force_n = active_set.force(b);
+      const Vector3d displacement = active_set.displacement(b);
       point.position_m = at_rest + displacement;
-      const bool sliding = b_kind[bb] == ConstraintKind::kNormalDisplacement;
       point.normal =
-          sliding ? Vector3d(Eigen::Map<const Vector3d>(&b_normal[3 * bb])) : Vector3d::Zero();
+          row.kind == ConstraintKind::kNormalDisplacement ? row.normal : Vector3d::Zero();
       max_displacement = std::max(max_displacement, displacement.norm());
       tool.raw_force -= point.force_n;  // the organ pushes the tool back
       tool.raw_torque += (point.position_m - tool.pose.position_m).cross(-point.force_n);
@@ -984,6 +846,6 @@ std::span<const double> ToolContactEngine::contact_forces() const {
 std::span<const int> ToolContactEngine::contact_tools() const {
   return {impl_->load_tool.data(), static_cast<std::size_t>(impl_->load_count)};
 }
-std::uint64_t ToolContactEngine::solves() const { return impl_->solve_count; }
+std::uint64_t ToolContactEngine::solves() const { return impl_->active_set.solves(); }
 
 }  // namespace palpate

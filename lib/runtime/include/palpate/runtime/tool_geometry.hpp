@@ -43,6 +43,11 @@ struct ContactSettings {
   int max_contacts_per_tool = 24;    ///< deepest tip contacts kept
   int max_iterations = 8;            ///< solves per tick (adhesion release, sliding)
   double workspace_margin_m = 0.5;   ///< poses farther from the organ's bounding box are refused
+  /// The active set edits one factorization from solve to solve (rows
+  /// leave by Givens rotations, join by a block append); false refactors
+  /// every solve from scratch (the reference the tests and benchmarks
+  /// compare it with; the same results to round-off).
+  bool incremental_active_set = true;
 };
 
 }  // namespace palpate

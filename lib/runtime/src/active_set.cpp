@@ -1,0 +1,519 @@
+#include "active_set.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "palpate/core/error.hpp"
+
+extern "C" {
+void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+void dpotrs_(const char* uplo, const int* n, const int* nrhs, const double* a, const int* lda,
+             double* b, const int* ldb, int* info);
+void dpocon_(const char* uplo, const int* n, const double* a, const int* lda, const double* anorm,
+             double* rcond, double* work, int* iwork, int* info);
+}
+
+namespace palpate::detail {
+
+namespace {
+
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+using Strided = Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+using Kind = ConstraintKind;
+
+template <typename... Args>
+RequestStatus fail(std::array<char, 256>& message, RequestStatus status,
+                   fmt::format_string<Args...> format, Args&&... args) {
+  const auto end =
+      fmt::format_to_n(message.data(), message.size() - 1, format, std::forward<Args>(args)...);
+  *end.out = '\0';
+  return status;
+}
+
+/// A sticking point starts to slide: its three rows become the normal one,
+/// b_n = nᵀ b, and its tangential force is zero.
+void slide(ActiveRow& row) {
+  row.kind = Kind::kNormalDisplacement;
+  row.value = Vector3d(row.normal.dot(row.value), 0, 0);
+}
+
+int unknowns_of(const ActiveRow& row) {
+  if (row.state != ActiveRow::kActive) return 0;
+  return row.kind == Kind::kDisplacement ? 3 : 1;
+}
+
+}  // namespace
+
+ActiveSet::ActiveSet(const SurfaceModel& model, const SolverLimits& limits)
+    : model_(model), limits_(limits), solver_(model, limits) {
+  max_rows_ = limits.max_constraints;
+  max_unknowns_ = 3 * max_rows_;
+  max_used_ = 3 * max_rows_;
+  const auto k = index(max_rows_);
+  const auto m = index(max_unknowns_);
+  const auto u3 = 3 * index(max_used_);
+  force_.resize(3 * k);
+  displacement_.resize(3 * k);
+  const auto n = index(model.compliance_vertex_count());
+  used_epoch_.assign(n, 0);
+  used_slot_.assign(n, 0);
+  used_index_.resize(index(max_used_));
+  point_slot_.resize(3 * k);
+  G_UU_.resize(u3 * u3);
+  Y_.resize(u3 * 3 * k);
+  has_Y_.resize(k);
+  unknown_row_.resize(m);
+  unknown_dir_.resize(3 * m);
+  columns_of_.resize(k);
+  kind_in_W_.resize(k);
+  W_.resize(m * m);
+  L_.resize(m * m);
+  rhs_.resize(m);
+  work_.resize(3 * m);
+  iwork_.resize(m);
+  f_S_.resize(u3);
+  z_.resize(u3);
+}
+
+ActiveSet::~ActiveSet() = default;
+
+RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
+                               ActiveSetMethod method) {
+  PALPATE_DEMAND(rows.size() <= static_cast<std::size_t>(max_rows_));
+  rows_ = rows;
+  message_[0] = '\0';
+  const bool incremental = method == ActiveSetMethod::kIncremental;
+  const int n = static_cast<int>(rows.size());
+  RequestStatus status = RequestStatus::kOk;
+  if (incremental) {
+    status = check_values();
+    if (status != RequestStatus::kOk) {
+      ++solves_;
+      return status;
+    }
+    number_vertices();
+    factored_ = false;
+  }
+  bool softened = false;
+  const int iterations = std::max(1, max_iterations);
+  for (int iteration = 0; iteration < iterations; ++iteration) {
+    status = incremental ? solve_incremental() : solve_refactor();
+    ++solves_;
+    // Sticking points fix three components each: more of them than their
+    // triangles' vertices can move (a tip in a dip meets several triangles
+    // around the same vertices) is a singular system. They slide instead:
+    // one row each, the normal.
+    if (status == RequestStatus::kIllConditioned && !softened) {
+      softened = true;
+      bool any_stick = false;
+      for (ActiveRow& row : rows_) {
+        if (!row.tip || row.kind != Kind::kDisplacement) continue;
+        slide(row);
+        any_stick = true;
+      }
+      if (any_stick) {
+        --iteration;  // the same iteration, on rows that can be solved
+        continue;
+      }
+    }
+    // Still singular (more rows than their vertices can take: points on
+    // edges and corners of the same few vertices, or on triangles whose
+    // other corners are fixed): the shallowest tip contact goes, and the
+    // rest is solved again, within the same iteration.
+    if (status == RequestStatus::kIllConditioned && softened) {
+      int shallowest = -1;
+      double depth = INFINITY;
+      for (int r = 0; r < n; ++r) {
+        const ActiveRow& row = rows_[index(r)];
+        if (!row.tip || row.state != ActiveRow::kActive) continue;
+        if (row.depth < depth) depth = row.depth, shallowest = r;
+      }
+      if (shallowest >= 0) {
+        rows_[index(shallowest)].state = ActiveRow::kReleased;
+        --iteration;
+        continue;
+      }
+    }
+    if (status != RequestStatus::kOk) break;
+    // The last allowed solve stands as solved: the contacts stored are
+    // exactly its constraints, and their forces its forces (changing the
+    // set now would pair each force with another point).
+    if (iteration + 1 == iterations) break;
+    // Adhesion: a tip contact whose force pulls the tissue towards the
+    // tool lets go. Friction: a sticking one whose tangential force
+    // exceeds friction × normal force slides.
+    bool any = false;
+    for (int r = 0; r < n; ++r) {
+      ActiveRow& row = rows_[index(r)];
+      if (row.state != ActiveRow::kActive || !row.tip) continue;
+      const Vector3d f = force(r);
+      const double normal_force = f.dot(row.normal);
+      if (row.kind == Kind::kDisplacement &&
+          (normal_force < 0 ||
+           (f - normal_force * row.normal).norm() > row.friction * normal_force)) {
+        slide(row);  // outside the friction cone (a pull included): it slides first
+        any = true;
+      } else if (normal_force < 0) {
+        row.state = ActiveRow::kReleased;  // a sliding contact that pulls: adhesion, let go
+        any = true;
+      }
+    }
+    // Signorini on the watched triangles: one the solve pushed into the
+    // tip (its linearized gap now negative) joins the set.
+    for (int r = 0; r < n; ++r) {
+      ActiveRow& row = rows_[index(r)];
+      if (row.state != ActiveRow::kDormant) continue;
+      const double wanted =
+          row.kind == Kind::kNormalDisplacement ? row.value.x() : row.normal.dot(row.value);
+      if (row.normal.dot(displacement(r)) < wanted - row.join_gap_m) {
+        row.state = ActiveRow::kActive;
+        any = true;
+      }
+    }
+    if (!any) break;
+  }
+  return status;
+}
+
+// ---- the reference path: every solve from scratch ---------------------------------
+
+RequestStatus ActiveSet::solve_refactor() {
+  const int n = static_cast<int>(rows_.size());
+  int k = 0;
+  for (const ActiveRow& row : rows_) k += row.state == ActiveRow::kActive ? 1 : 0;
+  RequestStatus status = solver_.begin(static_cast<std::size_t>(k));
+  for (int r = 0; r < n && status == RequestStatus::kOk; ++r) {
+    const ActiveRow& row = rows_[index(r)];
+    if (row.state != ActiveRow::kActive) continue;
+    status = solver_.add_surface_point(row.index.data(), row.weights.data(), row.count, row.kind,
+                                       row.value.data(), row.normal.data());
+  }
+  if (status == RequestStatus::kOk) status = solver_.solve();
+  if (status != RequestStatus::kOk) {
+    const std::size_t length = strnlen(solver_.message(), message_.size() - 1);
+    std::copy_n(solver_.message(), length, message_.data());
+    message_[length] = '\0';
+    return status;
+  }
+  const auto f = solver_.forces();
+  const auto u = solver_.displacements();
+  int j = 0;
+  for (int r = 0; r < n; ++r) {
+    const ActiveRow& row = rows_[index(r)];
+    Eigen::Map<Vector3d> fr(&force_[3 * index(r)]), ur(&displacement_[3 * index(r)]);
+    if (row.state == ActiveRow::kActive) {
+      fr = f.segment<3>(3 * j);
+      ur = u.segment<3>(3 * j);
+      ++j;
+    } else {
+      fr.setZero();
+      ur =
+          row.state == ActiveRow::kDormant ? displacement_from_solver_loads(row) : Vector3d::Zero();
+    }
+  }
+  return RequestStatus::kOk;
+}
+
+/// Σ_i w_i Σ_l G_{a_i l} f_l over the solver's loads: a dormant point's
+/// displacement under the solve just made.
+Vector3d ActiveSet::displacement_from_solver_loads(const ActiveRow& row) const {
+  const auto loads = solver_.load_indices();
+  const auto forces = solver_.load_forces();
+  Vector3d u = Vector3d::Zero();
+  for (int i = 0; i < row.count; ++i) {
+    const int v = row.index[index(i)];
+    if (v < 0) continue;
+    Vector3d u_v = Vector3d::Zero();
+    for (std::size_t l = 0; l < loads.size(); ++l)
+      u_v.noalias() += model_.G_block(v, loads[l]) * Eigen::Map<const Vector3d>(&forces[3 * l]);
+    u += row.weights[index(i)] * u_v;
+  }
+  return u;
+}
+
+// ---- the incremental path -------------------------------------------------------
+
+RequestStatus ActiveSet::check_values() {
+  for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
+    ActiveRow& row = rows_[index(r)];
+    PALPATE_DEMAND(row.kind == Kind::kDisplacement || row.kind == Kind::kNormalDisplacement);
+    const bool normal_only = row.kind == Kind::kNormalDisplacement;
+    const double magnitude = normal_only ? std::abs(row.value.x()) : row.value.norm();
+    if (!std::isfinite(magnitude) || !row.normal.allFinite())
+      return fail(message_, RequestStatus::kNonFiniteValue,
+                  "contact {}: its displacement or normal is not finite; finite numbers only", r);
+    if (magnitude > limits_.max_displacement_m)
+      return fail(message_, RequestStatus::kDisplacementTooLarge,
+                  "contact {}: a displacement of {:.4g} m is larger than model '{}' accepts "
+                  "({:.4g} m)",
+                  r, magnitude, model_.id, limits_.max_displacement_m);
+    if (row.tip) {
+      const double length = row.normal.norm();
+      if (!(length > 1e-12))
+        return fail(message_, RequestStatus::kBadConstraint,
+                    "contact {}: normal ({:g}, {:g}, {:g}) has no direction", r, row.normal.x(),
+                    row.normal.y(), row.normal.z());
+      row.normal /= length;
+    }
+  }
+  return RequestStatus::kOk;
+}
+
+void ActiveSet::number_vertices() {
+  if (++used_clock_ == 0) {
+    std::fill(used_epoch_.begin(), used_epoch_.end(), 0);
+    used_clock_ = 1;
+  }
+  used_ = 0;
+  for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
+    const ActiveRow& row = rows_[index(r)];
+    int kept = 0;
+    for (int i = 0; i < 3; ++i) {
+      const int a = i < row.count ? row.index[index(i)] : -1;
+      int& slot = point_slot_[3 * index(r) + index(i)];
+      slot = -1;
+      if (a < 0) continue;
+      PALPATE_DEMAND(a < model_.compliance_vertex_count());
+      const auto aa = index(a);
+      if (used_epoch_[aa] != used_clock_) {
+        used_epoch_[aa] = used_clock_;
+        used_slot_[aa] = used_++;
+        used_index_[index(used_slot_[aa])] = a;
+      }
+      slot = used_slot_[aa];
+      ++kept;
+    }
+    PALPATE_DEMAND(kept > 0);
+    has_Y_[index(r)] = 0;
+    columns_of_[index(r)] = 0;
+  }
+  // G_UU, each 3×3 block of G read once per tick.
+  const int ld = 3 * max_used_;
+  Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
+  for (int b = 0; b < used_; ++b)
+    for (int a = 0; a < used_; ++a)
+      G_UU.block<3, 3>(3 * a, 3 * b) = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
+}
+
+/// Y_r = G_UU H_rᵀ (3u × 3): the displacement of U under a unit force at row r's point.
+void ActiveSet::compute_Y(int r) {
+  if (has_Y_[index(r)]) return;
+  has_Y_[index(r)] = 1;
+  const int ld = 3 * max_used_;
+  const int u3 = 3 * used_;
+  const Strided G_UU(G_UU_.data(), u3, u3, Eigen::OuterStride<>(ld));
+  Strided Y(&Y_[index(ld) * 3 * index(r)], u3, 3, Eigen::OuterStride<>(ld));
+  Y.setZero();
+  const ActiveRow& row = rows_[index(r)];
+  for (int i = 0; i < row.count; ++i) {
+    const int slot = point_slot_[3 * index(r) + index(i)];
+    if (slot >= 0) Y.noalias() += row.weights[index(i)] * G_UU.middleCols<3>(3 * slot);
+  }
+}
+
+/// P_rs = H_r G H_sᵀ = H_r Y_s (Y_s computed).
+Matrix3d ActiveSet::P_block(int r, int s) {
+  const int ld = 3 * max_used_;
+  const Strided Y(&Y_[index(ld) * 3 * index(s)], 3 * used_, 3, Eigen::OuterStride<>(ld));
+  const ActiveRow& row = rows_[index(r)];
+  Matrix3d P = Matrix3d::Zero();
+  for (int i = 0; i < row.count; ++i) {
+    const int slot = point_slot_[3 * index(r) + index(i)];
+    if (slot >= 0) P.noalias() += row.weights[index(i)] * Y.middleRows<3>(3 * slot);
+  }
+  return P;
+}
+
+/// Appends the unknowns of every active row not yet in W, fills their
+/// columns of W = Bᵀ P B, and extends the factor: with W = [W11 W12; W21 W22]
+/// and W11 = L11 L11ᵀ, L21 = W21 L11⁻ᵀ and L22 L22ᵀ = W22 − L21 L21ᵀ.
+RequestStatus ActiveSet::append_pending() {
+  const int first = unknowns_;
+  for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
+    const ActiveRow& row = rows_[index(r)];
+    const int count = unknowns_of(row);
+    if (count == 0 || columns_of_[index(r)] > 0) continue;
+    compute_Y(r);
+    for (int c = 0; c < count; ++c) {
+      const auto p = index(unknowns_++);
+      unknown_row_[p] = r;
+      Eigen::Map<Vector3d>{&unknown_dir_[3 * p]} =
+          row.kind == Kind::kDisplacement ? Vector3d(Vector3d::Unit(c)) : row.normal;
+    }
+    columns_of_[index(r)] = count;
+    kind_in_W_[index(r)] = row.kind;
+  }
+  const int m = unknowns_;
+  const int k = m - first;
+  if (k == 0) return RequestStatus::kOk;
+  const int ld = max_unknowns_;
+  Strided W(W_.data(), m, m, Eigen::OuterStride<>(ld));
+  // Column q of W among rows p ≤ q: d_pᵀ H_r (Y_s d_q); a row's unknowns
+  // are adjacent, so H_r Y_s is formed once per pair of rows.
+  int last_r = -1, last_s = -1;
+  Matrix3d P = Matrix3d::Zero();
+  for (int q = first; q < m; ++q) {
+    const int s = unknown_row_[index(q)];
+    const Eigen::Map<const Vector3d> dq(&unknown_dir_[3 * index(q)]);
+    for (int p = 0; p <= q; ++p) {
+      const int r = unknown_row_[index(p)];
+      if (r != last_r || s != last_s) P = P_block(r, s), last_r = r, last_s = s;
+      W(p, q) = W(q, p) = Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]).dot(P * dq);
+    }
+  }
+  Strided L(L_.data(), m, m, Eigen::OuterStride<>(ld));
+  if (first > 0) {
+    auto L21 = L.block(first, 0, k, first);
+    L21 = W.block(first, 0, k, first);
+    L.topLeftCorner(first, first)
+        .triangularView<Eigen::Lower>()
+        .transpose()
+        .solveInPlace<Eigen::OnTheRight>(L21);
+    L.block(first, first, k, k).triangularView<Eigen::Lower>() =
+        W.block(first, first, k, k) - L21 * L21.transpose();
+  } else {
+    L.topLeftCorner(m, m).triangularView<Eigen::Lower>() = W.topLeftCorner(m, m);
+  }
+  int info = 0;
+  dpotrf_("L", &k, &L(first, first), &ld, &info);
+  if (info != 0)
+    return fail(message_, RequestStatus::kIllConditioned,
+                "the {} × {} system of the contacts is singular (column {}): points too close "
+                "together or too many on the same vertices",
+                m, m, first + info);
+  return check_condition();
+}
+
+/// Refuses W when its 1-norm condition estimate exceeds the limit.
+RequestStatus ActiveSet::check_condition() {
+  const int m = unknowns_;
+  if (m == 0) return RequestStatus::kOk;
+  const int ld = max_unknowns_;
+  const Strided W(W_.data(), m, m, Eigen::OuterStride<>(ld));
+  const double norm1 = W.cwiseAbs().colwise().sum().maxCoeff();
+  double rcond = 0;
+  int info = 0;
+  dpocon_("L", &m, L_.data(), &ld, &norm1, &rcond, work_.data(), iwork_.data(), &info);
+  const double condition = rcond > 0 ? 1.0 / rcond : std::numeric_limits<double>::infinity();
+  if (info != 0 || !(condition <= limits_.max_condition))
+    return fail(message_, RequestStatus::kIllConditioned,
+                "the {} × {} system of the contacts has condition estimate {:.3g}, above the "
+                "limit {:.3g}: points too close together, or normals nearly parallel on "
+                "neighbours",
+                m, m, condition, limits_.max_condition);
+  return RequestStatus::kOk;
+}
+
+/// Removes unknown p from W and from its factor. Without row p, L is lower
+/// triangular but for one superdiagonal from column p on; Givens rotations
+/// of columns (i, i+1), i = p … m−2, clear it (they leave L Lᵀ unchanged)
+/// and leave the last column zero.
+void ActiveSet::remove_unknown(int p) {
+  const int m = unknowns_;
+  const int ld = max_unknowns_;
+  Strided W(W_.data(), m, m, Eigen::OuterStride<>(ld));
+  Strided L(L_.data(), m, m, Eigen::OuterStride<>(ld));
+  for (int j = p; j + 1 < m; ++j) W.col(j) = W.col(j + 1);
+  for (int j = 0; j + 1 < m; ++j)
+    for (int i = p; i + 1 < m; ++i) W(i, j) = W(i + 1, j);
+  for (int j = 0; j < m; ++j)
+    for (int i = std::max(p, j - 1); i + 1 < m; ++i) L(i, j) = L(i + 1, j);
+  for (int i = p; i + 1 < m; ++i) {
+    const double a = L(i, i), b = L(i, i + 1);
+    const double r = std::hypot(a, b);
+    if (r == 0) continue;
+    const double c = a / r, s = b / r;
+    for (int t = i; t + 1 < m; ++t) {
+      const double x = L(t, i), y = L(t, i + 1);
+      L(t, i) = c * x + s * y;
+      L(t, i + 1) = c * y - s * x;
+    }
+  }
+  --columns_of_[index(unknown_row_[index(p)])];
+  for (int q = p; q + 1 < m; ++q) {
+    unknown_row_[index(q)] = unknown_row_[index(q) + 1];
+    std::copy_n(&unknown_dir_[3 * index(q) + 3], 3, &unknown_dir_[3 * index(q)]);
+  }
+  --unknowns_;
+}
+
+RequestStatus ActiveSet::solve_incremental() {
+  RequestStatus status = RequestStatus::kOk;
+  if (factored_) {
+    // Unknowns of rows that left, or that slide now, leave W first (removing
+    // rows of an SPD matrix cannot worsen its condition); then the rows that
+    // joined, and the sliding rows' normals, are appended.
+    for (int p = unknowns_ - 1; p >= 0; --p) {
+      const int r = unknown_row_[index(p)];
+      const ActiveRow& row = rows_[index(r)];
+      if (row.state != ActiveRow::kActive || row.kind != kind_in_W_[index(r)]) remove_unknown(p);
+    }
+  } else {
+    unknowns_ = 0;
+    for (std::size_t r = 0; r < rows_.size(); ++r) columns_of_[r] = 0;
+  }
+  status = append_pending();
+  if (status != RequestStatus::kOk) {
+    factored_ = false;
+    return status;
+  }
+  factored_ = true;
+  return finish_incremental();
+}
+
+/// φ = W⁻¹ b from the factor, f_C = B φ, and every row's displacement
+/// u_p = H_p G_UU Hᵀ f_C (the dormant rows' too, for their gaps).
+RequestStatus ActiveSet::finish_incremental() {
+  const int m = unknowns_;
+  const int ld = max_unknowns_;
+  for (int p = 0; p < m; ++p) {
+    const ActiveRow& row = rows_[index(unknown_row_[index(p)])];
+    rhs_[index(p)] = row.kind == Kind::kNormalDisplacement
+                         ? row.value.x()
+                         : Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]).dot(row.value);
+  }
+  if (m > 0) {
+    int info = 0;
+    const int one = 1;
+    dpotrs_("L", &m, &one, L_.data(), &ld, rhs_.data(), &m, &info);
+    if (info != 0)
+      return fail(message_, RequestStatus::kInternalError, "dpotrs failed with info {}", info);
+  }
+  const int n = static_cast<int>(rows_.size());
+  std::fill_n(force_.begin(), 3 * index(n), 0.0);
+  for (int p = 0; p < m; ++p)
+    Eigen::Map<Vector3d>(&force_[3 * index(unknown_row_[index(p)])]) +=
+        rhs_[index(p)] * Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]);
+  const int u3 = 3 * used_;
+  Eigen::Map<Eigen::VectorXd> f_S(f_S_.data(), u3), z(z_.data(), u3);
+  f_S.setZero();
+  for (int r = 0; r < n; ++r)
+    for (int i = 0; i < rows_[index(r)].count; ++i)
+      if (const int slot = point_slot_[3 * index(r) + index(i)]; slot >= 0)
+        f_S.segment<3>(3 * slot) +=
+            rows_[index(r)].weights[index(i)] * Eigen::Map<const Vector3d>(&force_[3 * index(r)]);
+  z.noalias() = Strided(G_UU_.data(), u3, u3, Eigen::OuterStride<>(3 * max_used_)) * f_S;
+  bool finite = f_S.allFinite();
+  for (int r = 0; r < n; ++r) {
+    Eigen::Map<Vector3d> u(&displacement_[3 * index(r)]);
+    u.setZero();
+    if (rows_[index(r)].state == ActiveRow::kReleased) continue;
+    for (int i = 0; i < rows_[index(r)].count; ++i)
+      if (const int slot = point_slot_[3 * index(r) + index(i)]; slot >= 0)
+        u += rows_[index(r)].weights[index(i)] * z.segment<3>(3 * slot);
+    finite = finite && u.allFinite() && force(r).allFinite();
+  }
+  // Finite values can still overflow (a displacement of 1e300 m needs an
+  // infinite force): no reply carries an infinity or a NaN.
+  if (!finite)
+    return fail(message_, RequestStatus::kNonFiniteValue,
+                "the solution overflows (a force or displacement is not finite): the values are "
+                "too large for this model");
+  return RequestStatus::kOk;
+}
+
+}  // namespace palpate::detail

@@ -1,0 +1,139 @@
+#pragma once
+/// @file
+/// The contact engine's active-set iteration (internal to the runtime).
+///
+/// What it solves: the tick's candidate contacts are rows at points of
+/// surface triangles, u_p = Σ_i w_pi u_{a_pi}, with the points' compliance
+/// P = H G Hᵀ (docs/model.md, "The reduced system of a request"). Held
+/// points and sticking tip points impose their three displacement
+/// components (three unknown force components each); sliding tip points
+/// impose their normal displacement only (one unknown, the force along the
+/// normal, no tangential force). With B the unknowns' unit directions, one
+/// solve is the SPD system
+///
+///     W φ = b,   W = Bᵀ P B,   f_C = B φ,
+///
+/// and the active set (docs/tools.md, "Tip contacts") repeats it until the
+/// set settles, at most max_iterations solves:
+///  - Signorini: a sliding tip point whose normal force pulls (nᵀf < 0)
+///    leaves; a watched (dormant) point whose linearized gap the solve made
+///    negative, nᵀu_p < b_n − tol, joins;
+///  - Coulomb: a sticking tip point outside the cone,
+///    |f − (nᵀf) n| > μ nᵀf or nᵀf < 0, slides (its three rows become the
+///    normal row);
+///  - a singular W first makes every sticking tip point slide, then drops
+///    the shallowest tip point until it solves.
+///
+/// Two ways to solve, equal to round-off (tests/runtime/active_set_test.cpp):
+/// `kRefactor` builds and factors W from scratch at every solve (through
+/// ConstraintSolver); `kIncremental` factors W = L Lᵀ once and then edits
+/// the factor: an unknown that leaves is removed from L by Givens rotations
+/// (O(m²)), unknowns that join are appended by one block forward solve and
+/// a small Cholesky of their Schur complement (O(m² k)); sliding is the
+/// point's three columns leaving and its normal column joining. G is read
+/// once per tick, on the distinct vertices of every candidate point.
+/// Allocation-free after construction.
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "palpate/core/eigen.hpp"
+#include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/request_status.hpp"
+#include "palpate/runtime/surface_model.hpp"
+
+namespace palpate::detail {
+
+/// How the active set solves its systems.
+enum class ActiveSetMethod { kIncremental, kRefactor };
+
+/// One candidate contact of a tick.
+struct ActiveRow {
+  static constexpr char kActive = 0, kReleased = 1, kDormant = 2;
+  int count = 1;                    ///< vertices of the point, 1 to 3
+  std::array<int, 3> index{};       ///< compliance indices, −1 for a fixed vertex
+  std::array<double, 3> weights{};  ///< barycentric
+  ConstraintKind kind = ConstraintKind::kDisplacement;  ///< displacement or normal displacement
+  /// Imposed displacement, m (a normal displacement: value.x(), along normal).
+  Eigen::Vector3d value = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit for a tip point; zero when held
+  bool tip = false;       ///< a tip point: may slide, leave or join; a held one never changes
+  double friction = 0;    ///< Coulomb coefficient μ of its tool
+  double depth = 0;       ///< penetration, m: the shallowest goes first when singular
+  double join_gap_m = 0;  ///< a dormant point joins when pushed this far into the tip
+  char state = kActive;   ///< kActive, kReleased (let go this tick) or kDormant (watched)
+};
+
+class ActiveSet {
+ public:
+  /// Preallocates for up to limits.max_constraints rows. @p model must outlive it.
+  ActiveSet(const SurfaceModel& model, const SolverLimits& limits);
+  ~ActiveSet();
+  ActiveSet(const ActiveSet&) = delete;
+  ActiveSet& operator=(const ActiveSet&) = delete;
+
+  /// Runs the iteration on @p rows (their kind, value and state change as
+  /// the set settles). On kOk, force(r) and displacement(r) are the last
+  /// solve's for every row that is kActive; on failure message() says why.
+  RequestStatus solve(std::span<ActiveRow> rows, int max_iterations, ActiveSetMethod method);
+
+  /// Force on row @p r's point, N, and its displacement, m (last solve).
+  Eigen::Map<const Eigen::Vector3d> force(int r) const {
+    return Eigen::Map<const Eigen::Vector3d>(&force_[3 * index(r)]);
+  }
+  Eigen::Map<const Eigen::Vector3d> displacement(int r) const {
+    return Eigen::Map<const Eigen::Vector3d>(&displacement_[3 * index(r)]);
+  }
+  const char* message() const { return message_.data(); }
+  std::uint64_t solves() const { return solves_; }
+
+ private:
+  static std::size_t index(int r) { return static_cast<std::size_t>(r); }
+  RequestStatus solve_refactor();
+  RequestStatus solve_incremental();
+  void number_vertices();
+  void compute_Y(int r);
+  Eigen::Matrix3d P_block(int r, int s);
+  RequestStatus factor_all();
+  RequestStatus append_pending();
+  void remove_unknown(int p);
+  RequestStatus check_condition();
+  RequestStatus check_values();
+  RequestStatus finish_incremental();
+  Eigen::Vector3d displacement_from_solver_loads(const ActiveRow& row) const;
+
+  const SurfaceModel& model_;
+  SolverLimits limits_;
+  ConstraintSolver solver_;  // the kRefactor path
+  std::span<ActiveRow> rows_;
+  std::uint64_t solves_ = 0;
+  std::array<char, 256> message_{};
+  std::vector<double> force_, displacement_;  // 3 per row
+
+  // kIncremental: the distinct vertices U of every row, G_UU, and per row
+  // Y_r = G_UU H_rᵀ (3u × 3), computed when the row first enters W.
+  int max_rows_ = 0, max_unknowns_ = 0, max_used_ = 0;
+  std::vector<std::uint32_t> used_epoch_;
+  std::vector<int> used_slot_;  // per compliance vertex
+  std::uint32_t used_clock_ = 0;
+  int used_ = 0;
+  std::vector<int> used_index_;
+  std::vector<int> point_slot_;  // 3 per row: place of each vertex in U, −1 fixed
+  std::vector<double> G_UU_;     // 3·max_used × 3·max_used, column-major
+  std::vector<double> Y_;        // 3·max_used × 3 per row
+  std::vector<char> has_Y_;
+  // W's unknowns in order: row, unit direction; W itself and its factor L
+  // (lower), both max_unknowns × max_unknowns column-major.
+  int unknowns_ = 0;
+  std::vector<int> unknown_row_;
+  std::vector<double> unknown_dir_;  // 3 per unknown
+  std::vector<int> columns_of_;      // per row: its unknowns in W now (0, 1 or 3)
+  std::vector<ConstraintKind> kind_in_W_;
+  std::vector<double> W_, L_, rhs_, work_, f_S_, z_;
+  std::vector<int> iwork_;
+  bool factored_ = false;  // L holds W's factor; else the next solve factors afresh
+};
+
+}  // namespace palpate::detail
