@@ -9,6 +9,11 @@
 //              solve a reused factorization plus the field u = G f̂ over the
 //              whole surface and the rotations ω = S Ω u
 //   rotations  RotationField::rotations alone, the whole surface
+//   tick_linear/tick_warped  the contact engine's tick, linear and warped
+//              (ρ = kToolEdges median edges), on the same poses, interleaved
+//              tick by tick: one grasper pressing 4 mm at the patch's seed,
+//              gliding 10 mm, closing its jaws and pulling 5 mm out; p50
+//              and p99 per tick (the target: warped within 2× linear)
 //
 // Usage: palpate_warped_bench [MODEL.h5] [--benchmark_...]
 //        (or PALPATE_BENCH_MODEL=MODEL.h5); without a model it says so and exits 0.
@@ -16,6 +21,8 @@
 #include <benchmark/benchmark.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -24,6 +31,7 @@
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/surface_model.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 #include "palpate/runtime/warped_solver.hpp"
 #include "patch.hpp"
 
@@ -96,6 +104,59 @@ void BM_rotations(benchmark::State& state) {
   state.counters["neighbours"] = lift->field.mean_neighbourhood();
 }
 
+/// Both engines on the same gesture, tick by tick; per-tick times of each.
+void BM_tick(benchmark::State& state) {
+  const auto& m = lift->model;
+  const palpate::RotationField tool_field(
+      m.surface, palpate::default_smoothing_radius(m.surface, palpate::kToolEdges));
+  palpate::ToolGeometry g;
+  g.id = "grasper";
+  palpate::ToolContactEngine linear(m, {g}, {}, {});
+  palpate::ToolContactEngine warped(m, {g}, {}, {}, &tool_field);
+  const int seed = palpate::bench::main_seed(m.surface);
+  const auto n = palpate::bench::inward_normal(m.surface, seed);
+  const Eigen::Vector3d inward(n[0], n[1], n[2]), tangent = inward.unitOrthogonal();
+  const Eigen::Quaterniond orientation =
+      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), inward);
+  const Eigen::Vector3d start =
+      m.surface.rest_position(seed) - (g.tip_length_m + g.tip_radius_m + 0.002) * inward;
+  std::vector<double> times[2];
+  std::uint64_t sequence = 0;
+  double now = 0;
+  for (auto _ : state) {
+    for (int i = 0; i < 1500; ++i) {
+      // 0–400 press to 4 mm, 400–900 glide 10 mm, 900–1000 close, then pull 5 mm.
+      const double depth =
+          0.002 + 0.004 * std::min(1.0, i / 400.0) - (i > 1000 ? 0.005 * (i - 1000) / 500.0 : 0.0);
+      const double slide = 0.010 * std::clamp((i - 400) / 500.0, 0.0, 1.0);
+      const double jaw = i < 900 ? 30.0 : std::max(0.0, 30.0 - 0.3 * (i - 900));
+      palpate::ToolPoseInput pose;
+      pose.sequence = ++sequence;
+      pose.position_m = start + depth * inward + slide * tangent;
+      pose.orientation = orientation;
+      pose.jaw_angle_rad = palpate::degrees(jaw);
+      now += 1e-3;
+      palpate::ToolContactEngine* engines[2] = {&linear, &warped};
+      for (int e = 0; e < 2; ++e) {
+        const auto t0 = std::chrono::steady_clock::now();
+        engines[e]->update(0, pose, now);
+        times[e].push_back(
+            std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0)
+                .count());
+      }
+    }
+  }
+  for (int e = 0; e < 2; ++e) {
+    auto& t = times[e];
+    std::sort(t.begin(), t.end());
+    const char* name = e == 0 ? "linear" : "warped";
+    state.counters[std::string(name) + "_p50_us"] = t[t.size() / 2];
+    state.counters[std::string(name) + "_p99_us"] =
+        t[static_cast<std::size_t>(0.99 * (t.size() - 1))];
+  }
+  state.counters["held"] = warped.output(0).held;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -113,6 +174,7 @@ int main(int argc, char** argv) {
     benchmark::RegisterBenchmark("warped", BM_warped)->Arg(degrees)->Unit(benchmark::kMicrosecond);
   }
   benchmark::RegisterBenchmark("rotations", BM_rotations)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("tick", BM_tick)->Unit(benchmark::kMillisecond)->Iterations(3);
   benchmark::Initialize(&argc, argv);
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

@@ -144,20 +144,21 @@ RotationField::RotationField(const DrawnSurface& surface, double smoothing_radiu
   fitted_.assign(3 * static_cast<std::size_t>(n_), 0.0);
 }
 
-double default_smoothing_radius(const DrawnSurface& surface) {
-  std::vector<double> edges;
+double default_smoothing_radius(const DrawnSurface& surface, double edges) {
+  std::vector<double> lengths;
   for (int t = 0; t < surface.triangle_count(); ++t) {
     const std::uint32_t* v = &surface.triangles[3 * static_cast<std::size_t>(t)];
     for (int i = 0; i < 3; ++i) {
       const auto a = static_cast<int>(v[i]), b = static_cast<int>(v[(i + 1) % 3]);
       if (a < surface.compliance_vertex_count && b < surface.compliance_vertex_count)
-        edges.push_back((surface.rest_position(a) - surface.rest_position(b)).norm());
+        lengths.push_back((surface.rest_position(a) - surface.rest_position(b)).norm());
     }
   }
-  if (edges.empty()) return 1e-3;
-  std::nth_element(edges.begin(), edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2),
-                   edges.end());
-  return 1.5 * edges[edges.size() / 2];
+  if (lengths.empty()) return 1e-3;
+  std::nth_element(lengths.begin(),
+                   lengths.begin() + static_cast<std::ptrdiff_t>(lengths.size() / 2),
+                   lengths.end());
+  return edges * lengths[lengths.size() / 2];
 }
 
 void RotationField::support(int v, std::vector<char>& mark, std::vector<int>& out) const {

@@ -47,6 +47,9 @@ using detail::HeldPoint;
 
 struct ToolContactEngine::Impl {
   const SurfaceModel& model;
+  // Warped compliance (docs/model.md, "Large rotations: warped compliance"):
+  // null for the linear model.
+  const RotationField* warping = nullptr;
   ContactSettings settings;
   SolverLimits limits;
   detail::ActiveSet active_set;
@@ -93,6 +96,17 @@ struct ToolContactEngine::Impl {
   std::vector<std::uint32_t> position_seen;  // per drawn vertex: the epoch of `position`
   std::uint32_t epoch = 0;
   std::vector<Vector3d> position;  // per drawn vertex: deformed, valid when position_seen == epoch
+  // Warped: per compliance vertex, the material displacement û under the
+  // last solve's loads, valid when material_seen equals epoch; its fitted
+  // rotation Ω û and its rotation ω = S Ω û, each kept until the tick in
+  // *_until (rotations change slowly: each is refreshed every kRotationTicks
+  // to 2 kRotationTicks − 1 ticks, staggered by vertex so that the refreshes
+  // spread over the ticks).
+  static constexpr std::uint64_t kRotationTicks = 16;
+  std::uint64_t ticks = 0;  // updates so far
+  std::vector<std::uint32_t> material_seen;
+  std::vector<std::uint64_t> fitted_until, omega_until;
+  std::vector<Vector3d> material_u, fitted_omega, omega;
   Vector3d box_min, box_max;
 
   // Scratch, sized once.
@@ -130,10 +144,15 @@ struct ToolContactEngine::Impl {
   int building = 0;
   std::vector<int> b_tool, b_tip, b_held;
   std::vector<detail::ActiveRow> rows;  // the active set's rows, one per built constraint
+  // Warped: per row, R̃ of its point and its normal in the world; per point
+  // of the last solve, its force in the material frame (the loads' frame).
+  std::vector<Matrix3d> row_rotation;
+  std::vector<Vector3d> row_world_normal, material_force;
 
   Impl(const SurfaceModel& m, std::vector<ToolGeometry> geometries, const ContactSettings& s,
-       const SolverLimits& l)
+       const SolverLimits& l, const RotationField* w)
       : model(m),
+        warping(w),
         settings(s),
         limits(l),
         active_set(m, l),
@@ -207,28 +226,88 @@ struct ToolContactEngine::Impl {
     b_tip.resize(k);
     b_held.resize(k);
     rows.resize(k);
+    row_rotation.assign(k, Matrix3d::Identity());
+    row_world_normal.assign(k, Vector3d::Zero());
+    material_force.assign(k, Vector3d::Zero());
+    if (warping != nullptr) {
+      PALPATE_DEMAND(warping->vertex_count() == n);
+      material_seen.assign(static_cast<std::size_t>(n), 0);
+      fitted_until.assign(static_cast<std::size_t>(n), 0);
+      omega_until.assign(static_cast<std::size_t>(n), 0);
+      for (auto* values : {&material_u, &fitted_omega, &omega})
+        values->assign(static_cast<std::size_t>(n), Vector3d::Zero());
+    }
   }
 
   /// Forgets the deformed positions (the loads changed).
   void next_epoch() {
     if (++epoch == 0) {
-      std::fill(position_seen.begin(), position_seen.end(), 0);
+      for (auto* seen : {&position_seen, &material_seen}) std::fill(seen->begin(), seen->end(), 0);
       epoch = 1;
     }
   }
 
+  /// u_v = Σ_l G^{v l} f_l under the last solve's loads: the displacement of
+  /// compliance vertex @p v (the material one, û, when warped).
+  Vector3d load_displacement(int v) const {
+    Vector3d u = Vector3d::Zero();
+    for (int l = 0; l < load_count; ++l)
+      u.noalias() += model.G_block(v, load_index[static_cast<std::size_t>(l)]) *
+                     Eigen::Map<const Vector3d>(&load_force[3 * static_cast<std::size_t>(l)]);
+    return u;
+  }
+
+  /// Warped: û, Ω û and ω = S Ω û of compliance vertex @p v, once per epoch.
+  const Vector3d& material(int v) {
+    const auto vv = static_cast<std::size_t>(v);
+    if (material_seen[vv] != epoch) {
+      material_seen[vv] = epoch;
+      material_u[vv] = load_displacement(v);
+    }
+    return material_u[vv];
+  }
+  const Vector3d& fitted(int v) {
+    const auto vv = static_cast<std::size_t>(v);
+    if (fitted_until[vv] <= ticks) {
+      fitted_until[vv] = ticks + kRotationTicks + vv % kRotationTicks;
+      fitted_omega[vv] = warping->fitted_at(v, [this](int j) { return material(j); });
+    }
+    return fitted_omega[vv];
+  }
+  const Vector3d& rotation_vector(int v) {
+    const auto vv = static_cast<std::size_t>(v);
+    if (omega_until[vv] <= ticks) {
+      omega_until[vv] = ticks + kRotationTicks + vv % kRotationTicks;
+      omega[vv] = warping->smoothed_at(v, [this](int b) { return fitted(b); });
+    }
+    return omega[vv];
+  }
+  /// Warped: R̃ of a point on @p count drawn vertices with @p weights, from the
+  /// weighted mean of their ω (a fixed vertex does not rotate).
+  template <typename Point>
+  Matrix3d point_rotation(const Point& point) {
+    Vector3d w = Vector3d::Zero();
+    for (int i = 0; i < point.count; ++i) {
+      const int v = point.vertices[static_cast<std::size_t>(i)];
+      if (v < compliance_count)
+        w += point.weights[static_cast<std::size_t>(i)] * rotation_vector(v);
+    }
+    return integrated_rotation(w);
+  }
+
   /// Deformed position of drawn vertex @p v under the last solve's loads
-  /// (a fixed vertex stays at rest); computed once per epoch.
+  /// (a fixed vertex stays at rest): p + u, or p + R̃(ω) û when warped;
+  /// computed once per epoch.
   const Vector3d& deformed(int v) {
     const auto vv = static_cast<std::size_t>(v);
     if (position_seen[vv] == epoch) return position[vv];
     position_seen[vv] = epoch;
-    Vector3d u = Vector3d::Zero();
-    if (v < compliance_count)
-      for (int l = 0; l < load_count; ++l)
-        u.noalias() += model.G_block(v, load_index[static_cast<std::size_t>(l)]) *
-                       Eigen::Map<const Vector3d>(&load_force[3 * static_cast<std::size_t>(l)]);
-    position[vv] = rest[vv] + u;
+    if (v >= compliance_count)
+      position[vv] = rest[vv];
+    else if (warping == nullptr)
+      position[vv] = rest[vv] + load_displacement(v);
+    else
+      position[vv] = rest[vv] + integrated_rotation(rotation_vector(v)) * material(v);
     return position[vv];
   }
 
@@ -504,6 +583,20 @@ struct ToolContactEngine::Impl {
       row.kind = kind;
       row.value = value;
       row.normal = normal;
+      row_world_normal[b] = normal;
+      if (warping != nullptr) {
+        // Into the point's material frame (docs/model.md, "Large rotations:
+        // warped compliance"): d̂ = R̃⁻¹ d; a normal n̂ = R̃ᵀ n / s, δ̂ = δ / s.
+        const Matrix3d Rt = point_rotation(point);
+        row_rotation[b] = Rt;
+        if (kind == ConstraintKind::kDisplacement) row.value = Rt.inverse() * value;
+        if (normal.squaredNorm() > 0) {
+          const Vector3d n = Rt.transpose() * normal;
+          const double scale = n.norm();
+          row.normal = n / scale;
+          if (kind == ConstraintKind::kNormalDisplacement) row.value.x() = value.x() / scale;
+        }
+      }
       row.tip = tip >= 0;
       row.friction = tool.geometry.friction;
       row.depth = row.tip ? tool.tips[static_cast<std::size_t>(tip)].depth : 0.0;
@@ -589,11 +682,17 @@ struct ToolContactEngine::Impl {
       const Vector3d at_rest = point.held ? take(tool.held[static_cast<std::size_t>(b_held[bb])])
                                           : take(tool.tips[static_cast<std::size_t>(b_tip[bb])]);
       tip_of[c] = b_tip[bb];
-      point.force_n = active_set.force(b);
-      const Vector3d displacement = active_set.displacement(b);
+      // Warped: the solve's force and displacement are the material ones;
+      // the world's are f = R̃⁻ᵀ f̂ and R̃ û. The loads stay material.
+      material_force[c] = active_set.force(b);
+      const Matrix3d& Rt = row_rotation[bb];
+      point.force_n = warping != nullptr ? Vector3d(Rt.transpose().inverse() * material_force[c])
+                                         : material_force[c];
+      const Vector3d displacement = warping != nullptr ? Vector3d(Rt * active_set.displacement(b))
+                                                       : Vector3d(active_set.displacement(b));
       point.position_m = at_rest + displacement;
       point.normal =
-          row.kind == ConstraintKind::kNormalDisplacement ? row.normal : Vector3d::Zero();
+          row.kind == ConstraintKind::kNormalDisplacement ? row_world_normal[bb] : Vector3d::Zero();
       max_displacement = std::max(max_displacement, displacement.norm());
       tool.raw_force -= point.force_n;  // the organ pushes the tool back
       tool.raw_torque += (point.position_m - tool.pose.position_m).cross(-point.force_n);
@@ -628,7 +727,8 @@ struct ToolContactEngine::Impl {
             Eigen::Map<Vector3d>{&load_force[3 * static_cast<std::size_t>(slot)]}.setZero();
           }
           Eigen::Map<Vector3d>{&load_force[3 * static_cast<std::size_t>(slot)]} +=
-              point.weights[static_cast<std::size_t>(i)] * point.force_n;
+              point.weights[static_cast<std::size_t>(i)] *
+              material_force[static_cast<std::size_t>(c)];
         }
       }
     }
@@ -687,8 +787,9 @@ struct ToolContactEngine::Impl {
 };
 
 ToolContactEngine::ToolContactEngine(const SurfaceModel& model, std::vector<ToolGeometry> tools,
-                                     const ContactSettings& settings, const SolverLimits& limits)
-    : impl_(std::make_unique<Impl>(model, std::move(tools), settings, limits)) {}
+                                     const ContactSettings& settings, const SolverLimits& limits,
+                                     const RotationField* warping)
+    : impl_(std::make_unique<Impl>(model, std::move(tools), settings, limits, warping)) {}
 ToolContactEngine::~ToolContactEngine() = default;
 
 int ToolContactEngine::tool_count() const { return static_cast<int>(impl_->tools.size()); }
@@ -753,6 +854,7 @@ const char* ToolContactEngine::problem_message() const { return impl_->problem; 
 
 RequestStatus ToolContactEngine::update(int t, const ToolPoseInput& pose, double now_s) {
   Impl& s = *impl_;
+  ++s.ticks;
   auto& tool = s.tools.at(static_cast<std::size_t>(t));
   ToolOutput out;
   if (tool.in_watchdog || !tool.alive) {

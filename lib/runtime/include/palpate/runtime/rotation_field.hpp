@@ -48,6 +48,29 @@ class RotationField {
   /// only on support(v): equal to rotations() there.
   Eigen::Vector3d rotation_at(int v, std::span<const double> u_m) const;
 
+  /// The two steps of rotation_at() apart, for callers that keep what they
+  /// computed (the contact engine, vertex by vertex within a tick): Ω_b u at
+  /// vertex @p b, with @p u(j) the displacement of compliance vertex j; and
+  /// Σ_b S_vb fitted(b) at vertex @p v.
+  template <typename U>
+  Eigen::Vector3d fitted_at(int b, U&& u) const {
+    Eigen::Vector3d w = Eigen::Vector3d::Zero();
+    for (int i = fit_start_[static_cast<std::size_t>(b)];
+         i < fit_start_[static_cast<std::size_t>(b) + 1]; ++i)
+      w += Eigen::Map<const Eigen::Matrix3d>(&fit_block_[9 * static_cast<std::size_t>(i)]) *
+           u(fit_vertex_[static_cast<std::size_t>(i)]);
+    return w;
+  }
+  template <typename Fitted>
+  Eigen::Vector3d smoothed_at(int v, Fitted&& fitted) const {
+    Eigen::Vector3d w = Eigen::Vector3d::Zero();
+    for (int k = smooth_start_[static_cast<std::size_t>(v)];
+         k < smooth_start_[static_cast<std::size_t>(v) + 1]; ++k)
+      w += smooth_weight_[static_cast<std::size_t>(k)] *
+           fitted(smooth_vertex_[static_cast<std::size_t>(k)]);
+    return w;
+  }
+
   int vertex_count() const { return n_; }
   double smoothing_radius_m() const { return radius_; }
   /// Average number of vertices in one smoothing neighbourhood.
@@ -66,11 +89,16 @@ class RotationField {
   mutable std::vector<double> fitted_;  // Ω u, 3 per vertex
 };
 
-/// The default ρ: 1.5 × the median edge of the surface's triangles among
-/// compliance vertices (the flap's checks against a nonlinear reference,
-/// docs/model.md: from 1.2 to 1.5 edges meet the 15° target, larger radii
-/// average the bend away and over-rotate a grasped tip).
-double default_smoothing_radius(const DrawnSurface& surface);
+/// ρ = @p edges × the median edge of the surface's triangles among
+/// compliance vertices. Requests: kRequestEdges (the flap's checks against
+/// a nonlinear reference, docs/model.md: 1.2 to 1.5 edges meet the 15°
+/// target, larger radii average the bend away). The contact engine:
+/// kToolEdges (it takes each tick's rotations from the previous tick, without
+/// the requests' relaxation, and at 1.5 or 3 edges a grasped flap swung up
+/// drifts sideways; at 6 it does not, docs/tools.md).
+constexpr double kRequestEdges = 1.5;
+constexpr double kToolEdges = 6.0;
+double default_smoothing_radius(const DrawnSurface& surface, double edges = kRequestEdges);
 
 /// exp([ω]×): the rotation by |ω| about ω/|ω|.
 Eigen::Matrix3d rotation_matrix(const Eigen::Vector3d& omega);

@@ -57,6 +57,7 @@
 #include "palpate/core/eigen.hpp"
 #include "palpate/core/units.hpp"
 #include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_geometry.hpp"
 #include "palpate/runtime/tool_state.hpp"
@@ -83,8 +84,14 @@ struct ContactPoint {
 class ToolContactEngine {
  public:
   /// @p model must outlive the engine. Sizes every buffer for the tools.
+  /// @p warping, when given (and outliving the engine), makes the engine
+  /// warped (docs/model.md, "Large rotations: warped compliance"): the
+  /// surface is deformed to p + R̃(ω) û and every contact row is rotated into
+  /// its point's frame, with ω from the previous tick's loads (as the
+  /// deformation itself); null: the linear model.
   ToolContactEngine(const SurfaceModel& model, std::vector<ToolGeometry> tools,
-                    const ContactSettings& settings, const SolverLimits& limits);
+                    const ContactSettings& settings, const SolverLimits& limits,
+                    const RotationField* warping = nullptr);
   ~ToolContactEngine();
   ToolContactEngine(const ToolContactEngine&) = delete;
   ToolContactEngine& operator=(const ToolContactEngine&) = delete;
@@ -125,7 +132,8 @@ class ToolContactEngine {
   /// The same contacts as loads on compliance vertices (f_S = Hᵀ f_C, what
   /// the surface field u_S = G f_S needs), tool by tool: the vertex, the
   /// force on the organ there (3 per load, N), the tool of each. A vertex
-  /// two tools load appears once for each.
+  /// two tools load appears once for each. A warped engine's loads are the
+  /// material forces f̂ (G f̂ is the material field û; the world's is R̃ û).
   std::span<const int> contact_indices() const;
   std::span<const double> contact_forces() const;
   std::span<const int> contact_tools() const;
