@@ -237,13 +237,10 @@ struct Feed::Impl {
     index.clear();
     for (std::uint32_t v = 0; v < nv; ++v) index.emplace(surface.vertex_ids[v], v);
 
-    json text = {{"type", "model"},
-                 {"model_id", m.model_id},
-                 {"units", m.units},
-                 {"material", m.material_summary},
-                 {"input_hash", m.input_hash},
-                 {"vertex_count", nv},
-                 {"compliance_vertex_count", compliance},
+    json text = {{"type", "model"},          {"model_id", m.model_id},
+                 {"units", m.units},         {"material", m.material_summary},
+                 {"mechanics", m.mechanics}, {"input_hash", m.input_hash},
+                 {"vertex_count", nv},       {"compliance_vertex_count", compliance},
                  {"triangle_count", nt}};
     FrameWriter frame(kGeometryFrame);
     frame.reserve(64 + 12 * static_cast<std::size_t>(nv) + 12 * static_cast<std::size_t>(nt));

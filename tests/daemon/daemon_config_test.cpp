@@ -25,6 +25,7 @@ std::filesystem::path write(const testing::TempDir& dir, const std::string& text
 TEST(DaemonConfig, ReadsEveryKeyAndResolvesPathsFromTheFile) {
   testing::TempDir dir;
   std::ofstream(dir / "organ.h5") << "placeholder";
+  std::ofstream(dir / "flap.h5") << "placeholder";
   const auto config = read_daemon_config(write(dir, R"(
 [daemon]
 id = "or-3"
@@ -45,6 +46,10 @@ max_force_n = 20
 [[model]]
 id = "liver"
 file = "organ.h5"
+[[model]]
+id = "flap"
+file = "flap.h5"
+warping = "warped"
 )"));
   EXPECT_EQ(config.daemon_id, "or-3");
   EXPECT_EQ(config.log_level, "debug");
@@ -58,9 +63,11 @@ file = "organ.h5"
   EXPECT_EQ(config.max_clients, 8);
   EXPECT_EQ(config.max_displacement_fraction, 0.05);
   EXPECT_EQ(config.max_force_n, 20);
-  ASSERT_EQ(config.models.size(), 1u);
+  ASSERT_EQ(config.models.size(), 2u);
   EXPECT_EQ(config.models[0].id, "liver");
   EXPECT_EQ(config.models[0].file, dir.path() / "organ.h5");
+  EXPECT_FALSE(config.models[0].warped) << "linear unless the file says warped";
+  EXPECT_TRUE(config.models[1].warped);
   EXPECT_NO_THROW(validate(config));
 }
 
@@ -88,6 +95,12 @@ TEST(DaemonConfig, ErrorsNameTheLineTheKeyAndWhatIsAccepted) {
                            {"dds.domain", "[0, 232]"});
   expect_error<InputError>([&] { read_daemon_config(write(dir, "[[model]]\nid = \"a\"\n")); },
                            {"palpated.toml:1", "needs id and file"});
+  expect_error<InputError>(
+      [&] {
+        read_daemon_config(
+            write(dir, "[[model]]\nid = \"a\"\nfile = \"a.h5\"\nwarping = \"corotational\"\n"));
+      },
+      {"palpated.toml:4", "model.warping", "'corotational'", "\"linear\" or \"warped\""});
   expect_error<InputError>([&] { read_daemon_config(write(dir, "[daemon\n")); },
                            {"palpated.toml:1", "not valid TOML"});
   expect_error<InputError>([&] { read_daemon_config(dir / "missing.toml"); },
@@ -116,6 +129,7 @@ TEST(DaemonConfig, ErrorsNameTheLineTheKeyAndWhatIsAccepted) {
 TEST(DaemonConfig, ReadsToolsInMillimetresAndDegreesAsSI) {
   testing::TempDir dir;
   std::ofstream(dir / "organ.h5") << "placeholder";
+  std::ofstream(dir / "flap.h5") << "placeholder";
   std::filesystem::create_directory(dir / "sessions");
   const auto config = read_daemon_config(write(dir, R"(
 [[model]]

@@ -19,6 +19,9 @@
 #include <thread>
 
 #include "palpate/file/compliance_file.hpp"
+#include "palpate/runtime/rotation_field.hpp"
+#include "palpate/runtime/surface_model.hpp"
+#include "palpate/runtime/warped_solver.hpp"
 #include "palpate/transport/client.hpp"
 #include "support/box_job.hpp"
 #include "support/daemon_process.hpp"
@@ -77,7 +80,8 @@ class PalpatedTest : public ::testing::Test {
            "[rates]\nsurface_hz = 200\nstatus_hz = 20\n"
            "[limits]\nmax_constraints = 8\n"
            "[[model]]\nid = \"box\"\nfile = \"box.h5\"\n"
-           "[[model]]\nid = \"stiff\"\nfile = \"stiff.h5\"\n";
+           "[[model]]\nid = \"stiff\"\nfile = \"stiff.h5\"\n"
+           "[[model]]\nid = \"warped\"\nfile = \"box.h5\"\nwarping = \"warped\"\n";
     daemon_ = new Daemon({"--config", (dir_->path() / "palpated.toml").string()},
                          dir_->path() / "palpated.log");
     reference_ = new Reference(box_);
@@ -203,6 +207,55 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
       EXPECT_LT((vec(reply.results[j].displacement_m) - ref.at(u, cs[j].vertex)).norm(),
                 kRelativeTolerance * u.norm());
   }
+}
+
+// A model served with warping = "warped" says so in its description and
+// answers requests as the library's WarpedSolver does in process (the same
+// code on the same file: to round-off), which differs from the linear
+// answer for a lift of the free end (docs/model.md, "Large rotations").
+TEST_F(PalpatedTest, AWarpedModelSaysSoAndAnswersAsTheWarpedSolver) {
+  auto client = connect("warped");
+  EXPECT_EQ(box_info(*client).mechanics, "linear");
+  const auto described = client->wait_for_model("warped", kTimeout);
+  ASSERT_TRUE(described.has_value());
+  EXPECT_EQ(described->mechanics, "warped");
+
+  const SurfaceModel model = load_surface_model("warped", box_);
+  const RotationField field(model.surface, default_smoothing_radius(model.surface));
+  SolverLimits limits;
+  limits.max_constraints = 8;
+  WarpedSolver solver(model, limits, field);
+  // The free end's top edge (x = 100 mm, z = 40 mm) lifted 10 mm and pulled 3 mm.
+  std::vector<ConstraintSpec> cs;
+  for (int v = 0; v < model.compliance_vertex_count() && cs.size() < 4; ++v) {
+    const Eigen::Vector3d p = model.surface.rest_position(v);
+    if (p.x() > 0.1 - 1e-9 && p.z() > 0.04 - 1e-9)
+      cs.push_back(ConstraintSpec::displacement(model.surface.vertex_ids[std::size_t(v)],
+                                                {-0.003, 0, 0.010}));
+  }
+  ASSERT_GE(cs.size(), 2u);
+  ASSERT_EQ(solver.begin(cs.size()), RequestStatus::kOk);
+  for (const auto& c : cs)
+    ASSERT_EQ(solver.add(c.vertex, 1, c.value.data(), c.normal.data()), RequestStatus::kOk);
+  ASSERT_EQ(solver.solve(), RequestStatus::kOk) << solver.message();
+  Eigen::VectorXd field_m(model.compliance_rows());
+  solver.surface_displacement(field_m);
+
+  const Reply warped = client->request("warped", cs, true);
+  ASSERT_EQ(warped.status, RequestStatus::kOk) << warped.message;
+  const Reply linear = client->request("box", cs, false);
+  ASSERT_EQ(linear.status, RequestStatus::kOk) << linear.message;
+  for (std::size_t j = 0; j < cs.size(); ++j) {
+    const Eigen::Vector3d f(&solver.forces()[3 * j]);
+    EXPECT_LT((vec(warped.results[j].force_n) - f).norm(), 1e-12 * f.norm()) << j;
+    EXPECT_LT((vec(warped.results[j].displacement_m) - vec(cs[j].value)).norm(), 1e-9) << j;
+  }
+  EXPECT_LT(relative(Eigen::Map<const Eigen::VectorXd>(warped.surface_displacement_m.data(),
+                                                       field_m.size()),
+                     field_m),
+            1e-12);
+  EXPECT_GT((vec(warped.total_force_n) - vec(linear.total_force_n)).norm(),
+            0.01 * vec(linear.total_force_n).norm());
 }
 
 TEST_F(PalpatedTest, ServesEachModelWithItsOwnCompliance) {
@@ -370,7 +423,7 @@ TEST_F(PalpatedTest, EveryBadRequestGetsItsErrorAndTheDaemonKeepsServing) {
   EXPECT_GE(status->error_replies, cases.size());
   EXPECT_GE(status->requests_served, 2 * cases.size());
   EXPECT_EQ(status->daemon_id, "test-daemon");
-  EXPECT_EQ(status->models, 2u);
+  EXPECT_EQ(status->models, 3u);  // box, stiff and warped
 }
 
 TEST_F(PalpatedTest, RefusesIllConditionedSystemsWithTheEstimate) {

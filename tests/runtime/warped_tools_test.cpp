@@ -128,9 +128,10 @@ TEST(WarpedTools, AFlapSwungUpDoesNotPushBackAlongItsLength) {
   }
   for (int i = 0; i < 200; ++i) tick(hinge, 0, degrees(20));
   const Vector3d fl = linear.output(0).force_n, fw = warped.output(0).force_n;
-  std::printf("held at 20°: linear (%+.4f, %+.4f, %+.4f) N, warped (%+.4f, %+.4f, %+.4f) N, %d "
-              "points held\n",
-              fl.x(), fl.y(), fl.z(), fw.x(), fw.y(), fw.z(), warped.output(0).held);
+  std::printf(
+      "held at 20°: linear (%+.4f, %+.4f, %+.4f) N, warped (%+.4f, %+.4f, %+.4f) N, %d "
+      "points held\n",
+      fl.x(), fl.y(), fl.z(), fw.x(), fw.y(), fw.z(), warped.output(0).held);
   // The linear engine pushes the pliers out along the flap (+x, 0.29 N
   // when written); the warped one not by a tenth of that (−0.006 N).
   EXPECT_GT(fl.x(), 0.2);

@@ -80,10 +80,19 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
   }
   if (const auto* n = root.get("model")) {
     r.each_table(*n, "model", [&](const toml::table& m) {
-      r.only_keys(m, "model", {"id", "file"});
+      r.only_keys(m, "model", {"id", "file", "warping"});
       if (!m.get("id") || !m.get("file")) r.fail(&m, "model", "needs id and file");
+      bool warped = false;
+      if (const auto* w = m.get("warping")) {
+        const std::string mode = r.string(*w, "model.warping");
+        if (mode != "linear" && mode != "warped")
+          r.fail(w, "model.warping",
+                 fmt::format("'{}' is not a mode; accepted: \"linear\" or \"warped\"", mode));
+        warped = mode == "warped";
+      }
       config.models.push_back({r.string(*m.get("id"), "model.id"),
-                               detail::relative_to(base, r.string(*m.get("file"), "model.file"))});
+                               detail::relative_to(base, r.string(*m.get("file"), "model.file")),
+                               warped});
     });
   }
   auto non_negative = [&](const toml::node& node, const std::string& key) {

@@ -82,7 +82,13 @@ RequestStatus RequestServer::solve(const palpate_ConstraintRequest& request) {
     *end.out = '\0';
     return RequestStatus::kUnknownModel;
   }
-  ConstraintSolver& solver = *served->solver;
+  if (served->warped()) return answer(request, *served, *served->warped_solver);
+  return answer(request, *served, *served->solver);
+}
+
+template <typename Solver>
+RequestStatus RequestServer::answer(const palpate_ConstraintRequest& request, ServedModel& served,
+                                    Solver& solver) {
   RequestStatus status = wire::load_constraints(request, solver);
   if (status == RequestStatus::kOk) status = solver.solve();
   // Meaningful when the system was solved, or refused for its condition;
@@ -95,15 +101,16 @@ RequestStatus RequestServer::solve(const palpate_ConstraintRequest& request) {
   }
   wire::write_results(request, solver, reply_);
   if (request.want_surface) {
-    const auto n = static_cast<Eigen::Index>(served->model.compliance_rows());
+    const auto n = static_cast<Eigen::Index>(served.model.compliance_rows());
     solver.surface_displacement(Eigen::Map<Eigen::VectorXd>(reply_surface_.data(), n));
     reply_.surface_displacement._length = static_cast<std::uint32_t>(n);
   }
   if (request.update_state) {
     // The latest successful state-changing request defines what the model
-    // shows: the vertices it loads and their forces; the stream thread does the big product.
-    served->shown.show(solver.load_indices(), solver.load_forces(), {}, "",
-                       wire::bounded(reply_.client_id), request.request_id, reply_.total_force);
+    // shows: the vertices it loads and their forces (material ones on a
+    // warped model); the stream thread does the big product.
+    served.shown.show(solver.load_indices(), solver.load_forces(), {}, "",
+                      wire::bounded(reply_.client_id), request.request_id, reply_.total_force);
   }
   return RequestStatus::kOk;
 }

@@ -47,6 +47,10 @@ class RequestServer {
   void serve(dds_entity_t reader);
   void handle(const palpate_ConstraintRequest& request, const dds_sample_info_t& info);
   RequestStatus solve(const palpate_ConstraintRequest& request);
+  /// The request on @p served's solver, linear or warped, into reply_.
+  template <typename Solver>
+  RequestStatus answer(const palpate_ConstraintRequest& request, ServedModel& served,
+                       Solver& solver);
 
   const std::vector<std::unique_ptr<ServedModel>>& models_;
   std::string served_ids_;  // "a, b" for error messages

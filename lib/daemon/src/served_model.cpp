@@ -66,7 +66,7 @@ bool ShownState::copy_if_newer(std::uint64_t& version, Snapshot& out) {
   return true;
 }
 
-ServedModel::ServedModel(SurfaceModel loaded, const Options& config)
+ServedModel::ServedModel(SurfaceModel loaded, const Options& config, bool warped)
     // A constraint at a point of a triangle loads up to 3 vertices; the
     // tools' points are constraints.
     : model(std::move(loaded)),
@@ -82,9 +82,16 @@ ServedModel::ServedModel(SurfaceModel loaded, const Options& config)
   request_limits.max_displacement_m = config.max_displacement_fraction * (hi - lo).norm();
   request_limits.max_force_n = config.max_force_n;
   solver = std::make_unique<ConstraintSolver>(model, request_limits);
+  if (warped) {
+    request_field = std::make_unique<RotationField>(
+        model.surface, default_smoothing_radius(model.surface, kRequestEdges));
+    tool_field = std::make_unique<RotationField>(
+        model.surface, default_smoothing_radius(model.surface, kToolEdges));
+    warped_solver = std::make_unique<WarpedSolver>(model, request_limits, *request_field);
+  }
   const auto k = 3 * static_cast<std::size_t>(config.limits.max_constraints);
-  tools.engine =
-      std::make_unique<ToolContactEngine>(model, config.tools, config.contact, config.limits);
+  tools.engine = std::make_unique<ToolContactEngine>(model, config.tools, config.contact,
+                                                     config.limits, tool_field.get());
   tools.record_vertices.resize(k);
   tools.record_forces.resize(3 * k);
   for (const ToolGeometry& tool : config.tools)

@@ -12,9 +12,11 @@
 #include <vector>
 
 #include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/session_recorder.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
+#include "palpate/runtime/warped_solver.hpp"
 
 namespace palpate::daemon {
 
@@ -77,9 +79,17 @@ struct ServedModel {
   /// starts now, before any pose, so that the pose listener never creates a
   /// file (a recorder that cannot start is logged and the model served
   /// without).
-  ServedModel(SurfaceModel loaded, const Options& options);
+  /// @p warped: warped compliance for the requests, the tools and the
+  /// stream (docs/model.md, "Large rotations: warped compliance").
+  ServedModel(SurfaceModel loaded, const Options& options, bool warped = false);
 
   SurfaceModel model;
+  /// Warped models: the rotations of requests (RotationField at
+  /// kRequestEdges) and of the tools and the stream (kToolEdges); the
+  /// requests' solver. Null for a linear model.
+  std::unique_ptr<RotationField> request_field, tool_field;
+  std::unique_ptr<WarpedSolver> warped_solver;
+  bool warped() const { return warped_solver != nullptr; }
   /// The request solver's limits: the tools', with the bounds on a
   /// request's values for this organ (docs/dds.md, "Checks, in order").
   SolverLimits request_limits;

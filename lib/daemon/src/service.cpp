@@ -124,7 +124,12 @@ void Service::Impl::load_models() {
         loaded.mesh_vertex_count(), loaded.surface.triangle_count(), loaded.G_bytes() / 1e6,
         loaded.float32() ? "float32" : "float64", seconds);
     served_ids += (served_ids.empty() ? "" : ", ") + loaded.id;
-    models.push_back(std::make_unique<daemon::ServedModel>(std::move(loaded), options));
+    models.push_back(
+        std::make_unique<daemon::ServedModel>(std::move(loaded), options, entry.warped));
+    if (entry.warped)
+      spdlog::info("event=model_warped model={} request_radius_m={:.4g} tool_radius_m={:.4g}",
+                   entry.id, models.back()->request_field->smoothing_radius_m(),
+                   models.back()->tool_field->smoothing_radius_m());
   }
 }
 
@@ -158,7 +163,7 @@ void Service::Impl::publish_descriptions() {
   for (const auto& served : models) {
     const palpate_ModelDescription d =
         wire::describe(served->model, served->request_limits.max_displacement_m,
-                       served->request_limits.max_force_n);
+                       served->request_limits.max_force_n, served->warped());
     dds::check(dds_write(model_writer.get(), &d), "publishing model " + served->model.id);
   }
 }

@@ -34,6 +34,10 @@ StreamPublisher::StreamPublisher(Sources sources, const DaemonConfig& config,
     const ToolContactEngine& engine = *served.tools.engine;
     for (int t = 0; t < engine.tool_count(); ++t) s.tool_ids.push_back(engine.tool(t).id);
     s.displacement = Eigen::VectorXd::Zero(served.model.compliance_rows());
+    if (served.warped()) {
+      s.omega.assign(static_cast<std::size_t>(served.model.compliance_rows()), 0.0);
+      s.world_forces.assign(s.shown.forces.size(), 0.0);
+    }
   }
 }
 
@@ -74,6 +78,27 @@ void StreamPublisher::publish_surfaces() {
     // u_S = G_SC f_C, off the request path.
     surface_displacement(served.model, {s.shown.indices.data(), count}, s.shown.forces.data(),
                          s.displacement);
+    const double* forces = s.shown.forces.data();
+    if (served.warped()) {
+      // The field is the material û: x − p = R̃(ω) û vertex by vertex, and a
+      // load f̂ on vertex v is R̃(ω_v)⁻ᵀ f̂ in the world (docs/model.md,
+      // "Large rotations: warped compliance").
+      served.tool_field->rotations(
+          {s.displacement.data(), static_cast<std::size_t>(s.displacement.size())}, s.omega);
+      for (Eigen::Index v = 0; v < s.displacement.size() / 3; ++v)
+        s.displacement.segment<3>(3 * v) =
+            integrated_rotation(Eigen::Map<const Eigen::Vector3d>(&s.omega[3 * std::size_t(v)])) *
+            s.displacement.segment<3>(3 * v);
+      for (std::size_t c = 0; c < count; ++c) {
+        const auto v = static_cast<std::size_t>(s.shown.indices[c]);
+        Eigen::Map<Eigen::Vector3d> world(&s.world_forces[3 * c]);
+        world = integrated_rotation(Eigen::Map<const Eigen::Vector3d>(&s.omega[3 * v]))
+                    .transpose()
+                    .inverse() *
+                Eigen::Map<const Eigen::Vector3d>(&s.shown.forces[3 * c]);
+      }
+      forces = s.world_forces.data();
+    }
     palpate_SurfaceDisplacement& sample = s.sample;
     wire::copy_bounded(sample.model_id, served.model.id);
     ++sample.sequence_number;
@@ -88,8 +113,7 @@ void StreamPublisher::publish_surfaces() {
                                        static_cast<std::size_t>(s.displacement.size())));
     wire::view(sample.constrained_vertices,
                std::span<const std::uint32_t>(s.vertex_ids.data(), count));
-    wire::view(sample.constrained_forces,
-               std::span<const double>(s.shown.forces.data(), 3 * count));
+    wire::view(sample.constrained_forces, std::span<const double>(forces, 3 * count));
     const auto points = static_cast<std::size_t>(s.shown.point_count);
     for (std::size_t c = 0; c < points; ++c) {
       const ContactPoint& point = s.shown.points[c];

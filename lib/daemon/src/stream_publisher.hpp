@@ -57,6 +57,9 @@ class StreamPublisher {
     std::vector<palpate_SurfaceContact> contacts;  // shown.points, as sent
     std::vector<std::string> tool_ids;             // of the model's tools, by index
     Eigen::VectorXd displacement;
+    // Warped models: the rotation of every compliance vertex, and the loads
+    // in the world (the shown ones are material).
+    std::vector<double> omega, world_forces;
   };
 
   void loop();

@@ -161,6 +161,7 @@ void WarpedSolver::material_field_on_support(const ConstraintSolver& solver) {
 }
 
 RequestStatus WarpedSolver::solve() {
+  last_ = nullptr;
   solved_ = false;
   iterations_ = 0;
   change_ = 0;

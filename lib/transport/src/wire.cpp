@@ -53,7 +53,7 @@ auto to_vector(const Sequence& sequence) {
 }  // namespace
 
 palpate_ModelDescription describe(const SurfaceModel& model, double max_displacement_m,
-                                  double max_force_n) {
+                                  double max_force_n, bool warped) {
   palpate_ModelDescription d{};
   copy_bounded(d.model_id, model.id);
   copy_bounded(d.units, "m, N (SI)");
@@ -65,6 +65,7 @@ palpate_ModelDescription describe(const SurfaceModel& model, double max_displace
   view(d.triangles, std::span(model.surface.triangles));
   d.max_displacement = max_displacement_m;
   d.max_force = max_force_n;
+  copy_bounded(d.mechanics, warped ? "warped" : "linear");
   return d;
 }
 
@@ -80,6 +81,8 @@ ModelInfo from_idl(const palpate_ModelDescription& d) {
   info.surface.triangles = to_vector(d.triangles);
   info.max_displacement_m = d.max_displacement;
   info.max_force_n = d.max_force;
+  info.mechanics = bounded(d.mechanics);
+  if (info.mechanics.empty()) info.mechanics = "linear";
   return info;
 }
 
@@ -105,7 +108,11 @@ void to_idl(std::string_view client_id, std::string_view model_id, std::uint64_t
   view(out.constraints, std::span(storage));
 }
 
-RequestStatus load_constraints(const palpate_ConstraintRequest& request, ConstraintSolver& solver) {
+namespace {
+
+// The same for the linear and the warped solver (their interfaces agree).
+template <typename Solver>
+RequestStatus load_into(const palpate_ConstraintRequest& request, Solver& solver) {
   const std::uint32_t k = request.constraints._length;
   RequestStatus status = solver.begin(k);
   for (std::uint32_t j = 0; j < k && status == RequestStatus::kOk; ++j) {
@@ -115,8 +122,9 @@ RequestStatus load_constraints(const palpate_ConstraintRequest& request, Constra
   return status;
 }
 
-void write_results(const palpate_ConstraintRequest& request, const ConstraintSolver& solver,
-                   palpate_ConstraintReply& reply) {
+template <typename Solver>
+void results_of(const palpate_ConstraintRequest& request, const Solver& solver,
+                palpate_ConstraintReply& reply) {
   const auto forces = solver.forces();
   const auto displacements = solver.displacements();
   const auto k = static_cast<std::uint32_t>(solver.size());
@@ -125,12 +133,29 @@ void write_results(const palpate_ConstraintRequest& request, const ConstraintSol
     palpate_ConstraintResult& result = reply.results._buffer[j];
     result.vertex = request.constraints._buffer[j].vertex;
     for (std::uint32_t d = 0; d < 3; ++d) {
-      result.force[d] = forces(3 * j + d);
-      result.displacement[d] = displacements(3 * j + d);
+      result.force[d] = forces[3 * j + d];
+      result.displacement[d] = displacements[3 * j + d];
     }
   }
   const Eigen::Vector3d total = solver.total_force();
   for (int d = 0; d < 3; ++d) reply.total_force[d] = total[d];
+}
+
+}  // namespace
+
+RequestStatus load_constraints(const palpate_ConstraintRequest& request, ConstraintSolver& solver) {
+  return load_into(request, solver);
+}
+RequestStatus load_constraints(const palpate_ConstraintRequest& request, WarpedSolver& solver) {
+  return load_into(request, solver);
+}
+void write_results(const palpate_ConstraintRequest& request, const ConstraintSolver& solver,
+                   palpate_ConstraintReply& reply) {
+  results_of(request, solver, reply);
+}
+void write_results(const palpate_ConstraintRequest& request, const WarpedSolver& solver,
+                   palpate_ConstraintReply& reply) {
+  results_of(request, solver, reply);
 }
 
 Reply from_idl(const palpate_ConstraintReply& r) {

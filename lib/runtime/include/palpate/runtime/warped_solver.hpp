@@ -71,6 +71,14 @@ class WarpedSolver {
     return {displacement_.data(), 3 * std::size_t(count_)};
   }
   Eigen::Vector3d total_force() const;
+  /// The last solve's loads on compliance vertices in the material frame
+  /// (f̂_S = Hᵀ f̂_C: G f̂_S is the material field û; as
+  /// ConstraintSolver::load_indices, load_forces).
+  std::span<const int> load_indices() const { return last_->load_indices(); }
+  std::span<const double> load_forces() const { return last_->load_forces(); }
+  double condition_estimate() const {
+    return last_ != nullptr ? last_->condition_estimate() : linear_.condition_estimate();
+  }
   /// World displacement of every compliance vertex, R̃_v û_v, 3N_S, m.
   void surface_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const;
   /// ω from the last solve's field, 3 per compliance vertex, rad: valid at

@@ -23,6 +23,9 @@ struct ModelInfo {
   /// What a request may give on this model; larger is refused. 0 from a
   /// palpated older than these fields (unknown).
   double max_displacement_m = 0, max_force_n = 0;
+  /// "linear", or "warped" (large rotations, docs/model.md); "linear" from
+  /// a palpated older than the field.
+  std::string mechanics = "linear";
 };
 
 /// One constraint of a request (see ConstraintKind).

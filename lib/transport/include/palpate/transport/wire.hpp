@@ -22,6 +22,7 @@
 #include "palpate.h"
 #include "palpate/runtime/request_status.hpp"
 #include "palpate/runtime/tool_state.hpp"
+#include "palpate/runtime/warped_solver.hpp"
 #include "palpate/transport/messages.hpp"
 
 namespace palpate {
@@ -63,7 +64,7 @@ void view(Sequence& sequence, std::span<T> values) {
 /// (m, N); its sequences are views of the model's surface (valid while
 /// @p model lives).
 palpate_ModelDescription describe(const SurfaceModel& model, double max_displacement_m,
-                                  double max_force_n);
+                                  double max_force_n, bool warped = false);
 ModelInfo from_idl(const palpate_ModelDescription& description);
 
 // ---- palpate_request, palpate_reply --------------------------------------------
@@ -77,11 +78,15 @@ void to_idl(std::string_view client_id, std::string_view model_id, std::uint64_t
 /// Starts @p solver on @p request's constraints (begin, then add for each
 /// in order): the first status that is not kOk, or kOk.
 RequestStatus load_constraints(const palpate_ConstraintRequest& request, ConstraintSolver& solver);
+/// The same into a warped model's solver.
+RequestStatus load_constraints(const palpate_ConstraintRequest& request, WarpedSolver& solver);
 
 /// A solved request's results into @p reply: each constraint's vertex, force
 /// and displacement (into reply.results, whose buffer holds
 /// solver.size() entries), and the total force.
 void write_results(const palpate_ConstraintRequest& request, const ConstraintSolver& solver,
+                   palpate_ConstraintReply& reply);
+void write_results(const palpate_ConstraintRequest& request, const WarpedSolver& solver,
                    palpate_ConstraintReply& reply);
 Reply from_idl(const palpate_ConstraintReply& reply);
 
