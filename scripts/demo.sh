@@ -11,6 +11,11 @@
 #                                     names it, else a default job (docs/viewer.md, "The demo")
 # Environment: PALPATE_DEMO_PORT     the viewer's port on 127.0.0.1 (default 8080)
 #              PALPATE_DEMO_REPEAT   times the gesture is played (default 2)
+#              PALPATE_DEMO_GESTURE  the gesture file (default config/gestures/demo.toml;
+#                                    config/gestures/lift.toml grasps and lifts)
+#              PALPATE_DEMO_WARPING  "linear" (default) or "warped": the model's
+#                                    mechanics (palpated --warp, docs/model.md,
+#                                    "Large rotations: warped compliance")
 #              PALPATE_DEMO_NETNS    "private" (default) or "host" (below)
 #              PALPATE_BUILD_DIR     the build directory (default build)
 #              PALPATE_DEMO_OUT      the folder of its outputs (default out/demo; the
@@ -31,6 +36,16 @@ cd "$(dirname "$0")/.."
 script_start_ns=$(date +%s%N)
 port=${PALPATE_DEMO_PORT:-8080}
 repeat=${PALPATE_DEMO_REPEAT:-2}
+gesture=${PALPATE_DEMO_GESTURE:-config/gestures/demo.toml}
+warping=${PALPATE_DEMO_WARPING:-linear}
+case $warping in linear | warped) ;; *)
+  echo "demo: PALPATE_DEMO_WARPING=$warping: expected linear or warped" >&2; exit 2 ;;
+esac
+if [ ! -f "$gesture" ]; then
+  echo "demo: PALPATE_DEMO_GESTURE=$gesture: no such file (the gestures are in config/gestures/)" >&2
+  exit 2
+fi
+warp_flags=()
 netns_mode=${PALPATE_DEMO_NETNS:-private}
 build=${PALPATE_BUILD_DIR:-build}
 case $netns_mode in private | host) ;; *)
@@ -159,7 +174,8 @@ else
 fi
 
 say "palpated serves $compliance as model '$model' (DDS: loopback only, network namespace: $netns_mode)"
-"${in_netns[@]}" "$build/bin/palpated" --model "$model=$compliance" --record "$out/recordings" 2>"$out/palpated.log" &
+[ "$warping" = warped ] && warp_flags=(--warp "$model")
+"${in_netns[@]}" "$build/bin/palpated" --model "$model=$compliance" "${warp_flags[@]}" --record "$out/recordings" 2>"$out/palpated.log" &
 daemon=$!
 pids+=("$daemon")
 started+=("$daemon")
@@ -187,7 +203,6 @@ say "palpate-client: requests and replies at 1 kHz (docs/dds.md)"
 
 # Headless Chromium takes screenshots while the gesture plays; it renders
 # in software, so it runs niced to leave the cores to palpated's 1 kHz loop.
-gesture=config/gestures/demo.toml
 gesture_s=$((5 * repeat + 1))
 printf '#!/bin/sh\nexec nice -n 10 /usr/bin/chromium "$@"\n' > "$out/.chromium"
 chmod +x "$out/.chromium"
@@ -199,7 +214,7 @@ started+=("$capture")
 wait_for "$out/capture.log" 'capture: ready' "$capture" 30 ||
   echo "demo: no screenshots: $(tail -1 "$out/capture.log")" >&2
 
-say "palpate-pliers plays $gesture $repeat time(s) at 1 kHz, two tools (docs/pliers.md)"
+say "palpate-pliers plays $gesture $repeat time(s) at 1 kHz on the $warping model (docs/pliers.md)"
 status=0
 "${in_netns[@]}" "$build/bin/palpate-pliers" "$gesture" --model "$model" --repeat "$repeat" \
   --json "$out/pliers.json" || status=$?

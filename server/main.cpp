@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -92,13 +93,16 @@ int run(int argc, char** argv) {
       "DDS"};
   app.set_version_flag("--version", "palpated " PALPATE_VERSION);
   std::string config_file;
-  std::vector<std::string> model_flags;
+  std::vector<std::string> model_flags, warp_flags;
   bool check_only = false;
   palpate::DaemonConfig overrides;
   app.add_option("-c,--config", config_file,
                  "configuration file (TOML, e.g. config/palpated.toml)");
   app.add_option("-m,--model", model_flags,
                  "serve a compliance file as ID=PATH (repeatable; adds to the configuration)");
+  app.add_option("--warp", warp_flags,
+                 "serve model ID with warped compliance for large rotations (repeatable; as "
+                 "[[model]] warping = \"warped\")");
   app.add_option("--id", overrides.daemon_id, "daemon id in the status topic");
   app.add_option("--domain", overrides.domain_id, "DDS domain id");
   app.add_option(
@@ -166,6 +170,17 @@ int run(int argc, char** argv) {
   if (app.count("--log-level")) config.log_level = overrides.log_level;
   if (app.count("--record")) config.record_directory = record_directory;
   for (const auto& flag : model_flags) config.models.push_back(palpate::parse_model_flag(flag));
+  for (const auto& id : warp_flags) {
+    auto entry = std::find_if(config.models.begin(), config.models.end(),
+                              [&](const palpate::ModelEntry& m) { return m.id == id; });
+    if (entry == config.models.end()) {
+      std::string served;
+      for (const auto& m : config.models) served += (served.empty() ? "" : ", ") + m.id;
+      throw palpate::InputError("--warp " + id + ": no model of that id is served (served: " +
+                                (served.empty() ? "none" : served) + ")");
+    }
+    entry->warped = true;
+  }
   palpate::validate(config);
 
   // Structured logs on stderr, one event per line: ts level event=... key=value.

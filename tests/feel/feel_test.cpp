@@ -79,7 +79,7 @@ const std::vector<std::string> kWhole = {"glide", "grasp-pull-release", "press",
 
 TEST_F(FeelTest, EveryGestureHasAReferenceTrace) {
   const auto names = gestures();
-  ASSERT_GE(names.size(), 6u);
+  ASSERT_GE(names.size(), 7u);
   for (const auto& name : names)
     EXPECT_TRUE(fs::exists(kReferences / (name + ".csv")))
         << name << ": no reference trace; run scripts/regenerate-feel-traces.sh";
@@ -91,9 +91,11 @@ TEST_F(FeelTest, EveryGestureHasAReferenceTrace) {
 // switches of the right tool's glide) and steady-press (the right tool's
 // press losing its contact 3-5 mm deep, for a round-off dependent time):
 // what they feel after that differs between two BLAS kernels by up to
-// 1.6 N. A regeneration that cuts another gesture, or no longer cuts these,
-// fails here: look at it, then update the list.
-TEST_F(FeelTest, OnlyDemoAndSteadyPressAreCutByRoundOff) {
+// 1.6 N; and lift from 2.91 s of 3.4 s, as the jaws open to release the
+// lifted tissue (the cause not examined yet). A regeneration that cuts
+// another gesture, or no longer cuts these, fails here: look at it, then
+// update the list.
+TEST_F(FeelTest, OnlyTheKnownGesturesAreCutByRoundOff) {
   std::vector<std::string> cut;
   for (const auto& name : gestures()) {
     const FeelTrace reference = read_csv(kReferences / (name + ".csv"));
@@ -106,7 +108,7 @@ TEST_F(FeelTest, OnlyDemoAndSteadyPressAreCutByRoundOff) {
       }
   }
   cut.erase(std::unique(cut.begin(), cut.end()), cut.end());
-  EXPECT_EQ(cut, (std::vector<std::string>{"demo", "steady-press"}));
+  EXPECT_EQ(cut, (std::vector<std::string>{"demo", "lift", "steady-press"}));
 }
 
 TEST_F(FeelTest, EveryGestureFeelsAsItsReference) {
