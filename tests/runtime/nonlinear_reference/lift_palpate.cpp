@@ -4,8 +4,9 @@
 // request path (imposed displacements) in the linear and the warped model,
 // for lift_test.py to compare with the nonlinear finite-element reference.
 //
-// The grasped vertices are the compliance vertices in the boxes (--box may
-// be repeated: their union); each goes to
+// The grasped vertices are the compliance vertices in the boxes and balls
+// (--box X0,Y0,Z0,X1,Y1,Z1 and --sphere CX,CY,CZ,R, repeatable: their
+// union); each goes to
 // a + R(θ) (p − a), R(θ) the rotation by θ about the axis through a along e
 // (right-handed). The summed force the grasp exerts is printed per angle.
 //
@@ -62,7 +63,7 @@ std::vector<double> numbers(const std::string& option, const std::string& text,
 
 int main(int argc, char** argv) {
   if (argc < 2) usage("no model file");
-  std::vector<std::vector<double>> boxes;
+  std::vector<std::vector<double>> boxes, spheres;
   std::vector<double> point, direction, angles;
   double radius = 0;
   for (int i = 2; i < argc; i += 2) {
@@ -71,6 +72,8 @@ int main(int argc, char** argv) {
     const std::string value = argv[i + 1];
     if (option == "--box")
       boxes.push_back(numbers(option, value, 6));
+    else if (option == "--sphere")
+      spheres.push_back(numbers(option, value, 4));
     else if (option == "--axis-point")
       point = numbers(option, value, 3);
     else if (option == "--axis-direction")
@@ -82,8 +85,8 @@ int main(int argc, char** argv) {
     else
       usage("unknown option " + option);
   }
-  if (boxes.empty() || point.empty() || direction.empty() || angles.empty())
-    usage("--box, --axis-point, --axis-direction and --angles are required");
+  if ((boxes.empty() && spheres.empty()) || point.empty() || direction.empty() || angles.empty())
+    usage("--box or --sphere, --axis-point, --axis-direction and --angles are required");
   palpate::SurfaceModel model;
   try {
     model = palpate::load_surface_model("lift", argv[1]);
@@ -101,6 +104,8 @@ int main(int argc, char** argv) {
       for (int d = 0; d < 3; ++d) inside = inside && p[d] >= box[d] && p[d] <= box[3 + d];
       in_any = in_any || inside;
     }
+    for (const auto& ball : spheres)
+      in_any = in_any || (p - Eigen::Vector3d(ball[0], ball[1], ball[2])).norm() <= ball[3];
     if (in_any) grasped.push_back(v);
   }
   if (grasped.empty()) usage("no compliance vertex in the box");
