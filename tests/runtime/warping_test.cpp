@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cmath>
 #include <random>
 #include <string>
@@ -173,6 +174,50 @@ TEST_F(WarpingTest, ALiftMeetsItsDisplacementsInTheWorld) {
   // Not the linear answer: this stubby block cannot swing, but its frames turn.
   EXPECT_GT((warped.total_force() - linear.total_force()).norm(),
             0.05 * linear.total_force().norm());
+}
+
+// A point inside a surface triangle (add_point): its imposed world
+// displacement is met (R̃ of the weighted mean ω carries its û), and a small
+// one gives the linear answer.
+TEST_F(WarpingTest, APointOnATriangleMeetsItsDisplacement) {
+  const RotationField field(surface(), default_smoothing_radius(surface()));
+  int triangle = -1;
+  for (int t = 0; t < surface().triangle_count() && triangle < 0; ++t) {
+    bool free_end_top = true;
+    for (int i = 0; i < 3; ++i) {
+      const auto v = static_cast<int>(surface().triangles[3 * std::size_t(t) + std::size_t(i)]);
+      free_end_top = free_end_top && v < surface().compliance_vertex_count &&
+                     surface().rest_position(v).z() > 0.04 - 1e-9 &&
+                     surface().rest_position(v).x() > 0.08;
+    }
+    if (free_end_top) triangle = t;
+  }
+  ASSERT_GE(triangle, 0);
+  std::array<std::uint32_t, 3> ids{};
+  for (int i = 0; i < 3; ++i)
+    ids[std::size_t(i)] =
+        vertex(static_cast<int>(surface().triangles[3 * std::size_t(triangle) + std::size_t(i)]));
+  const std::array<double, 3> weights{0.2, 0.3, 0.5};
+  SolverLimits limits;
+  ConstraintSolver linear(model(), limits);
+  WarpedSolver warped(model(), limits, field);
+  for (const double scale : {1.0, 1e-6}) {
+    const Eigen::Vector3d d = scale * Eigen::Vector3d(-0.004, 0.0, 0.012);
+    auto impose = [&](auto& solver) {
+      ASSERT_EQ(solver.begin(1), RequestStatus::kOk);
+      ASSERT_EQ(solver.add_point(ids, weights, 1, d.data(), d.data()), RequestStatus::kOk);
+      ASSERT_EQ(solver.solve(), RequestStatus::kOk) << solver.message();
+    };
+    impose(linear);
+    impose(warped);
+    const Eigen::Map<const Eigen::Vector3d> x(&warped.displacements()[0]);
+    EXPECT_LT((x - d).norm(), 1e-7 * d.norm()) << scale;
+    const Eigen::Vector3d fl = linear.forces().segment<3>(0), fw(&warped.forces()[0]);
+    if (scale < 1)
+      EXPECT_LT((fw - fl).norm(), 1e-4 * fl.norm()) << "a small load: the linear answer";
+    else
+      EXPECT_GT((fw - fl).norm(), 0.01 * fl.norm()) << "a large one: warped";
+  }
 }
 
 // A normal displacement on a rotated part of the surface acts along the
