@@ -11,6 +11,7 @@
 #include "contact_geometry.hpp"
 #include "jaw_grasp.hpp"
 #include "palpate/core/error.hpp"
+#include "palpate/runtime/rotation_field.hpp"
 
 namespace palpate {
 

@@ -5,6 +5,7 @@
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
+#include "palpate/runtime/warped_solver.hpp"
 
 namespace palpate::wire {
 

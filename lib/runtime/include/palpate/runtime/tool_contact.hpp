@@ -57,12 +57,13 @@
 #include "palpate/core/eigen.hpp"
 #include "palpate/core/units.hpp"
 #include "palpate/runtime/constraint_solver.hpp"
-#include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_geometry.hpp"
 #include "palpate/runtime/tool_state.hpp"
 
 namespace palpate {
+
+class RotationField;  // palpate/runtime/rotation_field.hpp: a warped engine's rotations
 
 /// One contact of the last solve: a point of the surface, on 1 to 3 drawn
 /// vertices (compliance vertices first, as in DrawnSurface), pressed by a

@@ -22,11 +22,11 @@
 #include "palpate.h"
 #include "palpate/runtime/request_status.hpp"
 #include "palpate/runtime/tool_state.hpp"
-#include "palpate/runtime/warped_solver.hpp"
 #include "palpate/transport/messages.hpp"
 
 namespace palpate {
 class ConstraintSolver;
+class WarpedSolver;
 struct ContactPoint;
 struct SurfaceModel;
 }  // namespace palpate
