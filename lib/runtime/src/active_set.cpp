@@ -86,7 +86,11 @@ RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
   PALPATE_DEMAND(rows.size() <= static_cast<std::size_t>(max_rows_));
   rows_ = rows;
   message_[0] = '\0';
-  const bool incremental = method == ActiveSetMethod::kIncremental;
+  // Held points alone never change: one solve, through the solver and its
+  // cache of factorizations (a grasp held still reuses it from tick to tick).
+  const bool incremental =
+      method == ActiveSetMethod::kIncremental &&
+      std::any_of(rows.begin(), rows.end(), [](const ActiveRow& row) { return row.tip; });
   const int n = static_cast<int>(rows.size());
   RequestStatus status = RequestStatus::kOk;
   if (incremental) {

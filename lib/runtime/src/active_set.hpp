@@ -31,7 +31,9 @@
 /// (O(m²)), unknowns that join are appended by one block forward solve and
 /// a small Cholesky of their Schur complement (O(m² k)); sliding is the
 /// point's three columns leaving and its normal column joining. G is read
-/// once per tick, on the distinct vertices of every candidate point.
+/// once per tick, on the distinct vertices of every candidate point. A set
+/// of held points only (nothing can change) is solved by ConstraintSolver
+/// either way, whose cache keeps a still grasp's factorization.
 /// Allocation-free after construction.
 
 #include <array>
