@@ -90,6 +90,10 @@ class ActiveSet {
   }
   const char* message() const { return message_.data(); }
   std::uint64_t solves() const { return solves_; }
+  /// Wall time of the first solve of each call and of the later ones, s.
+  double first_seconds() const { return first_s_; }
+  double later_seconds() const { return later_s_; }
+  std::uint64_t later_solves() const { return later_; }
 
  private:
   static std::size_t index(int r) { return static_cast<std::size_t>(r); }
@@ -110,7 +114,8 @@ class ActiveSet {
   SolverLimits limits_;
   ConstraintSolver solver_;  // the kRefactor path
   std::span<ActiveRow> rows_;
-  std::uint64_t solves_ = 0;
+  std::uint64_t solves_ = 0, later_ = 0;
+  double first_s_ = 0, later_s_ = 0;
   std::array<char, 256> message_{};
   std::vector<double> force_, displacement_;  // 3 per row
 
@@ -133,7 +138,7 @@ class ActiveSet {
   std::vector<double> unknown_dir_;  // 3 per unknown
   std::vector<int> columns_of_;      // per row: its unknowns in W now (0, 1 or 3)
   std::vector<ConstraintKind> kind_in_W_;
-  std::vector<double> W_, L_, rhs_, work_, f_S_, z_;
+  std::vector<double> W_, L_, rhs_, work_, z_;
   std::vector<int> iwork_;
   bool factored_ = false;  // L holds W's factor; else the next solve factors afresh
 };

@@ -131,6 +131,14 @@ class ToolContactEngine {
   std::span<const int> contact_tools() const;
   /// Solves since construction, and those that reused a cached factorization.
   std::uint64_t solves() const;
+  /// Wall time in the contact solves since construction, for benchmarks:
+  /// the first solve of each update, and the solves after a change of the
+  /// contact set within an update (rows leaving, sliding or joining).
+  struct SolveTimes {
+    std::uint64_t first = 0, changed = 0;  ///< how many
+    double first_s = 0, changed_s = 0;     ///< their total, s
+  };
+  SolveTimes solve_times() const;
 
  private:
   struct Impl;
