@@ -303,12 +303,17 @@ void ActiveSet::number_vertices() {
     has_Y_[index(r)] = 0;
     columns_of_[index(r)] = 0;
   }
-  // G_UU, each 3×3 block of G read once per tick.
+  // G_UU, read once per tick.
   const int ld = 3 * max_used_;
   Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
+  // G is symmetric (G^ba = (G^ab)ᵀ, the compliance of a linear elastic
+  // body): half its blocks are read, the others mirrored.
   for (int b = 0; b < used_; ++b)
-    for (int a = 0; a < used_; ++a)
-      G_UU.block<3, 3>(3 * a, 3 * b) = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
+    for (int a = 0; a <= b; ++a) {
+      const Matrix3d block = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
+      G_UU.block<3, 3>(3 * a, 3 * b) = block;
+      if (a != b) G_UU.block<3, 3>(3 * b, 3 * a) = block.transpose();
+    }
 }
 
 /// Y_r = G_UU H_rᵀ (3u × 3): the displacement of U under a unit force at row r's point.
