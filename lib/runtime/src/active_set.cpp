@@ -303,8 +303,10 @@ void ActiveSet::number_vertices() {
     has_Y_[index(r)] = 0;
     columns_of_[index(r)] = 0;
   }
-  // G_UU, read once per tick.
-  const int ld = 3 * max_used_;
+  // G_UU, read once per tick, and the Y after it, packed at the tick's
+  // size (a leading dimension of the largest possible U spreads a small
+  // one over many pages).
+  const int ld = 3 * used_;
   Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
   // G is symmetric (G^ba = (G^ab)ᵀ, the compliance of a linear elastic
   // body): half its blocks are read, the others mirrored.
@@ -320,7 +322,7 @@ void ActiveSet::number_vertices() {
 void ActiveSet::compute_Y(int r) {
   if (has_Y_[index(r)]) return;
   has_Y_[index(r)] = 1;
-  const int ld = 3 * max_used_;
+  const int ld = 3 * used_;
   const int u3 = 3 * used_;
   const Strided G_UU(G_UU_.data(), u3, u3, Eigen::OuterStride<>(ld));
   Strided Y(&Y_[index(ld) * 3 * index(r)], u3, 3, Eigen::OuterStride<>(ld));
@@ -334,7 +336,7 @@ void ActiveSet::compute_Y(int r) {
 
 /// P_rs = H_r G H_sᵀ = H_r Y_s (Y_s computed).
 Matrix3d ActiveSet::P_block(int r, int s) {
-  const int ld = 3 * max_used_;
+  const int ld = 3 * used_;
   const Strided Y(&Y_[index(ld) * 3 * index(s)], 3 * used_, 3, Eigen::OuterStride<>(ld));
   const ActiveRow& row = rows_[index(r)];
   Matrix3d P = Matrix3d::Zero();
@@ -508,7 +510,7 @@ RequestStatus ActiveSet::finish_incremental() {
   // z = G_UU Hᵀ f_C = Σ_r Y_r f_r over the rows in W: 9u flops per row,
   // not 9u² (U holds every candidate's vertices, most of them unloaded).
   const int u3 = 3 * used_;
-  const int ld_Y = 3 * max_used_;
+  const int ld_Y = 3 * used_;
   Eigen::Map<Eigen::VectorXd> z(z_.data(), u3);
   z.setZero();
   bool finite = true;
