@@ -34,7 +34,8 @@
 ///     contact whose solved force pulls the tissue towards the tool
 ///     (adhesion) is released; one whose tangential force exceeds
 ///     friction × normal force slides; the set is solved again (at most
-///     max_iterations solves).
+///     max_iterations solves), editing the factorization of the previous
+///     solve rather than refactoring (ContactSettings::incremental_active_set).
 ///  5. Feedback: the force on the tool is minus the sum of its contact
 ///     forces, clamped to the device's force limit and moved towards that
 ///     value at most max_force_rate·Δt per tick; torque about the hinge;
