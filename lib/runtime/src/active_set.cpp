@@ -77,6 +77,7 @@ ActiveSet::ActiveSet(const SurfaceModel& model, const SolverLimits& limits)
   work_.resize(3 * m);
   iwork_.resize(m);
   z_.resize(u3);
+  complete_.resize(index(max_used_));
 }
 
 ActiveSet::~ActiveSet() = default;
@@ -281,41 +282,69 @@ void ActiveSet::number_vertices() {
     used_clock_ = 1;
   }
   used_ = 0;
-  for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
-    const ActiveRow& row = rows_[index(r)];
-    int kept = 0;
-    for (int i = 0; i < 3; ++i) {
-      const int a = i < row.count ? row.index[index(i)] : -1;
-      int& slot = point_slot_[3 * index(r) + index(i)];
-      slot = -1;
-      if (a < 0) continue;
-      PALPATE_DEMAND(a < model_.compliance_vertex_count());
-      const auto aa = index(a);
-      if (used_epoch_[aa] != used_clock_) {
-        used_epoch_[aa] = used_clock_;
-        used_slot_[aa] = used_++;
-        used_index_[index(used_slot_[aa])] = a;
+  // The vertices of the rows in the set first (slots 0 … pressed_), then
+  // those only watched rows use.
+  for (const bool pressed : {true, false})
+    for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
+      const ActiveRow& row = rows_[index(r)];
+      if ((row.state == ActiveRow::kActive) != pressed) continue;
+      int kept = 0;
+      for (int i = 0; i < 3; ++i) {
+        const int a = i < row.count ? row.index[index(i)] : -1;
+        int& slot = point_slot_[3 * index(r) + index(i)];
+        slot = -1;
+        if (a < 0) continue;
+        PALPATE_DEMAND(a < model_.compliance_vertex_count());
+        const auto aa = index(a);
+        if (used_epoch_[aa] != used_clock_) {
+          used_epoch_[aa] = used_clock_;
+          used_slot_[aa] = used_++;
+          used_index_[index(used_slot_[aa])] = a;
+        }
+        slot = used_slot_[aa];
+        ++kept;
       }
-      slot = used_slot_[aa];
-      ++kept;
+      PALPATE_DEMAND(kept > 0);
+      has_Y_[index(r)] = 0;
+      columns_of_[index(r)] = 0;
     }
-    PALPATE_DEMAND(kept > 0);
-    has_Y_[index(r)] = 0;
-    columns_of_[index(r)] = 0;
-  }
-  // G_UU, read once per tick, and the Y after it, packed at the tick's
-  // size (a leading dimension of the largest possible U spreads a small
-  // one over many pages).
+  // G_UU, and the Y after it, packed at the tick's size (a leading
+  // dimension of the largest possible U spreads a small one over many
+  // pages). G is symmetric (G^ba = (G^ab)ᵀ, the compliance of a linear
+  // elastic body): one read gives both blocks. Among the watched rows'
+  // own vertices nothing is read until one of them joins (complete_
+  // marks the columns read in full): their gaps need G only against the
+  // loaded vertices.
+  int pressed = 0;
+  for (int r = 0; r < static_cast<int>(rows_.size()); ++r)
+    if (rows_[index(r)].state == ActiveRow::kActive)
+      for (int i = 0; i < 3; ++i)
+        pressed = std::max(pressed, point_slot_[3 * index(r) + index(i)] + 1);
   const int ld = 3 * used_;
   Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
-  // G is symmetric (G^ba = (G^ab)ᵀ, the compliance of a linear elastic
-  // body): half its blocks are read, the others mirrored.
-  for (int b = 0; b < used_; ++b)
-    for (int a = 0; a <= b; ++a) {
+  for (int b = 0; b < used_; ++b) {
+    complete_[index(b)] = b < pressed ? 1 : 0;
+    for (int a = 0; a <= std::min(b, pressed - 1); ++a) {
       const Matrix3d block = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
       G_UU.block<3, 3>(3 * a, 3 * b) = block;
       if (a != b) G_UU.block<3, 3>(3 * b, 3 * a) = block.transpose();
     }
+  }
+}
+
+/// Reads the blocks of G_UU's column b not read yet (against the other
+/// watched-only vertices whose columns are not complete).
+void ActiveSet::complete_column(int b) {
+  if (complete_[index(b)]) return;
+  complete_[index(b)] = 1;
+  const int ld = 3 * used_;
+  Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
+  for (int a = 0; a < used_; ++a) {
+    if (complete_[index(a)] && a != b) continue;
+    const Matrix3d block = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
+    G_UU.block<3, 3>(3 * a, 3 * b) = block;
+    if (a != b) G_UU.block<3, 3>(3 * b, 3 * a) = block.transpose();
+  }
 }
 
 /// Y_r = G_UU H_rᵀ (3u × 3): the displacement of U under a unit force at row r's point.
@@ -330,7 +359,9 @@ void ActiveSet::compute_Y(int r) {
   const ActiveRow& row = rows_[index(r)];
   for (int i = 0; i < row.count; ++i) {
     const int slot = point_slot_[3 * index(r) + index(i)];
-    if (slot >= 0) Y.noalias() += row.weights[index(i)] * G_UU.middleCols<3>(3 * slot);
+    if (slot < 0) continue;
+    complete_column(slot);
+    Y.noalias() += row.weights[index(i)] * G_UU.middleCols<3>(3 * slot);
   }
 }
 

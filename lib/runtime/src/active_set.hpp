@@ -100,6 +100,7 @@ class ActiveSet {
   RequestStatus solve_refactor();
   RequestStatus solve_incremental();
   void number_vertices();
+  void complete_column(int b);
   void compute_Y(int r);
   Eigen::Matrix3d P_block(int r, int s);
   RequestStatus factor_all();
@@ -131,6 +132,7 @@ class ActiveSet {
   std::vector<double> G_UU_;     // 3·max_used × 3·max_used, column-major
   std::vector<double> Y_;        // 3·max_used × 3 per row
   std::vector<char> has_Y_;
+  std::vector<char> complete_;  // per slot of U: its column of G_UU read in full
   // W's unknowns in order: row, unit direction; W itself and its factor L
   // (lower), both max_unknowns × max_unknowns column-major.
   int unknowns_ = 0;
