@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -75,8 +76,8 @@ ActiveSet::ActiveSet(const SurfaceModel& model, const SolverLimits& limits)
   rhs_.resize(m);
   work_.resize(3 * m);
   iwork_.resize(m);
-  f_S_.resize(u3);
   z_.resize(u3);
+  complete_.resize(index(max_used_));
 }
 
 ActiveSet::~ActiveSet() = default;
@@ -84,9 +85,14 @@ ActiveSet::~ActiveSet() = default;
 RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
                                ActiveSetMethod method) {
   PALPATE_DEMAND(rows.size() <= static_cast<std::size_t>(max_rows_));
+  const auto call_start = std::chrono::steady_clock::now();
   rows_ = rows;
   message_[0] = '\0';
-  const bool incremental = method == ActiveSetMethod::kIncremental;
+  // Held points alone never change: one solve, through the solver and its
+  // cache of factorizations (a grasp held still reuses it from tick to tick).
+  const bool incremental =
+      method == ActiveSetMethod::kIncremental &&
+      std::any_of(rows.begin(), rows.end(), [](const ActiveRow& row) { return row.tip; });
   const int n = static_cast<int>(rows.size());
   RequestStatus status = RequestStatus::kOk;
   if (incremental) {
@@ -99,9 +105,16 @@ RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
     factored_ = false;
   }
   bool softened = false;
+  const std::uint64_t first_solve = solves_;
   const int iterations = std::max(1, max_iterations);
   for (int iteration = 0; iteration < iterations; ++iteration) {
+    // The first solve's time includes reading G for the tick (above).
+    const auto start = solves_ == first_solve ? call_start : std::chrono::steady_clock::now();
     status = incremental ? solve_incremental() : solve_refactor();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    (solves_ == first_solve ? first_s_ : later_s_) += seconds;
+    later_ += solves_ == first_solve ? 0 : 1;
     ++solves_;
     // Sticking points fix three components each: more of them than their
     // triangles' vertices can move (a tip in a dip meets several triangles
@@ -269,41 +282,76 @@ void ActiveSet::number_vertices() {
     used_clock_ = 1;
   }
   used_ = 0;
-  for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
-    const ActiveRow& row = rows_[index(r)];
-    int kept = 0;
-    for (int i = 0; i < 3; ++i) {
-      const int a = i < row.count ? row.index[index(i)] : -1;
-      int& slot = point_slot_[3 * index(r) + index(i)];
-      slot = -1;
-      if (a < 0) continue;
-      PALPATE_DEMAND(a < model_.compliance_vertex_count());
-      const auto aa = index(a);
-      if (used_epoch_[aa] != used_clock_) {
-        used_epoch_[aa] = used_clock_;
-        used_slot_[aa] = used_++;
-        used_index_[index(used_slot_[aa])] = a;
+  // The vertices of the rows in the set first (slots 0 … pressed_), then
+  // those only watched rows use.
+  for (const bool pressed : {true, false})
+    for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
+      const ActiveRow& row = rows_[index(r)];
+      if ((row.state == ActiveRow::kActive) != pressed) continue;
+      int kept = 0;
+      for (int i = 0; i < 3; ++i) {
+        const int a = i < row.count ? row.index[index(i)] : -1;
+        int& slot = point_slot_[3 * index(r) + index(i)];
+        slot = -1;
+        if (a < 0) continue;
+        PALPATE_DEMAND(a < model_.compliance_vertex_count());
+        const auto aa = index(a);
+        if (used_epoch_[aa] != used_clock_) {
+          used_epoch_[aa] = used_clock_;
+          used_slot_[aa] = used_++;
+          used_index_[index(used_slot_[aa])] = a;
+        }
+        slot = used_slot_[aa];
+        ++kept;
       }
-      slot = used_slot_[aa];
-      ++kept;
+      PALPATE_DEMAND(kept > 0);
+      has_Y_[index(r)] = 0;
+      columns_of_[index(r)] = 0;
     }
-    PALPATE_DEMAND(kept > 0);
-    has_Y_[index(r)] = 0;
-    columns_of_[index(r)] = 0;
-  }
-  // G_UU, each 3×3 block of G read once per tick.
-  const int ld = 3 * max_used_;
+  // G_UU, and the Y after it, packed at the tick's size (a leading
+  // dimension of the largest possible U spreads a small one over many
+  // pages). G is symmetric (G^ba = (G^ab)ᵀ, the compliance of a linear
+  // elastic body): one read gives both blocks. Among the watched rows'
+  // own vertices nothing is read until one of them joins (complete_
+  // marks the columns read in full): their gaps need G only against the
+  // loaded vertices.
+  int pressed = 0;
+  for (int r = 0; r < static_cast<int>(rows_.size()); ++r)
+    if (rows_[index(r)].state == ActiveRow::kActive)
+      for (int i = 0; i < 3; ++i)
+        pressed = std::max(pressed, point_slot_[3 * index(r) + index(i)] + 1);
+  const int ld = 3 * used_;
   Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
-  for (int b = 0; b < used_; ++b)
-    for (int a = 0; a < used_; ++a)
-      G_UU.block<3, 3>(3 * a, 3 * b) = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
+  for (int b = 0; b < used_; ++b) {
+    complete_[index(b)] = b < pressed ? 1 : 0;
+    for (int a = 0; a <= std::min(b, pressed - 1); ++a) {
+      const Matrix3d block = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
+      G_UU.block<3, 3>(3 * a, 3 * b) = block;
+      if (a != b) G_UU.block<3, 3>(3 * b, 3 * a) = block.transpose();
+    }
+  }
+}
+
+/// Reads the blocks of G_UU's column b not read yet (against the other
+/// watched-only vertices whose columns are not complete).
+void ActiveSet::complete_column(int b) {
+  if (complete_[index(b)]) return;
+  complete_[index(b)] = 1;
+  const int ld = 3 * used_;
+  Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
+  for (int a = 0; a < used_; ++a) {
+    if (complete_[index(a)] && a != b) continue;
+    const Matrix3d block = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
+    G_UU.block<3, 3>(3 * a, 3 * b) = block;
+    if (a != b) G_UU.block<3, 3>(3 * b, 3 * a) = block.transpose();
+  }
 }
 
 /// Y_r = G_UU H_rᵀ (3u × 3): the displacement of U under a unit force at row r's point.
 void ActiveSet::compute_Y(int r) {
   if (has_Y_[index(r)]) return;
   has_Y_[index(r)] = 1;
-  const int ld = 3 * max_used_;
+  const int ld = 3 * used_;
   const int u3 = 3 * used_;
   const Strided G_UU(G_UU_.data(), u3, u3, Eigen::OuterStride<>(ld));
   Strided Y(&Y_[index(ld) * 3 * index(r)], u3, 3, Eigen::OuterStride<>(ld));
@@ -311,13 +359,15 @@ void ActiveSet::compute_Y(int r) {
   const ActiveRow& row = rows_[index(r)];
   for (int i = 0; i < row.count; ++i) {
     const int slot = point_slot_[3 * index(r) + index(i)];
-    if (slot >= 0) Y.noalias() += row.weights[index(i)] * G_UU.middleCols<3>(3 * slot);
+    if (slot < 0) continue;
+    complete_column(slot);
+    Y.noalias() += row.weights[index(i)] * G_UU.middleCols<3>(3 * slot);
   }
 }
 
 /// P_rs = H_r G H_sᵀ = H_r Y_s (Y_s computed).
 Matrix3d ActiveSet::P_block(int r, int s) {
-  const int ld = 3 * max_used_;
+  const int ld = 3 * used_;
   const Strided Y(&Y_[index(ld) * 3 * index(s)], 3 * used_, 3, Eigen::OuterStride<>(ld));
   const ActiveRow& row = rows_[index(r)];
   Matrix3d P = Matrix3d::Zero();
@@ -488,16 +538,19 @@ RequestStatus ActiveSet::finish_incremental() {
   for (int p = 0; p < m; ++p)
     Eigen::Map<Vector3d>(&force_[3 * index(unknown_row_[index(p)])]) +=
         rhs_[index(p)] * Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]);
+  // z = G_UU Hᵀ f_C = Σ_r Y_r f_r over the rows in W: 9u flops per row,
+  // not 9u² (U holds every candidate's vertices, most of them unloaded).
   const int u3 = 3 * used_;
-  Eigen::Map<Eigen::VectorXd> f_S(f_S_.data(), u3), z(z_.data(), u3);
-  f_S.setZero();
-  for (int r = 0; r < n; ++r)
-    for (int i = 0; i < rows_[index(r)].count; ++i)
-      if (const int slot = point_slot_[3 * index(r) + index(i)]; slot >= 0)
-        f_S.segment<3>(3 * slot) +=
-            rows_[index(r)].weights[index(i)] * Eigen::Map<const Vector3d>(&force_[3 * index(r)]);
-  z.noalias() = Strided(G_UU_.data(), u3, u3, Eigen::OuterStride<>(3 * max_used_)) * f_S;
-  bool finite = f_S.allFinite();
+  const int ld_Y = 3 * used_;
+  Eigen::Map<Eigen::VectorXd> z(z_.data(), u3);
+  z.setZero();
+  bool finite = true;
+  for (int r = 0; r < n; ++r) {
+    if (columns_of_[index(r)] == 0) continue;
+    finite = finite && force(r).allFinite();
+    z.noalias() +=
+        Strided(&Y_[index(ld_Y) * 3 * index(r)], u3, 3, Eigen::OuterStride<>(ld_Y)) * force(r);
+  }
   for (int r = 0; r < n; ++r) {
     Eigen::Map<Vector3d> u(&displacement_[3 * index(r)]);
     u.setZero();

@@ -31,7 +31,9 @@
 /// (O(m²)), unknowns that join are appended by one block forward solve and
 /// a small Cholesky of their Schur complement (O(m² k)); sliding is the
 /// point's three columns leaving and its normal column joining. G is read
-/// once per tick, on the distinct vertices of every candidate point.
+/// once per tick, on the distinct vertices of every candidate point. A set
+/// of held points only (nothing can change) is solved by ConstraintSolver
+/// either way, whose cache keeps a still grasp's factorization.
 /// Allocation-free after construction.
 
 #include <array>
@@ -88,12 +90,17 @@ class ActiveSet {
   }
   const char* message() const { return message_.data(); }
   std::uint64_t solves() const { return solves_; }
+  /// Wall time of the first solve of each call and of the later ones, s.
+  double first_seconds() const { return first_s_; }
+  double later_seconds() const { return later_s_; }
+  std::uint64_t later_solves() const { return later_; }
 
  private:
   static std::size_t index(int r) { return static_cast<std::size_t>(r); }
   RequestStatus solve_refactor();
   RequestStatus solve_incremental();
   void number_vertices();
+  void complete_column(int b);
   void compute_Y(int r);
   Eigen::Matrix3d P_block(int r, int s);
   RequestStatus factor_all();
@@ -108,7 +115,8 @@ class ActiveSet {
   SolverLimits limits_;
   ConstraintSolver solver_;  // the kRefactor path
   std::span<ActiveRow> rows_;
-  std::uint64_t solves_ = 0;
+  std::uint64_t solves_ = 0, later_ = 0;
+  double first_s_ = 0, later_s_ = 0;
   std::array<char, 256> message_{};
   std::vector<double> force_, displacement_;  // 3 per row
 
@@ -124,6 +132,7 @@ class ActiveSet {
   std::vector<double> G_UU_;     // 3·max_used × 3·max_used, column-major
   std::vector<double> Y_;        // 3·max_used × 3 per row
   std::vector<char> has_Y_;
+  std::vector<char> complete_;  // per slot of U: its column of G_UU read in full
   // W's unknowns in order: row, unit direction; W itself and its factor L
   // (lower), both max_unknowns × max_unknowns column-major.
   int unknowns_ = 0;
@@ -131,7 +140,7 @@ class ActiveSet {
   std::vector<double> unknown_dir_;  // 3 per unknown
   std::vector<int> columns_of_;      // per row: its unknowns in W now (0, 1 or 3)
   std::vector<ConstraintKind> kind_in_W_;
-  std::vector<double> W_, L_, rhs_, work_, f_S_, z_;
+  std::vector<double> W_, L_, rhs_, work_, z_;
   std::vector<int> iwork_;
   bool factored_ = false;  // L holds W's factor; else the next solve factors afresh
 };

@@ -950,5 +950,9 @@ std::span<const int> ToolContactEngine::contact_tools() const {
   return {impl_->load_tool.data(), static_cast<std::size_t>(impl_->load_count)};
 }
 std::uint64_t ToolContactEngine::solves() const { return impl_->active_set.solves(); }
+ToolContactEngine::SolveTimes ToolContactEngine::solve_times() const {
+  const detail::ActiveSet& a = impl_->active_set;
+  return {a.solves() - a.later_solves(), a.later_solves(), a.first_seconds(), a.later_seconds()};
+}
 
 }  // namespace palpate

@@ -34,7 +34,8 @@
 ///     contact whose solved force pulls the tissue towards the tool
 ///     (adhesion) is released; one whose tangential force exceeds
 ///     friction × normal force slides; the set is solved again (at most
-///     max_iterations solves).
+///     max_iterations solves), editing the factorization of the previous
+///     solve rather than refactoring (ContactSettings::incremental_active_set).
 ///  5. Feedback: the force on the tool is minus the sum of its contact
 ///     forces, clamped to the device's force limit and moved towards that
 ///     value at most max_force_rate·Δt per tick; torque about the hinge;
@@ -140,6 +141,14 @@ class ToolContactEngine {
   std::span<const int> contact_tools() const;
   /// Solves since construction, and those that reused a cached factorization.
   std::uint64_t solves() const;
+  /// Wall time in the contact solves since construction, for benchmarks:
+  /// the first solve of each update, and the solves after a change of the
+  /// contact set within an update (rows leaving, sliding or joining).
+  struct SolveTimes {
+    std::uint64_t first = 0, changed = 0;  ///< how many
+    double first_s = 0, changed_s = 0;     ///< their total, s
+  };
+  SolveTimes solve_times() const;
 
  private:
   struct Impl;
