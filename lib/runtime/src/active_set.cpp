@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "palpate/core/error.hpp"
+#include "request_failure.hpp"
 
 extern "C" {
 void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
@@ -25,15 +26,6 @@ using Eigen::Matrix3d;
 using Eigen::Vector3d;
 using Strided = Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
 using Kind = ConstraintKind;
-
-template <typename... Args>
-RequestStatus fail(std::array<char, 256>& message, RequestStatus status,
-                   fmt::format_string<Args...> format, Args&&... args) {
-  const auto end =
-      fmt::format_to_n(message.data(), message.size() - 1, format, std::forward<Args>(args)...);
-  *end.out = '\0';
-  return status;
-}
 
 /// A sticking point starts to slide: its three rows become the normal one,
 /// b_n = nᵀ b, and its tangential force is zero.

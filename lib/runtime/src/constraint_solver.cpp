@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "palpate/core/error.hpp"
+#include "request_failure.hpp"
 
 extern "C" {
 void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
@@ -19,20 +20,7 @@ void dpocon_(const char* uplo, const int* n, const double* a, const int* lda, co
 
 namespace palpate {
 
-namespace {
-
-/// Explains a refused request in @p message (truncated to its size, never
-/// allocating) and returns @p status.
-template <typename... Args>
-RequestStatus fail(std::array<char, 256>& message, RequestStatus status,
-                   fmt::format_string<Args...> format, Args&&... args) {
-  const auto end =
-      fmt::format_to_n(message.data(), message.size() - 1, format, std::forward<Args>(args)...);
-  *end.out = '\0';
-  return status;
-}
-
-}  // namespace
+using detail::fail;
 
 /// One cached factorization: the structure it was built for (points, kinds,
 /// normals), G Hᵀ on the points' distinct vertices U and the Cholesky factor

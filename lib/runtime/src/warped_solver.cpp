@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "palpate/core/error.hpp"
+#include "request_failure.hpp"
 
 namespace palpate {
 
@@ -167,12 +168,7 @@ RequestStatus WarpedSolver::solve() {
   change_ = 0;
   RequestStatus status = linear_.solve();
   ++iterations_;
-  if (status != RequestStatus::kOk) {  // the linear solver's own words
-    const auto end =
-        fmt::format_to_n(message_.data(), message_.size() - 1, "{}", linear_.message());
-    *end.out = '\0';
-    return status;
-  }
+  if (status != RequestStatus::kOk) return status;  // message(): the linear solver's words
   last_ = &linear_;
   for (int j = 0; j < count_; ++j) {
     Eigen::Map<Eigen::Matrix3d> Rt(&rotation_[9 * std::size_t(j)]);
@@ -193,13 +189,11 @@ RequestStatus WarpedSolver::solve() {
     }
     if (change_ <= warping_.tolerance_rad) break;
     if (iterations_ >= warping_.max_iterations) {
-      const auto end = fmt::format_to_n(
-          message_.data(), message_.size() - 1,
+      return detail::fail(
+          message_, RequestStatus::kIllConditioned,
           "the warped solve did not settle: the rotations still changed by {:.3g} rad after {} "
           "solves; impose smaller displacements or use the linear model",
           change_, iterations_);
-      *end.out = '\0';
-      return RequestStatus::kIllConditioned;
     }
     if ((status = warped_.begin(std::size_t(count_))) != RequestStatus::kOk) break;
     for (int j = 0; j < count_ && status == RequestStatus::kOk; ++j) {
@@ -210,13 +204,9 @@ RequestStatus WarpedSolver::solve() {
     }
     if (status == RequestStatus::kOk) status = warped_.solve();
     ++iterations_;
-    if (status != RequestStatus::kOk) {
-      const auto end =
-          fmt::format_to_n(message_.data(), message_.size() - 1,
-                           "the warped solve, after {} solves: {}", iterations_, warped_.message());
-      *end.out = '\0';
-      return status;
-    }
+    if (status != RequestStatus::kOk)
+      return detail::fail(message_, status, "the warped solve, after {} solves: {}", iterations_,
+                          warped_.message());
     last_ = &warped_;
   }
   if (status != RequestStatus::kOk) return status;
