@@ -177,21 +177,10 @@ void RotationField::support(int v, std::vector<char>& mark, std::vector<int>& ou
 }
 
 Eigen::Vector3d RotationField::rotation_at(int v, std::span<const double> u_m) const {
-  Eigen::Vector3d w = Eigen::Vector3d::Zero();
-  for (int k = smooth_start_[static_cast<std::size_t>(v)];
-       k < smooth_start_[static_cast<std::size_t>(v) + 1]; ++k) {
-    const int b = smooth_vertex_[static_cast<std::size_t>(k)];
-    Eigen::Vector3d fitted = Eigen::Vector3d::Zero();
-    for (int i = fit_start_[static_cast<std::size_t>(b)];
-         i < fit_start_[static_cast<std::size_t>(b) + 1]; ++i) {
-      const Eigen::Map<const Eigen::Matrix3d> block(&fit_block_[9 * static_cast<std::size_t>(i)]);
-      fitted +=
-          block * Eigen::Map<const Eigen::Vector3d>(
-                      &u_m[3 * static_cast<std::size_t>(fit_vertex_[static_cast<std::size_t>(i)])]);
-    }
-    w += smooth_weight_[static_cast<std::size_t>(k)] * fitted;
-  }
-  return w;
+  const auto u = [&](int j) {
+    return Eigen::Map<const Eigen::Vector3d>(&u_m[3 * static_cast<std::size_t>(j)]);
+  };
+  return smoothed_at(v, [&](int b) { return fitted_at(b, u); });
 }
 
 double RotationField::mean_neighbourhood() const {
@@ -199,24 +188,21 @@ double RotationField::mean_neighbourhood() const {
 }
 
 void RotationField::rotations(std::span<const double> u_m, std::span<double> omega) const {
+  // Ω u once per vertex, then S: the two steps of rotation_at() over the
+  // whole surface.
+  const auto u = [&](int j) {
+    return Eigen::Map<const Eigen::Vector3d>(&u_m[3 * static_cast<std::size_t>(j)]);
+  };
   for (int v = 0; v < n_; ++v) {
-    Eigen::Map<Eigen::Vector3d> w(&fitted_[3 * static_cast<std::size_t>(v)]);
-    w.setZero();
-    for (int k = fit_start_[static_cast<std::size_t>(v)];
-         k < fit_start_[static_cast<std::size_t>(v) + 1]; ++k) {
-      const Eigen::Map<const Eigen::Matrix3d> block(&fit_block_[9 * static_cast<std::size_t>(k)]);
-      const int j = fit_vertex_[static_cast<std::size_t>(k)];
-      w += block * Eigen::Map<const Eigen::Vector3d>(&u_m[3 * static_cast<std::size_t>(j)]);
-    }
+    Eigen::Map<Eigen::Vector3d> fitted(&fitted_[3 * static_cast<std::size_t>(v)]);
+    fitted = fitted_at(v, u);
   }
+  const auto fitted = [&](int b) {
+    return Eigen::Map<const Eigen::Vector3d>(&fitted_[3 * static_cast<std::size_t>(b)]);
+  };
   for (int v = 0; v < n_; ++v) {
     Eigen::Map<Eigen::Vector3d> w(&omega[3 * static_cast<std::size_t>(v)]);
-    w.setZero();
-    for (int k = smooth_start_[static_cast<std::size_t>(v)];
-         k < smooth_start_[static_cast<std::size_t>(v) + 1]; ++k)
-      w += smooth_weight_[static_cast<std::size_t>(k)] *
-           Eigen::Map<const Eigen::Vector3d>(
-               &fitted_[3 * static_cast<std::size_t>(smooth_vertex_[static_cast<std::size_t>(k)])]);
+    w = smoothed_at(v, fitted);
   }
 }
 
