@@ -32,6 +32,7 @@
 
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
+#include "support/number_list.hpp"
 
 namespace {
 
@@ -47,19 +48,9 @@ using Eigen::Vector3d;
 }
 
 std::vector<double> numbers(const std::string& option, const std::string& text) {
-  std::vector<double> out;
-  std::size_t start = 0;
-  while (start <= text.size()) {
-    const std::size_t end = std::min(text.find(',', start), text.size());
-    const std::string item = text.substr(start, end - start);
-    char* stop = nullptr;
-    const double v = std::strtod(item.c_str(), &stop);
-    if (item.empty() || *stop != '\0' || !std::isfinite(v))
-      usage(option + " '" + text + "': expected numbers separated by commas");
-    out.push_back(v);
-    start = end + 1;
-  }
-  return out;
+  auto list = palpate::testing::number_list(text);
+  if (!list) usage(option + " '" + text + "': expected numbers separated by commas");
+  return *list;
 }
 
 std::string vec(const Vector3d& v) {

@@ -28,6 +28,7 @@
 #include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/warped_solver.hpp"
+#include "support/number_list.hpp"
 
 namespace {
 
@@ -42,21 +43,11 @@ namespace {
 
 std::vector<double> numbers(const std::string& option, const std::string& text,
                             std::size_t count = 0) {
-  std::vector<double> out;
-  std::size_t start = 0;
-  while (start <= text.size()) {
-    const std::size_t end = std::min(text.find(',', start), text.size());
-    const std::string item = text.substr(start, end - start);
-    char* stop = nullptr;
-    const double v = std::strtod(item.c_str(), &stop);
-    if (item.empty() || *stop != '\0' || !std::isfinite(v))
-      usage(option + " '" + text + "': expected numbers separated by commas");
-    out.push_back(v);
-    start = end + 1;
-  }
-  if (count != 0 && out.size() != count)
+  const auto list = palpate::testing::number_list(text);
+  if (!list) usage(option + " '" + text + "': expected numbers separated by commas");
+  if (count != 0 && list->size() != count)
     usage(option + " '" + text + "': expected " + std::to_string(count) + " numbers");
-  return out;
+  return *list;
 }
 
 }  // namespace
