@@ -95,15 +95,9 @@ using Eigen::Vector3d;
 TEST(JawGrasp, AFlapBetweenTheJawsIsHeldByBothFacesAndLiftsWithThePliers) {
   testing::TempDir dir;
   // 100 × 50 × 6 mm, clamped on x = 0, 6.25 mm cells, one cell thick.
-  testing::write_msh22(testing::box_mesh(0.1, 0.05, 0.006, 16, 8, 1), dir.path() / "flap.msh");
-  PrecomputeJob job;
-  job.mesh_file = dir.path() / "flap.msh";
-  job.young_modulus_pa = 85e3;
-  job.poisson_ratio = 0.45;
-  job.attachment.half_spaces.push_back({{0.001, 0, 0}, {-1, 0, 0}});
-  job.output = dir.path() / "flap.h5";
-  run_precompute(job, {});
-  const SurfaceModel flap = load_surface_model("flap", job.output);
+  const SurfaceModel flap = load_surface_model(
+      "flap", testing::write_clamped_compliance(testing::box_mesh(0.1, 0.05, 0.006, 16, 8, 1),
+                                                dir.path(), "flap", 85e3));
   const int n = flap.compliance_vertex_count();
 
   ToolGeometry g;  // a fine grasper: its 1 mm tip stays clear of the flap while open

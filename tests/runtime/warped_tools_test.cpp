@@ -11,7 +11,6 @@
 #include <cmath>
 #include <cstdio>
 
-#include "palpate/offline/precompute.hpp"
 #include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
@@ -72,15 +71,9 @@ TEST(WarpedTools, ASmallPressFeelsAsInTheLinearModel) {
 // 0.215 N against 0.029 N for a pinch at 15°); the warped engine does not.
 TEST(WarpedTools, AFlapSwungUpDoesNotPushBackAlongItsLength) {
   testing::TempDir dir;
-  testing::write_msh22(testing::box_mesh(0.1, 0.04, 0.01, 20, 8, 2), dir.path() / "flap.msh");
-  PrecomputeJob job;
-  job.mesh_file = dir.path() / "flap.msh";
-  job.young_modulus_pa = 20e3;
-  job.poisson_ratio = 0.45;
-  job.attachment.half_spaces.push_back({{0.0001, 0, 0}, {-1, 0, 0}});
-  job.output = dir.path() / "flap.h5";
-  run_precompute(job, {});
-  const SurfaceModel flap = load_surface_model("flap", job.output);
+  const SurfaceModel flap = load_surface_model(
+      "flap", testing::write_clamped_compliance(testing::box_mesh(0.1, 0.04, 0.01, 20, 8, 2),
+                                                dir.path(), "flap", 20e3));
   const RotationField field(flap.surface, default_smoothing_radius(flap.surface, kToolEdges));
 
   ToolGeometry g;

@@ -7,10 +7,9 @@
 
 namespace palpate::testing {
 
-PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name, int cells,
-                      double young_modulus_pa) {
-  const int side = std::max(2, cells / 2);
-  write_msh22(box_mesh(0.1, 0.05, 0.04, cells, side, side), dir / (name + ".msh"));
+PrecomputeJob clamped_job(const TetMesh& mesh, const std::filesystem::path& dir,
+                          const std::string& name, double young_modulus_pa) {
+  write_msh22(mesh, dir / (name + ".msh"));
   PrecomputeJob job;
   job.mesh_file = dir / (name + ".msh");
   job.young_modulus_pa = young_modulus_pa;
@@ -18,6 +17,20 @@ PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name,
   job.attachment.half_spaces.push_back({{0.001, 0, 0}, {-1, 0, 0}});
   job.output = dir / (name + ".h5");
   return job;
+}
+
+std::filesystem::path write_clamped_compliance(const TetMesh& mesh,
+                                               const std::filesystem::path& dir,
+                                               const std::string& name, double young_modulus_pa) {
+  const PrecomputeJob job = clamped_job(mesh, dir, name, young_modulus_pa);
+  run_precompute(job, {});
+  return job.output;
+}
+
+PrecomputeJob box_job(const std::filesystem::path& dir, const std::string& name, int cells,
+                      double young_modulus_pa) {
+  const int side = std::max(2, cells / 2);
+  return clamped_job(box_mesh(0.1, 0.05, 0.04, cells, side, side), dir, name, young_modulus_pa);
 }
 
 std::filesystem::path write_box_compliance(const std::filesystem::path& dir,

@@ -6,9 +6,19 @@
 #include <span>
 #include <string>
 
+#include "palpate/offline/mesh.hpp"
 #include "palpate/offline/precompute.hpp"
 
 namespace palpate::testing {
+
+/// The job for @p mesh, written to `<dir>/<name>.msh`, clamped on x = 0 (the
+/// half-space x ≤ 1 mm), ν = 0.45 → `<dir>/<name>.h5`.
+PrecomputeJob clamped_job(const TetMesh& mesh, const std::filesystem::path& dir,
+                          const std::string& name, double young_modulus_pa);
+/// Runs clamped_job and returns the compliance file.
+std::filesystem::path write_clamped_compliance(const TetMesh& mesh,
+                                               const std::filesystem::path& dir,
+                                               const std::string& name, double young_modulus_pa);
 
 /// The job for box mesh `<dir>/<name>.msh` (written here) → `<dir>/<name>.h5`.
 /// @param cells cubes along x (y and z get half as many, at least 2)
