@@ -6,12 +6,14 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 
 #include "active_set.hpp"
 #include "contact_geometry.hpp"
 #include "jaw_grasp.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/rotation_field.hpp"
+#include "warped_rotations.hpp"
 
 namespace palpate {
 
@@ -97,17 +99,8 @@ struct ToolContactEngine::Impl {
   std::vector<std::uint32_t> position_seen;  // per drawn vertex: the epoch of `position`
   std::uint32_t epoch = 0;
   std::vector<Vector3d> position;  // per drawn vertex: deformed, valid when position_seen == epoch
-  // Warped: per compliance vertex, the material displacement û under the
-  // last solve's loads, valid when material_seen equals epoch; its fitted
-  // rotation Ω û and its rotation ω = S Ω û, each kept until the tick in
-  // *_until (rotations change slowly: each is refreshed every kRotationTicks
-  // to 2 kRotationTicks − 1 ticks, staggered by vertex so that the refreshes
-  // spread over the ticks).
-  static constexpr std::uint64_t kRotationTicks = 16;
-  std::uint64_t ticks = 0;  // updates so far
-  std::vector<std::uint32_t> material_seen;
-  std::vector<std::uint64_t> fitted_until, omega_until;
-  std::vector<Vector3d> material_u, fitted_omega, omega;
+  // Warped: û and ω of the compliance vertices met this tick.
+  std::optional<detail::WarpedRotations> rotations;
   Vector3d box_min, box_max;
 
   // Scratch, sized once.
@@ -232,20 +225,17 @@ struct ToolContactEngine::Impl {
     material_force.assign(k, Vector3d::Zero());
     if (warping != nullptr) {
       PALPATE_DEMAND(warping->vertex_count() == n);
-      material_seen.assign(static_cast<std::size_t>(n), 0);
-      fitted_until.assign(static_cast<std::size_t>(n), 0);
-      omega_until.assign(static_cast<std::size_t>(n), 0);
-      for (auto* values : {&material_u, &fitted_omega, &omega})
-        values->assign(static_cast<std::size_t>(n), Vector3d::Zero());
+      rotations.emplace(*warping, n);
     }
   }
 
   /// Forgets the deformed positions (the loads changed).
   void next_epoch() {
     if (++epoch == 0) {
-      for (auto* seen : {&position_seen, &material_seen}) std::fill(seen->begin(), seen->end(), 0);
+      std::fill(position_seen.begin(), position_seen.end(), 0);
       epoch = 1;
     }
+    if (rotations) rotations->next_epoch();
   }
 
   /// u_v = Σ_l G^{v l} f_l under the last solve's loads: the displacement of
@@ -258,30 +248,9 @@ struct ToolContactEngine::Impl {
     return u;
   }
 
-  /// Warped: û, Ω û and ω = S Ω û of compliance vertex @p v, once per epoch.
-  const Vector3d& material(int v) {
-    const auto vv = static_cast<std::size_t>(v);
-    if (material_seen[vv] != epoch) {
-      material_seen[vv] = epoch;
-      material_u[vv] = load_displacement(v);
-    }
-    return material_u[vv];
-  }
-  const Vector3d& fitted(int v) {
-    const auto vv = static_cast<std::size_t>(v);
-    if (fitted_until[vv] <= ticks) {
-      fitted_until[vv] = ticks + kRotationTicks + vv % kRotationTicks;
-      fitted_omega[vv] = warping->fitted_at(v, [this](int j) { return material(j); });
-    }
-    return fitted_omega[vv];
-  }
+  /// Warped: ω of compliance vertex @p v under the last solve's loads.
   const Vector3d& rotation_vector(int v) {
-    const auto vv = static_cast<std::size_t>(v);
-    if (omega_until[vv] <= ticks) {
-      omega_until[vv] = ticks + kRotationTicks + vv % kRotationTicks;
-      omega[vv] = warping->smoothed_at(v, [this](int b) { return fitted(b); });
-    }
-    return omega[vv];
+    return rotations->rotation(v, [this](int j) { return load_displacement(j); });
   }
   /// Warped: R̃ of a point on @p count drawn vertices with @p weights, from the
   /// weighted mean of their ω (a fixed vertex does not rotate).
@@ -308,7 +277,9 @@ struct ToolContactEngine::Impl {
     else if (warping == nullptr)
       position[vv] = rest[vv] + load_displacement(v);
     else
-      position[vv] = rest[vv] + integrated_rotation(rotation_vector(v)) * material(v);
+      position[vv] =
+          rest[vv] + integrated_rotation(rotation_vector(v)) *
+                         rotations->material(v, [this](int j) { return load_displacement(j); });
     return position[vv];
   }
 
@@ -855,7 +826,7 @@ const char* ToolContactEngine::problem_message() const { return impl_->problem; 
 
 RequestStatus ToolContactEngine::update(int t, const ToolPoseInput& pose, double now_s) {
   Impl& s = *impl_;
-  ++s.ticks;
+  if (s.rotations) s.rotations->next_tick();
   auto& tool = s.tools.at(static_cast<std::size_t>(t));
   ToolOutput out;
   if (tool.in_watchdog || !tool.alive) {
