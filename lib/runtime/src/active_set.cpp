@@ -70,6 +70,9 @@ ActiveSet::ActiveSet(const SurfaceModel& model, const SolverLimits& limits)
   iwork_.resize(m);
   z_.resize(u3);
   complete_.resize(index(max_used_));
+  const auto columns = index(ConstraintSolver::kMaxResponseColumns);
+  response_in_.resize(3 * k * columns);
+  response_out_.resize(std::max(3 * k, m) * columns);
 }
 
 ActiveSet::~ActiveSet() = default;
@@ -80,6 +83,7 @@ RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
   const auto call_start = std::chrono::steady_clock::now();
   rows_ = rows;
   message_[0] = '\0';
+  last_ok_ = false;
   // Held points alone never change: one solve, through the solver and its
   // cache of factorizations (a grasp held still reuses it from tick to tick).
   const bool incremental =
@@ -181,7 +185,62 @@ RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
     }
     if (!any) break;
   }
+  last_incremental_ = incremental;
+  last_ok_ = status == RequestStatus::kOk;
   return status;
+}
+
+void ActiveSet::force_response(const double* dvalue, double* dforce, int columns) {
+  PALPATE_DEMAND(last_ok_);
+  PALPATE_DEMAND(columns >= 0 && columns <= ConstraintSolver::kMaxResponseColumns);
+  const int n = static_cast<int>(rows_.size());
+  std::fill_n(dforce, 3 * index(n) * index(columns), 0.0);
+  if (!last_incremental_) {
+    // The solver's constraints are the active rows, in order.
+    int k = 0;
+    for (int r = 0; r < n; ++r) k += rows_[index(r)].state == ActiveRow::kActive ? 1 : 0;
+    for (int c = 0; c < columns; ++c)
+      for (int r = 0, j = 0; r < n; ++r)
+        if (rows_[index(r)].state == ActiveRow::kActive)
+          std::copy_n(&dvalue[3 * index(c * n + r)], 3, &response_in_[3 * index(c * k + j++)]);
+    solver_.force_response(response_in_.data(), response_out_.data(), columns);
+    for (int c = 0; c < columns; ++c)
+      for (int r = 0, j = 0; r < n; ++r)
+        if (rows_[index(r)].state == ActiveRow::kActive)
+          std::copy_n(&response_out_[3 * index(c * k + j++)], 3, &dforce[3 * index(c * n + r)]);
+    return;
+  }
+  // δb_p = d_pᵀ δvalue_r (a sliding row's d is its normal), δφ = W⁻¹ δb from
+  // the factor, δf_r = Σ_p δφ_p d_p over the row's unknowns.
+  const int m = unknowns_;
+  if (m == 0 || columns == 0) return;
+  for (int c = 0; c < columns; ++c)
+    for (int p = 0; p < m; ++p)
+      response_out_[index(c * m + p)] =
+          Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)])
+              .dot(Eigen::Map<const Vector3d>(&dvalue[3 * index(c * n + unknown_row_[index(p)])]));
+  int info = 0;
+  const int ld = max_unknowns_;
+  dpotrs_("L", &m, &columns, L_.data(), &ld, response_out_.data(), &m, &info);
+  PALPATE_DEMAND(info == 0);
+  for (int c = 0; c < columns; ++c)
+    for (int p = 0; p < m; ++p)
+      Eigen::Map<Vector3d>(&dforce[3 * index(c * n + unknown_row_[index(p)])]) +=
+          response_out_[index(c * m + p)] * Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]);
+}
+
+Matrix3d ActiveSet::G_block(int a, int b) const {
+  if (last_incremental_ && used_epoch_[index(a)] == used_clock_ &&
+      used_epoch_[index(b)] == used_clock_) {
+    const int sa = used_slot_[index(a)], sb = used_slot_[index(b)];
+    // A complete column holds every block of it (and, mirrored, of its row).
+    if (complete_[index(sa)] || complete_[index(sb)]) {
+      const int ld = 3 * used_;
+      const Strided G_UU(const_cast<double*>(G_UU_.data()), ld, ld, Eigen::OuterStride<>(ld));
+      return G_UU.block<3, 3>(3 * sa, 3 * sb);
+    }
+  }
+  return model_.G_block(a, b);
 }
 
 // ---- the reference path: every solve from scratch ---------------------------------

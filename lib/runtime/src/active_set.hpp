@@ -89,6 +89,22 @@ class ActiveSet {
     return Eigen::Map<const Eigen::Vector3d>(&displacement_[3 * index(r)]);
   }
   const char* message() const { return message_.data(); }
+
+  /// How the settled set's forces change with its rows' imposed
+  /// displacements, the set itself (rows, kinds, normals) staying: for each
+  /// of @p columns changes δvalue (3 per row, m, one column after the other;
+  /// a sliding row takes nᵀ δvalue, a row not in the set is ignored), the
+  /// change of every row's force, δf_C = B W⁻¹ Bᵀ δvalue (3 per row, N; zero
+  /// for rows not in the set) into @p dforce. From the factor the last solve
+  /// used: exact for the set, no solve of the problem again
+  /// (docs/tools.md, "The local model"). Valid after solve() returned kOk;
+  /// at most ConstraintSolver::kMaxResponseColumns columns; allocation-free.
+  void force_response(const double* dvalue, double* dforce, int columns);
+
+  /// G^{ab} (3 × 3) between compliance vertices @p a and @p b: from the
+  /// blocks the last solve read when it read that one, else from the model.
+  Eigen::Matrix3d G_block(int a, int b) const;
+
   std::uint64_t solves() const { return solves_; }
   /// Wall time of the first solve of each call and of the later ones, s.
   double first_seconds() const { return first_s_; }
@@ -143,6 +159,11 @@ class ActiveSet {
   std::vector<double> W_, L_, rhs_, work_, z_;
   std::vector<int> iwork_;
   bool factored_ = false;  // L holds W's factor; else the next solve factors afresh
+  // How the last successful call solved: its factor is the incremental
+  // path's L or the solver's (for force_response), and the rows in it.
+  bool last_incremental_ = false;
+  bool last_ok_ = false;
+  std::vector<double> response_in_, response_out_;  // 3 per active row × columns
 };
 
 }  // namespace palpate::detail

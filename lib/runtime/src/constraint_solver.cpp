@@ -80,6 +80,7 @@ ConstraintSolver::ConstraintSolver(const SurfaceModel& model, const SolverLimits
   force_.resize(3 * k);
   displacement_.resize(3 * k);
   rhs_.resize(3 * k);
+  response_.resize(3 * k * kMaxResponseColumns);
   const auto n = static_cast<std::size_t>(model.compliance_vertex_count());
   seen_.assign(n, 0);
   used_epoch_.assign(n, 0);
@@ -512,6 +513,7 @@ void ConstraintSolver::gather_loads() {
 
 RequestStatus ConstraintSolver::solve() {
   solved_ = false;
+  solved_slot_ = nullptr;
   if (added_ != count_)
     return fail(message_, RequestStatus::kInternalError, "solve() after {} of {} constraints",
                 added_, count_);
@@ -575,7 +577,36 @@ RequestStatus ConstraintSolver::solve() {
                 "too large for this model; give displacements in metres and forces in newtons");
   gather_loads();
   solved_ = true;
+  solved_slot_ = &slot;
   return RequestStatus::kOk;
+}
+
+void ConstraintSolver::force_response(const double* dvalue, double* dforce, int columns) {
+  PALPATE_DEMAND(solved_ && solved_slot_ != nullptr);
+  PALPATE_DEMAND(columns >= 0 && columns <= kMaxResponseColumns);
+  const Slot& slot = *solved_slot_;
+  const int n3 = 3 * count_;
+  const int m = slot.unknowns;
+  std::fill_n(dforce, static_cast<std::size_t>(n3) * static_cast<std::size_t>(columns), 0.0);
+  if (m == 0 || columns == 0) return;
+  // δb = Bᵀ δvalue, one column per change; δφ = (Bᵀ P B)⁻¹ δb; δf = B δφ.
+  for (int c = 0; c < columns; ++c)
+    for (int p = 0; p < m; ++p) {
+      const int j = slot.unknown_vertex[p];
+      response_[static_cast<std::size_t>(c * m + p)] =
+          Eigen::Map<const Eigen::Vector3d>(&slot.unknown_dir[3 * p])
+              .dot(Eigen::Map<const Eigen::Vector3d>(&dvalue[c * n3 + 3 * j]));
+    }
+  int info = 0;
+  dpotrs_("L", &m, &columns, slot.L.data(), &m, response_.data(), &m, &info);
+  PALPATE_DEMAND(info == 0);
+  for (int c = 0; c < columns; ++c)
+    for (int p = 0; p < m; ++p) {
+      const int j = slot.unknown_vertex[p];
+      Eigen::Map<Eigen::Vector3d>(&dforce[c * n3 + 3 * j]) +=
+          response_[static_cast<std::size_t>(c * m + p)] *
+          Eigen::Map<const Eigen::Vector3d>(&slot.unknown_dir[3 * p]);
+    }
 }
 
 Eigen::Vector3d ConstraintSolver::total_force() const {

@@ -11,6 +11,7 @@
 #include "active_set.hpp"
 #include "contact_geometry.hpp"
 #include "jaw_grasp.hpp"
+#include "local_model.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/rotation_field.hpp"
 #include "warped_rotations.hpp"
@@ -142,6 +143,12 @@ struct ToolContactEngine::Impl {
   // of the last solve, its force in the material frame (the loads' frame).
   std::vector<Matrix3d> row_rotation;
   std::vector<Vector3d> row_world_normal, material_force;
+  // Per row, what the local model needs beyond the active set's row; the
+  // active set holds the factor of the stored solution when `factored`
+  // (the last solve succeeded): the local model is read off it.
+  std::vector<detail::LocalRow> local_rows;
+  detail::LocalModel linearization;
+  bool factored = false;
 
   Impl(const SurfaceModel& m, std::vector<ToolGeometry> geometries, const ContactSettings& s,
        const SolverLimits& l, const RotationField* w)
@@ -150,7 +157,8 @@ struct ToolContactEngine::Impl {
         settings(s),
         limits(l),
         active_set(m, l),
-        grasp(std::max(1, l.max_constraints), m.compliance_vertex_count()) {
+        grasp(std::max(1, l.max_constraints), m.compliance_vertex_count()),
+        linearization(std::max(1, l.max_constraints), m.compliance_vertex_count()) {
     const DrawnSurface& surface = m.surface;
     compliance_count = m.compliance_vertex_count();
     const int n = compliance_count;
@@ -223,6 +231,7 @@ struct ToolContactEngine::Impl {
     row_rotation.assign(k, Matrix3d::Identity());
     row_world_normal.assign(k, Vector3d::Zero());
     material_force.assign(k, Vector3d::Zero());
+    local_rows.resize(k);
     if (warping != nullptr) {
       PALPATE_DEMAND(warping->vertex_count() == n);
       rotations.emplace(*warping, n);
@@ -539,8 +548,17 @@ struct ToolContactEngine::Impl {
     building = 0;
     // A point on its vertices, a fixed one as −1 (its share goes to the attachment).
     auto add = [&](int t, int tip, int held, const auto& point, ConstraintKind kind,
-                   const Vector3d& value, const Vector3d& normal) {
+                   const Vector3d& value, const Vector3d& normal, const Vector3d& lever) {
       const auto b = static_cast<std::size_t>(building++);
+      detail::LocalRow& l = local_rows[b];
+      l.tool = t;
+      l.tip = tip >= 0;
+      l.lever = lever;
+      l.normal = normal;
+      l.rotation = Matrix3d::Identity();
+      for (int i = 0; i < point.count && l.tip; ++i)
+        l.corners[static_cast<std::size_t>(i)] =
+            deformed(point.vertices[static_cast<std::size_t>(i)]);
       b_tool[b] = t;
       b_tip[b] = tip;
       b_held[b] = held;
@@ -561,6 +579,7 @@ struct ToolContactEngine::Impl {
         // warped compliance"): d̂ = R̃⁻¹ d; a normal n̂ = R̃ᵀ n / s, δ̂ = δ / s.
         const Matrix3d Rt = point_rotation(point);
         row_rotation[b] = Rt;
+        l.rotation = Rt;
         if (kind == ConstraintKind::kDisplacement) row.value = Rt.inverse() * value;
         if (normal.squaredNorm() > 0) {
           const Vector3d n = Rt.transpose() * normal;
@@ -580,9 +599,9 @@ struct ToolContactEngine::Impl {
       if (!tool.alive) continue;
       for (int h = 0; h < static_cast<int>(tool.held.size()); ++h) {
         const HeldPoint& held = tool.held[static_cast<std::size_t>(h)];
-        const Vector3d target = tool.pose.position_m + tool.rotation * held.local;
-        add(t, -1, h, held, ConstraintKind::kDisplacement, tool.scale * (target - held.rest),
-            Vector3d::Zero());
+        const Vector3d lever = tool.rotation * held.local;  // it turns with the jaws
+        add(t, -1, h, held, ConstraintKind::kDisplacement,
+            tool.scale * (tool.pose.position_m + lever - held.rest), Vector3d::Zero(), lever);
       }
     }
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
@@ -591,11 +610,19 @@ struct ToolContactEngine::Impl {
       for (int c = 0; c < tool.tip_count; ++c) {
         const TipCandidate& tip = tool.tips[static_cast<std::size_t>(c)];
         const Vector3d u = tool.scale * (tip.target - tip.rest);
+        // The tip's surface point moves as the point of the axis it is
+        // pushed from (its normal frozen).
+        const Vector3d lever =
+            tip.target - tool.geometry.tip_radius_m * tip.normal - tool.pose.position_m;
         if (tool.geometry.friction > 0)
-          add(t, c, -1, tip, ConstraintKind::kDisplacement, u, tip.normal);
+          add(t, c, -1, tip, ConstraintKind::kDisplacement, u, tip.normal, lever);
         else
           add(t, c, -1, tip, ConstraintKind::kNormalDisplacement, Vector3d(tip.normal.dot(u), 0, 0),
-              tip.normal);
+              tip.normal, lever);
+        detail::LocalRow& l = local_rows[static_cast<std::size_t>(building - 1)];
+        l.target = tip.target;
+        l.radius = tool.geometry.tip_radius_m;
+        l.distance = tool.geometry.tip_radius_m - tip.depth;
         if (!tip.active)
           rows[static_cast<std::size_t>(building - 1)].state = detail::ActiveRow::kDormant;
       }
@@ -604,6 +631,7 @@ struct ToolContactEngine::Impl {
         active_set.solve({rows.data(), static_cast<std::size_t>(building)}, settings.max_iterations,
                          settings.incremental_active_set ? detail::ActiveSetMethod::kIncremental
                                                          : detail::ActiveSetMethod::kRefactor);
+    factored = status == RequestStatus::kOk;
     for (int t = 0; t < static_cast<int>(tools.size()); ++t)
       for (const auto& h : tools[static_cast<std::size_t>(t)].held)
         for (int i = 0; i < h.count; ++i)
@@ -666,6 +694,9 @@ struct ToolContactEngine::Impl {
       point.normal =
           row.kind == ConstraintKind::kNormalDisplacement ? row_world_normal[bb] : Vector3d::Zero();
       max_displacement = std::max(max_displacement, displacement.norm());
+      local_rows[bb].position = point.position_m;
+      local_rows[bb].force = point.force_n;
+      local_rows[bb].material_force = material_force[c];
       tool.raw_force -= point.force_n;  // the organ pushes the tool back
       tool.raw_torque += (point.position_m - tool.pose.position_m).cross(-point.force_n);
       if (point.held) {
@@ -708,9 +739,32 @@ struct ToolContactEngine::Impl {
       load_slot[static_cast<std::size_t>(load_index[static_cast<std::size_t>(l)])] = -1;
   }
 
+  /// Tool @p t's contact wrench linearized about its pose (LocalContactModel,
+  /// docs/tools.md "The local model"), from the factor of the stored solve.
+  void local_model(int t, LocalContactModel& local) {
+    const Tool& tool = tools[static_cast<std::size_t>(t)];
+    local.valid = true;
+    local.position_m = tool.pose.position_m;
+    local.orientation = tool.pose.orientation;
+    local.holding = tool.alive && !tool.held.empty();
+    local.force_n = tool.alive ? tool.raw_force : Vector3d::Zero();
+    local.torque_nm = tool.alive ? tool.raw_torque : Vector3d::Zero();
+    local.stiffness.setZero();
+    if (!tool.alive || tool.contacts == 0) return;
+    const auto n = static_cast<std::size_t>(building);
+    local.stiffness = linearization.stiffness({rows.data(), n}, {local_rows.data(), n}, t,
+                                              tool.pose.position_m, tool.scale, active_set);
+  }
+
   /// The feedback of tool @p t at @p now_s: clamp, slew limit, state events.
   void make_output(int t, double now_s, ToolOutput& out) {
     Tool& tool = tools[static_cast<std::size_t>(t)];
+    // The local model of this tick's solve; the last one's when it failed
+    // (its pose is its own, so it stays right about where it was made).
+    if (factored)
+      local_model(t, out.local);
+    else
+      out.local = tool.out.local;
     const ToolGeometry& g = tool.geometry;
     Vector3d target = tool.raw_force;
     bool limited = false;

@@ -120,7 +120,22 @@ class ConstraintSolver {
   Eigen::Map<const Eigen::VectorXd> displacements() const {
     return {displacement_.data(), 3 * count_};
   }
-  Eigen::Vector3d total_force() const;                      ///< Σ forces, N
+  Eigen::Vector3d total_force() const;  ///< Σ forces, N
+
+  /// Most columns force_response() takes at once.
+  static constexpr int kMaxResponseColumns = 6;
+  /// How the last successful solve's forces change with its imposed
+  /// displacements, the points, kinds, normals and given forces staying: for
+  /// each of @p columns changes δvalue of the values (3 per constraint, m,
+  /// one column after the other; a normal displacement takes nᵀ δvalue, a
+  /// given force ignores its), the change of every constraint's force,
+  ///
+  ///     δf_C = B (Bᵀ P B)⁻¹ Bᵀ δvalue,
+  ///
+  /// 3 per constraint, N, into @p dforce (same layout). Exact, since a solve
+  /// is linear in its values; two triangular solves per column on the kept
+  /// factor. At most kMaxResponseColumns; allocation-free.
+  void force_response(const double* dvalue, double* dforce, int columns);
   double condition_estimate() const { return condition_; }  ///< of Bᵀ G_CC B (1 when m = 0)
   bool reused_factorization() const { return reused_; }
 
@@ -170,6 +185,8 @@ class ConstraintSolver {
   std::vector<Slot> slots_;
   std::uint64_t clock_ = 0;
   std::vector<double> force_, displacement_, rhs_;
+  const Slot* solved_slot_ = nullptr;  // the factor of the last successful solve
+  std::vector<double> response_;       // m × kMaxResponseColumns
   double condition_ = 1;
   bool reused_ = false;
   bool solved_ = false;

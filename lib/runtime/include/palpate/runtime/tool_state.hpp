@@ -50,6 +50,32 @@ struct ToolPoseInput {
   double jaw_angle_rad = 0;
 };
 
+/// The contact wrench of a tool linearized about the pose it answers, for
+/// rendering at the device's rate between two answers (docs/tools.md, "The
+/// local model"). For a pose (x, R) near the answered one (x₀, R₀),
+///
+///     (F, τ) ≈ (F₀, τ₀) + K (x − x₀, θ),   θ: the rotation vector of R R₀ᵀ,
+///
+/// with τ about the hinge and everything in the model frame. K is exact for
+/// the contact set of the tick (its points, kinds and normals frozen): it
+/// comes from the factorization of the tick's reduced system, with no solve
+/// of the problem again.
+struct LocalContactModel {
+  bool valid = false;  ///< false: no model (an engine that has not solved yet)
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();             ///< x₀, the hinge
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< R₀, tool → model
+  /// F₀, τ₀: the contact wrench on the tool at x₀, before the device's force
+  /// and slew limits (the renderer applies them), N and N·m.
+  Eigen::Vector3d force_n = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque_nm = Eigen::Vector3d::Zero();
+  /// K = ∂(F, τ)/∂(x, θ), 6 × 6: N/m and N/rad in its first three rows,
+  /// N·m/m and N·m/rad in the last three. Zero when free.
+  Eigen::Matrix<double, 6, 6> stiffness = Eigen::Matrix<double, 6, 6>::Zero();
+  /// The jaws hold tissue: the wrench may pull the tool. A touching tool's
+  /// contacts only push (a renderer keeps F from pointing against F₀).
+  bool holding = false;
+};
+
 /// What a tool feels after a tick.
 struct ToolOutput {
   Eigen::Vector3d force_n = Eigen::Vector3d::Zero();    ///< on the tool, limited
@@ -64,6 +90,9 @@ struct ToolOutput {
   std::int64_t send_time_ns = 0;
   std::array<ToolEventKind, 4> events{};  ///< state changes of this tick, in order
   int event_count = 0;
+  /// The tick's contact wrench linearized about the pose it answers; the
+  /// last successful solve's when this tick's failed.
+  LocalContactModel local;
 };
 
 }  // namespace palpate
