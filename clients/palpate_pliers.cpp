@@ -323,6 +323,9 @@ int run(int argc, char** argv) {
   }
   const palpate::DrawnSurface& surface = model->surface;
   const palpate::GesturePlayer player(gesture, palpate::place_gesture(gesture, surface));
+  // Each tool's answers come in its own partition: its readers first, so
+  // that the answers to the first poses are not lost while they are matched.
+  for (const auto& run : runs) client.open_tool(run.id);
   if (!client.wait_for_daemon(
           std::max(std::chrono::milliseconds(100),
                    std::chrono::duration_cast<std::chrono::milliseconds>(give_up - Clock::now()))))

@@ -225,21 +225,31 @@ reply_partition() {
   echo "            <partition>palpate.client.*</partition>"
   echo "          </partitions>"
 }
+tool_partition() {
+  echo "          <partitions>"
+  echo "            <partition>palpate.tool.*</partition>"
+  echo "          </partitions>"
+}
 publish() { echo "        <publish>"; topics "$@"; echo "        </publish>"; }
 subscribe() { echo "        <subscribe>"; topics "$@"; echo "        </subscribe>"; }
 # What each kind may do (docs/security.md, "Who may do what"); palpate_reply
-# lives in the partitions palpate.client.<client id>.
+# lives in the partitions palpate.client.<client id>, palpate_tool_response
+# (and a copy of each palpate_tool_event) in palpate.tool.<tool id>.
 kind_rules() {
   case $1 in
     daemon)
       publish palpate_model palpate_surface palpate_status palpate_tool_feedback palpate_tool_event \
         palpate_tool_notice
       { echo "        <publish>"; topics palpate_reply; reply_partition; echo "        </publish>"; }
+      { echo "        <publish>"; topics palpate_tool_response palpate_tool_event; tool_partition
+        echo "        </publish>"; }
       subscribe palpate_request palpate_tool_pose palpate_tool_command ;;
     pliers)
       publish palpate_tool_pose palpate_tool_command
       subscribe palpate_model palpate_status palpate_tool_feedback palpate_tool_event \
-        palpate_tool_notice ;;
+        palpate_tool_notice
+      { echo "        <subscribe>"; topics palpate_tool_response palpate_tool_event; tool_partition
+        echo "        </subscribe>"; } ;;
     viewer)
       subscribe palpate_model palpate_surface palpate_status palpate_tool_pose palpate_tool_feedback \
         palpate_tool_event ;;

@@ -77,6 +77,7 @@ int station_child(const Settings& s, int station, const std::string& role, doubl
   const palpate::DrawnSurface& surface = model->surface;
   if (s.shared_organ) gesture.anchor_vertex_id = shared_anchor(surface, station);
   const palpate::GesturePlayer player(gesture, palpate::place_gesture(gesture, surface));
+  for (int k = 0; k < player.tool_count(); ++k) client.open_tool(player.tool_id(k));
   if (!client.wait_for_daemon(timeout)) throw palpate::SystemError("palpated reads no tool poses");
 
   const int tools = player.tool_count();

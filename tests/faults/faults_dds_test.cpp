@@ -100,8 +100,14 @@ class Hand {
     bool watchdog;
   };
 
-  Hand(std::string tool, std::string model, const Vector3d& where)
-      : tool_(std::move(tool)), model_(std::move(model)), where_(where) {
+  /// Drives @p tool; also reads the events of the tools in @p watched (a
+  /// station sees its own tools' events only, unless it opens others').
+  Hand(std::string tool, std::string model, const Vector3d& where,
+       std::vector<std::string> watched = {})
+      : tool_(std::move(tool)),
+        model_(std::move(model)),
+        where_(where),
+        watched_(std::move(watched)) {
     thread_ = std::thread([this] { run(); });
   }
   ~Hand() { stop(); }
@@ -152,6 +158,8 @@ class Hand {
  private:
   void run() {
     ToolClient client(ToolClientOptions{});
+    client.open_tool(tool_);
+    for (const auto& other : watched_) client.open_tool(other);
     if (!client.wait_for_model(model_, kLiveness) || !client.wait_for_daemon(kLiveness)) return;
     std::uint64_t sequence = static_cast<std::uint64_t>(ToolClient::now_ns() / 1000);
     const auto start = Clock::now();
@@ -178,6 +186,7 @@ class Hand {
 
   std::string tool_, model_;
   Vector3d where_;
+  std::vector<std::string> watched_;
   std::atomic<bool> running_{true};
   std::atomic<std::uint64_t> poses_{0};
   mutable std::mutex mutex_;
@@ -271,7 +280,7 @@ TEST(Faults, AClientKilledMidSessionLetsGoOfItsToolAfterTheWatchdogAndTheOtherTo
   const Vector3d left_at = box.at(left_vertex), right_at = box.at(right_vertex);
 
   // The right hand alone, then the left one (palpate-pliers) too.
-  Hand right("right", "box", right_at);
+  Hand right("right", "box", right_at, {"left"});  // watches the left tool's events
   for (const auto until = Clock::now() + kLiveness; !right.touching_since(500ms);) {
     ASSERT_LT(Clock::now(), until) << daemon.log();
     std::this_thread::sleep_for(20ms);

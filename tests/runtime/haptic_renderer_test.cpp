@@ -69,8 +69,8 @@ TEST(HapticRenderer, TheLocalModelAtTheDevicesPose) {
   EXPECT_LE((w.torque_nm - a.model.torque_nm).norm(), kTolerance);
   // Moved 0.2 mm and turned 0.01 rad about x: w₀ + K (δx, θ).
   const Vector3d dx(0.0002, -0.0001, -0.0002), theta(0.01, 0, 0);
-  const Quaterniond turned = Quaterniond(Eigen::AngleAxisd(0.01, Vector3d::UnitX())) *
-                             a.model.orientation;
+  const Quaterniond turned =
+      Quaterniond(Eigen::AngleAxisd(0.01, Vector3d::UnitX())) * a.model.orientation;
   w = r.render(2 * kTick, a.model.position_m + dx, turned);
   Eigen::Matrix<double, 6, 1> q;
   q << dx, theta;
@@ -118,10 +118,10 @@ TEST(HapticRenderer, WithoutALocalModelTheFedBackForceIsHeld) {
   HapticRenderer r2(without_passivity());
   r2.take(old, 0);
   r2.render(0, Vector3d::Zero(), Quaterniond::Identity());
-  EXPECT_LE((r2.render(kTick, Vector3d(0.05, 0, 0), Quaterniond::Identity()).force_n -
-             a.fed_back_force_n)
-                .norm(),
-            kTolerance);
+  EXPECT_LE(
+      (r2.render(kTick, Vector3d(0.05, 0, 0), Quaterniond::Identity()).force_n - a.fed_back_force_n)
+          .norm(),
+      kTolerance);
 }
 
 TEST(HapticRenderer, AnAnswerIsHeldThenRampedOut) {
@@ -129,9 +129,7 @@ TEST(HapticRenderer, AnAnswerIsHeldThenRampedOut) {
   HapticRenderer r(s);
   const RenderAnswer a = press();
   r.take(a, 1.0);
-  const auto at = [&](double t) {
-    return r.render(t, a.model.position_m, a.model.orientation);
-  };
+  const auto at = [&](double t) { return r.render(t, a.model.position_m, a.model.orientation); };
   at(1.0);
   EXPECT_NEAR(at(1.0 + s.hold_s).scale, 1.0, kTolerance);
   const RenderedWrench half = at(1.0 + s.hold_s + 0.5 * s.ramp_s);
@@ -247,8 +245,9 @@ TEST(HapticRenderer, AnActiveFieldIsMadePassiveAndWithoutTheObserverItGivesEnerg
         ++a.sequence;
         r.take(a, t);
       }
-      const RenderedWrench w = r.render(
-          t, Vector3d(radius * std::cos(phase), radius * std::sin(phase), 0), Quaterniond::Identity());
+      const RenderedWrench w =
+          r.render(t, Vector3d(radius * std::cos(phase), radius * std::sin(phase), 0),
+                   Quaterniond::Identity());
       energy[passivity] = w.energy_j;
       least[passivity] = std::min(least[passivity], w.energy_j);
       damped[passivity] = std::max(damped[passivity], w.damping);

@@ -217,6 +217,7 @@ bool take_one(dds_entity_t reader, Clock::time_point deadline,
   report["model"] = model ? "1" : "0";
   if (patient) {
     if (!model) finish(report);
+    client.open_tool("probe");
     report["daemon"] = client.wait_for_daemon(20s) ? "1" : "0";
   }
   // Where the probe goes: above the box's top-face vertex nearest (50, 25) mm

@@ -423,6 +423,83 @@ TEST(Wire, ToolOutputBecomesFeedbackAndFeedbackTheClientsSample) {
   }
 }
 
+TEST(Wire, AResponseCarriesTheFeedbackThePoseAndTheLocalModel) {
+  ToolOutput out = an_output();
+  ToolPoseInput pose;
+  pose.position_m = Eigen::Vector3d(0.01, -0.02, 0.03);
+  pose.orientation =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 1, 0).normalized()));
+  pose.jaw_angle_rad = 0.2;
+  out.local.valid = true;
+  out.local.position_m = pose.position_m;
+  out.local.orientation = pose.orientation;
+  out.local.force_n = Eigen::Vector3d(0.6, -1.7, 2.5);
+  out.local.torque_nm = Eigen::Vector3d(0.001, 0.002, 0.003);
+  out.local.holding = true;
+  for (int i = 0; i < 36; ++i) out.local.stiffness(i / 6, i % 6) = 0.5 * i - 7;  // row-major order
+  ToolGeometry tool;
+  tool.id = "grasper-left";
+  tool.force_limit_n = 6;
+  tool.max_force_rate_n_per_s = 400;
+  palpate_ToolResponse response{};
+  wire::to_idl(out, pose, tool, "liver", 87'000, response);
+  EXPECT_EQ(bounded(response.tool_id), "grasper-left");
+  EXPECT_EQ(bounded(response.model_id), "liver");
+  EXPECT_EQ(response.pose_sequence, 1234u);
+  EXPECT_EQ(response.stiffness[7], 0.5 * 7 - 7) << "row 1, column 1";
+  EXPECT_EQ(response.stiffness[6], 0.5 * 6 - 7) << "row 1, column 0: row-major";
+  EXPECT_TRUE(response.model_valid);
+  EXPECT_EQ(response.force_limit, 6);
+  EXPECT_EQ(response.max_force_rate, 400);
+
+  const ToolFeedbackSample s = wire::from_idl(response, 5'900'000);
+  EXPECT_EQ(s.sequence, 1234u);
+  EXPECT_EQ(s.round_trip_ns(), 900'000);
+  EXPECT_EQ(s.force_n, (std::array<double, 3>{0.5, -1.5, 2.25})) << "the fed-back force";
+  EXPECT_EQ(s.grip_n, 1.75);
+  EXPECT_EQ(s.contacts, 6u);
+  EXPECT_EQ(s.state, ToolState::kGrasping);
+  EXPECT_EQ(s.compute_ns, 87'000u);
+  EXPECT_TRUE(s.local.valid);
+  EXPECT_TRUE(s.local.holding);
+  EXPECT_EQ(s.local.position_m, pose.position_m);
+  EXPECT_LE(s.local.orientation.angularDistance(pose.orientation), 1e-15);
+  EXPECT_EQ(s.jaw_angle_rad, 0.2);
+  EXPECT_EQ(s.local.force_n, out.local.force_n);
+  EXPECT_EQ(s.local.torque_nm, out.local.torque_nm);
+  EXPECT_EQ(s.local.stiffness, out.local.stiffness);
+  EXPECT_EQ(s.force_limit_n, 6);
+  EXPECT_EQ(s.max_force_rate_n_per_s, 400);
+
+  // A failed tick keeps the last model, which answers another pose: none
+  // is sent then.
+  ToolPoseInput moved = pose;
+  moved.position_m.x() += 1e-4;
+  wire::to_idl(out, moved, tool, "liver", 0, response);
+  EXPECT_FALSE(response.model_valid);
+  EXPECT_FALSE(wire::from_idl(response, 0).local.valid);
+}
+
+TEST(Wire, AResponseWithAbsurdNumbersHasNoModel) {
+  ToolOutput out = an_output();
+  ToolPoseInput pose;
+  out.local.valid = true;
+  ToolGeometry tool;
+  tool.id = "t";
+  palpate_ToolResponse response{};
+  wire::to_idl(out, pose, tool, "m", 0, response);
+  ASSERT_TRUE(wire::from_idl(response, 0).local.valid);
+  palpate_ToolResponse bad = response;
+  bad.stiffness[20] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(wire::from_idl(bad, 0).local.valid);
+  bad = response;
+  bad.contact_force[1] = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(wire::from_idl(bad, 0).local.valid);
+  bad = response;
+  bad.orientation[0] = 3;  // not a unit quaternion
+  EXPECT_FALSE(wire::from_idl(bad, 0).local.valid);
+}
+
 TEST(Wire, ToolEventsCarryTheirKindAndTheTick) {
   const ToolOutput out = an_output();
   for (int k = 0; k <= static_cast<int>(kLastToolEventKind); ++k) {

@@ -65,7 +65,8 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
       .feedback = topic(&palpate_ToolFeedback_desc, dds::kToolFeedbackTopic),
       .event = topic(&palpate_ToolEvent_desc, dds::kToolEventTopic),
       .command = topic(&palpate_ToolCommand_desc, dds::kToolCommandTopic),
-      .notice = topic(&palpate_ToolNotice_desc, dds::kToolNoticeTopic)};
+      .notice = topic(&palpate_ToolNotice_desc, dds::kToolNoticeTopic),
+      .response = topic(&palpate_ToolResponse_desc, dds::kToolResponseTopic)};
 
   model_writer = dds::Entity(
       dds::check(dds_create_writer(participant.get(), model_topic, dds::model_qos().get(), nullptr),

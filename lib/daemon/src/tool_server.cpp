@@ -37,6 +37,29 @@ void ToolServer::listen(dds_entity_t participant, const Topics& topics) {
   notice_writer_ = dds::Entity(dds::check(
       dds_create_writer(participant, topics.notice, dds::tool_notice_qos().get(), nullptr),
       "creating the tool notice writer"));
+  // Each tool's responses and events in its own partition: a station reads
+  // its tools' only (not every other station's 1 kHz answers).
+  if (!models_.empty()) {
+    const ToolContactEngine& engine = *models_.front()->tools.engine;
+    for (int t = 0; t < engine.tool_count(); ++t) {
+      const std::string partition = dds::tool_partition(engine.tool(t).id);
+      const char* partitions[] = {partition.c_str()};
+      dds::Qos qos(dds_create_qos());
+      dds_qset_partition(qos.get(), 1, partitions);
+      ToolWriters writers;
+      writers.publisher = dds::Entity(dds::check(
+          dds_create_publisher(participant, qos.get(), nullptr), "creating a tool's publisher"));
+      writers.response =
+          dds::Entity(dds::check(dds_create_writer(writers.publisher.get(), topics.response,
+                                                   dds::tool_stream_qos().get(), nullptr),
+                                 "creating a tool's response writer"));
+      writers.event =
+          dds::Entity(dds::check(dds_create_writer(writers.publisher.get(), topics.event,
+                                                   dds::tool_event_qos().get(), nullptr),
+                                 "creating a tool's event writer"));
+      tool_writers_.push_back(std::move(writers));
+    }
+  }
   listening_.store(true, std::memory_order_release);
   auto reader = [&](dds_entity_t topic, const dds::Qos& qos, dds_on_data_available_fn on_data,
                     const char* what) {
@@ -209,6 +232,15 @@ void ToolServer::publish(ServedModel& served, int tool, std::uint64_t compute_ns
   const ToolContactEngine& engine = *served.tools.engine;
   const ToolOutput& out = engine.output(tool);
   const std::string& tool_id = engine.tool(tool).id;
+  const ToolWriters* own = static_cast<std::size_t>(tool) < tool_writers_.size()
+                               ? &tool_writers_[static_cast<std::size_t>(tool)]
+                               : nullptr;
+  if (own != nullptr) {
+    wire::to_idl(out, engine.pose(tool), engine.tool(tool), served.model.id, compute_ns, response_);
+    if (const dds_return_t rc = dds_write(own->response.get(), &response_); rc < 0)
+      spdlog::error("event=dds_error what=\"writing a tool response\" tool={} error={}", tool_id,
+                    dds_strretcode(rc));
+  }
   palpate_ToolFeedback feedback{};
   wire::to_idl(out, tool_id, served.model.id, compute_ns, feedback);
   if (const dds_return_t rc = dds_write(feedback_writer_.get(), &feedback); rc < 0)
@@ -229,9 +261,11 @@ void ToolServer::publish(ServedModel& served, int tool, std::uint64_t compute_ns
                      std::chrono::system_clock::now().time_since_epoch())
                      .count(),
                  event);
-    if (const dds_return_t rc = dds_write(event_writer_.get(), &event); rc < 0)
-      spdlog::error("event=dds_error what=\"writing a tool event\" tool={} error={}", tool_id,
-                    dds_strretcode(rc));
+    for (const dds_entity_t writer : {event_writer_.get(), own ? own->event.get() : 0})
+      if (writer > 0)
+        if (const dds_return_t rc = dds_write(writer, &event); rc < 0)
+          spdlog::error("event=dds_error what=\"writing a tool event\" tool={} error={}", tool_id,
+                        dds_strretcode(rc));
     spdlog::info("event=tool_{} tool={} model={} sequence={} held={}", tool_event_name(kind),
                  tool_id, served.model.id, out.sequence, out.held);
   }

@@ -20,7 +20,9 @@ namespace palpate::daemon {
 /// Serves poses in the pose reader's data-available listener, on Cyclone's
 /// receive thread, as RequestServer serves requests: take the pose, check
 /// it, update the model's ToolContactEngine (every tool solved together),
-/// write the tool's feedback and events, show the contacts, record the tick.
+/// write the tool's response (with its local model) in the tool's own
+/// partition, its feedback for older clients and viewers, and its events
+/// (in both), show the contacts, record the tick.
 /// A refused pose is answered with a ToolNotice (its reason in one line; the
 /// first of a tool and reason, then at most one a second). A client's END
 /// command ends its tool's session at once (ToolContactEngine::end). The
@@ -36,11 +38,12 @@ class ToolServer {
 
   /// The tool topics, created by the caller.
   struct Topics {
-    dds_entity_t pose, feedback, event, command, notice;
+    dds_entity_t pose, feedback, event, command, notice, response;
   };
-  /// Creates the feedback, event and notice writers, then the pose and
-  /// command readers with their listeners: poses are served from then on
-  /// (possibly before this returns).
+  /// Creates the feedback, event and notice writers, each tool's response
+  /// and event writers in its partition (dds::tool_partition), then the pose
+  /// and command readers with their listeners: poses are served from then
+  /// on (possibly before this returns).
   void listen(dds_entity_t participant, const Topics& topics);
   /// Deletes the readers: no listener call after this returns.
   void stop();
@@ -81,6 +84,13 @@ class ToolServer {
   std::string served_ids_;
   const DaemonClock& clock_;
   dds::Entity reader_, command_reader_, feedback_writer_, event_writer_, notice_writer_;
+  /// Per tool (the engines' tool index: every model has the same tools), in
+  /// the tool's partition.
+  struct ToolWriters {
+    dds::Entity publisher, response, event;
+  };
+  std::vector<ToolWriters> tool_writers_;
+  palpate_ToolResponse response_{};
   std::atomic<bool> listening_{false};  // as RequestServer::listening_
 
   palpate_ToolPose samples_[kBatch];

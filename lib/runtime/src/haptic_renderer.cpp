@@ -111,8 +111,8 @@ RenderedWrench HapticRenderer::render(double now_s, const Vector3d& position_m,
         out.damping = alpha;
       }
       const double spin2 = w.squaredNorm();
-      if (energy < 0 && spin2 > settings_.min_angular_speed_rad_per_s *
-                                    settings_.min_angular_speed_rad_per_s) {
+      if (energy < 0 &&
+          spin2 > settings_.min_angular_speed_rad_per_s * settings_.min_angular_speed_rad_per_s) {
         const double beta =
             std::min(settings_.max_angular_damping_nm_s_per_rad, -energy / (spin2 * dt));
         torque -= beta * w;

@@ -84,6 +84,10 @@ std::string reply_partition(std::string_view client_id) {
   return std::string(kReplyPartitionPrefix) + std::string(client_id);
 }
 
+std::string tool_partition(std::string_view tool_id) {
+  return std::string(kToolPartitionPrefix) + std::string(tool_id);
+}
+
 namespace {
 Qos make_qos(dds_durability_kind_t durability, std::int32_t depth) {
   Qos qos(dds_create_qos());

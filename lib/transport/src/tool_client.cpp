@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <limits>
 
 #include "client_common.hpp"
 #include "palpate.h"
@@ -51,13 +52,17 @@ struct ToolSlot {
   /// Highest sequence whose wait has ended (answered or timed out): feedback
   /// at or below it is late.
   std::uint64_t done = 0;
-  Ring<ToolFeedbackSample, 16> pending;  // taken while waiting for another tool
+  // The tool's partition: its responses and its events.
+  dds::Entity subscriber;
+  WaitableReader responses, events;
+  Ring<ToolFeedbackSample, 16> pending;  // taken by render() before their wait
   Ring<ToolFeedbackSample, 64> late;
   // The newest feedback taken (highest sequence), for force_to_render().
   bool has_feedback = false;
   std::uint64_t newest_sequence = 0;
   std::int64_t newest_receive_ns = 0;
   std::array<double, 3> newest_force_n{};
+  HapticRenderer renderer;
 
   void saw(const ToolFeedbackSample& s) {
     if (has_feedback && s.sequence < newest_sequence) return;
@@ -77,6 +82,20 @@ void copy_id(char (&out)[64], std::string_view id) {
   std::memcpy(out, id.data(), std::min(id.size(), sizeof out - 1));
 }
 
+/// One answer as the renderer takes it.
+RenderAnswer render_answer(const ToolFeedbackSample& s) {
+  RenderAnswer a;
+  a.sequence = s.sequence;
+  a.model = s.local;
+  a.fed_back_force_n = Eigen::Vector3d(s.force_n[0], s.force_n[1], s.force_n[2]);
+  a.fed_back_torque_nm = Eigen::Vector3d(s.torque_nm[0], s.torque_nm[1], s.torque_nm[2]);
+  // Limits not told (0): palpated's fed-back force is already within them.
+  constexpr double kNone = std::numeric_limits<double>::infinity();
+  a.force_limit_n = s.force_limit_n > 0 ? s.force_limit_n : kNone;
+  a.max_force_rate_n_per_s = s.max_force_rate_n_per_s > 0 ? s.max_force_rate_n_per_s : kNone;
+  return a;
+}
+
 }  // namespace
 
 struct ToolClient::Impl {
@@ -84,7 +103,8 @@ struct ToolClient::Impl {
   dds::Participant participant;
   detail::ModelDescriptions models;
   dds_entity_t pose_writer = 0, command_writer = 0;
-  WaitableReader feedback, events, notices;
+  dds_entity_t response_topic = 0, event_topic = 0;
+  WaitableReader notices;
   detail::DaemonWatch watch;
   palpate_ToolPose pose{};
   std::array<ToolSlot, kMaxTools> tools;
@@ -98,8 +118,55 @@ struct ToolClient::Impl {
     return nullptr;
   }
 
+  ToolSlot& open(std::string_view tool_id) {
+    if (ToolSlot* slot = find(tool_id)) return *slot;
+    // The only place that checks ids (and may throw, and allocates).
+    if (!is_valid_id(tool_id))
+      throw InputError(fmt::format(
+          "tool id '{}': expected 1 to 63 characters among A-Z a-z 0-9 _ - .", tool_id));
+    if (tool_count == kMaxTools)
+      throw InputError(fmt::format("tool '{}': one client drives at most {} tools", tool_id,
+                                   static_cast<int>(kMaxTools)));
+    ToolSlot& slot = tools[static_cast<std::size_t>(tool_count)];
+    copy_id(slot.id, tool_id);
+    slot.id_length = tool_id.size();
+    const dds_entity_t p = participant.get();
+    const std::string partition = dds::tool_partition(tool_id);
+    const char* partitions[] = {partition.c_str()};
+    dds::Qos qos(dds_create_qos());
+    dds_qset_partition(qos.get(), 1, partitions);
+    slot.subscriber = dds::Entity(
+        dds::check(dds_create_subscriber(p, qos.get(), nullptr), "creating a tool's subscriber"));
+    slot.responses =
+        WaitableReader(p, slot.subscriber.get(), response_topic, dds::tool_stream_qos().get(),
+                       "creating a tool's response reader");
+    slot.responses.busy_wait = options.busy_wait;
+    slot.events = WaitableReader(p, slot.subscriber.get(), event_topic, dds::tool_event_qos().get(),
+                                 "creating a tool's event reader");
+    RenderSettings render = options.render;
+    render.hold_s = std::chrono::duration<double>(options.feedback_timeout).count();
+    render.ramp_s = std::chrono::duration<double>(options.feedback_ramp).count();
+    slot.renderer = HapticRenderer(render);
+    ++tool_count;
+    return slot;
+  }
+
   void keep_late(ToolSlot& slot, const ToolFeedbackSample& s) {
     if (!slot.late.push(s)) ++dropped_late;
+  }
+
+  /// One response of @p slot's tool as taken from DDS at @p received_ns;
+  /// false for one of another tool (ignored).
+  bool taken(ToolSlot& slot, const palpate_ToolResponse& r, std::int64_t received_ns,
+             ToolFeedbackSample& out) {
+    if (!slot.is(std::string_view(r.tool_id, strnlen(r.tool_id, sizeof r.tool_id)))) {
+      ++foreign;
+      return false;
+    }
+    out = wire::from_idl(r, received_ns);
+    slot.saw(out);
+    slot.renderer.take(render_answer(out), static_cast<double>(received_ns) * 1e-9);
+    return true;
   }
 };
 
@@ -116,11 +183,8 @@ ToolClient::ToolClient(const ToolClientOptions& options) : impl_(std::make_uniqu
       dds::check(dds_create_writer(p, topic(&palpate_ToolPose_desc, dds::kToolPoseTopic),
                                    dds::tool_stream_qos().get(), nullptr),
                  "creating the tool pose writer");
-  c.feedback = WaitableReader(p, p, topic(&palpate_ToolFeedback_desc, dds::kToolFeedbackTopic),
-                              dds::tool_stream_qos().get(), "creating the tool feedback reader");
-  c.feedback.busy_wait = options.busy_wait;
-  c.events = WaitableReader(p, p, topic(&palpate_ToolEvent_desc, dds::kToolEventTopic),
-                            dds::tool_event_qos().get(), "creating the tool event reader");
+  c.response_topic = topic(&palpate_ToolResponse_desc, dds::kToolResponseTopic);
+  c.event_topic = topic(&palpate_ToolEvent_desc, dds::kToolEventTopic);
   c.notices = WaitableReader(p, p, topic(&palpate_ToolNotice_desc, dds::kToolNoticeTopic),
                              dds::tool_notice_qos().get(), "creating the tool notice reader");
   c.command_writer =
@@ -145,25 +209,31 @@ std::optional<ModelInfo> ToolClient::wait_for_model(const std::string& model_id,
 
 std::vector<std::string> ToolClient::models_seen() const { return impl_->models.known_ids(); }
 
+void ToolClient::open_tool(std::string_view tool_id) { impl_->open(tool_id); }
+
 bool ToolClient::wait_for_daemon(std::chrono::milliseconds timeout) {
   const auto deadline = Clock::now() + timeout;
+  auto writer_matched = [](dds_entity_t writer, const char* what) {
+    dds_publication_matched_status_t status{};
+    dds::check(dds_get_publication_matched_status(writer, &status), what);
+    return status.current_count > 0;
+  };
+  auto reader_matched = [](const WaitableReader& reader, const char* what) {
+    dds_subscription_matched_status_t status{};
+    dds::check(dds_get_subscription_matched_status(reader.reader.get(), &status), what);
+    return status.current_count > 0;
+  };
   for (;;) {
-    auto writer_matched = [](dds_entity_t writer, const char* what) {
-      dds_publication_matched_status_t status{};
-      dds::check(dds_get_publication_matched_status(writer, &status), what);
-      return status.current_count > 0;
-    };
-    auto reader_matched = [](const WaitableReader& reader, const char* what) {
-      dds_subscription_matched_status_t status{};
-      dds::check(dds_get_subscription_matched_status(reader.reader.get(), &status), what);
-      return status.current_count > 0;
-    };
-    if (writer_matched(impl_->pose_writer, "reading the pose writer's matched status") &&
+    bool matched =
+        writer_matched(impl_->pose_writer, "reading the pose writer's matched status") &&
         writer_matched(impl_->command_writer, "reading the command writer's matched status") &&
-        reader_matched(impl_->feedback, "reading the feedback reader's matched status") &&
-        reader_matched(impl_->events, "reading the event reader's matched status") &&
-        reader_matched(impl_->notices, "reading the notice reader's matched status"))
-      return true;
+        reader_matched(impl_->notices, "reading the notice reader's matched status");
+    for (int i = 0; i < impl_->tool_count && matched; ++i) {
+      const ToolSlot& slot = impl_->tools[static_cast<std::size_t>(i)];
+      matched = reader_matched(slot.responses, "reading a response reader's matched status") &&
+                reader_matched(slot.events, "reading an event reader's matched status");
+    }
+    if (matched) return true;
     if (Clock::now() >= deadline) return false;
     dds_sleepfor(DDS_MSECS(5));
   }
@@ -175,22 +245,11 @@ std::int64_t ToolClient::send_pose(std::string_view tool_id, std::string_view mo
                                    double jaw_angle_rad) {
   Impl& c = *impl_;
   palpate_ToolPose& pose = c.pose;
-  if (!c.find(tool_id)) {
-    // First pose of this tool: the only place that checks ids (and may throw).
-    if (!is_valid_id(tool_id))
-      throw InputError(fmt::format(
-          "tool id '{}': expected 1 to 63 characters among A-Z a-z 0-9 _ - .", tool_id));
-    if (c.tool_count == kMaxTools)
-      throw InputError(fmt::format("tool '{}': one client drives at most {} tools", tool_id,
-                                   static_cast<int>(kMaxTools)));
-    ToolSlot& slot = c.tools[static_cast<std::size_t>(c.tool_count++)];
-    copy_id(slot.id, tool_id);
-    slot.id_length = tool_id.size();
-  }
+  ToolSlot& slot = c.open(tool_id);
   if (!is_valid_id(model_id))
     throw InputError(fmt::format(
         "model id '{}': expected 1 to 63 characters among A-Z a-z 0-9 _ - .", model_id));
-  c.find(tool_id)->last_sent = sequence;
+  slot.last_sent = sequence;
   wire::to_idl(tool_id, model_id, sequence, position_m, orientation_wxyz, jaw_angle_rad, pose);
   // Stamped last, as close to the write as possible.
   pose.send_time_ns = now_ns();
@@ -213,28 +272,15 @@ std::optional<ToolFeedbackSample> ToolClient::wait_feedback(
     answer = s;
     return true;
   };
-  // What came while this client waited for its other tools first.
+  // What render() took before this wait first.
   while (!slot->pending.empty() && !answer) {
     consider(slot->pending.front());
     slot->pending.pop();
   }
   if (!answer) {
-    c.feedback.take_until<palpate_ToolFeedback>(deadline, [&](const palpate_ToolFeedback& f) {
-      const std::int64_t received = now_ns();
-      ToolSlot* const owner =
-          c.find(std::string_view(f.tool_id, strnlen(f.tool_id, sizeof f.tool_id)));
-      if (owner == nullptr) {
-        ++c.foreign;
-        return false;
-      }
-      const ToolFeedbackSample s = wire::from_idl(f, received);
-      owner->saw(s);
-      if (owner == slot) return consider(s);
-      if (s.sequence <= owner->done)
-        c.keep_late(*owner, s);
-      else if (!owner->pending.push(s))
-        ++c.dropped_late;
-      return false;
+    slot->responses.take_until<palpate_ToolResponse>(deadline, [&](const palpate_ToolResponse& r) {
+      ToolFeedbackSample s;
+      return c.taken(*slot, r, now_ns(), s) && consider(s);
     });
   }
   slot->done = std::max(slot->done, answer ? std::max(sequence, answer->sequence) : sequence);
@@ -259,10 +305,12 @@ std::uint64_t ToolClient::foreign_feedback() const { return impl_->foreign; }
 std::vector<ToolEventSample> ToolClient::take_events() {
   std::vector<ToolEventSample> events;
   // A deadline in the past: take what is there, do not wait.
-  impl_->events.take_until<palpate_ToolEvent>(Clock::time_point{}, [&](const palpate_ToolEvent& e) {
-    events.push_back(wire::from_idl(e, now_ns()));
-    return false;
-  });
+  for (int i = 0; i < impl_->tool_count; ++i)
+    impl_->tools[static_cast<std::size_t>(i)].events.take_until<palpate_ToolEvent>(
+        Clock::time_point{}, [&](const palpate_ToolEvent& e) {
+          events.push_back(wire::from_idl(e, now_ns()));
+          return false;
+        });
   return events;
 }
 
@@ -305,6 +353,31 @@ std::array<double, 3> ToolClient::force_to_render(std::string_view tool_id, std:
                       : (ramp_s > 0 ? std::clamp(1 - (age_s - hold_s) / ramp_s, 0.0, 1.0) : 0.0);
   return {scale * slot->newest_force_n[0], scale * slot->newest_force_n[1],
           scale * slot->newest_force_n[2]};
+}
+
+RenderedWrench ToolClient::render(std::string_view tool_id, const std::array<double, 3>& position_m,
+                                  const std::array<double, 4>& orientation_wxyz,
+                                  std::int64_t now_ns) {
+  Impl& c = *impl_;
+  ToolSlot* const slot = c.find(tool_id);
+  PALPATE_DEMAND(slot != nullptr);  // open_tool() or a first pose opens it
+  // The answers that came, without waiting; each is also kept for its wait.
+  slot->responses.take_until<palpate_ToolResponse>(
+      Clock::time_point{}, [&](const palpate_ToolResponse& r) {
+        ToolFeedbackSample s;
+        if (!c.taken(*slot, r, ToolClient::now_ns(), s)) return false;
+        if (s.sequence <= slot->done)
+          c.keep_late(*slot, s);
+        else if (!slot->pending.push(s))
+          ++c.dropped_late;
+        return false;
+      });
+  if (c.watch.poll(Clock::now()).state == DaemonState::kLost) slot->renderer.reset();
+  return slot->renderer.render(static_cast<double>(now_ns) * 1e-9,
+                               Eigen::Vector3d(position_m[0], position_m[1], position_m[2]),
+                               Eigen::Quaterniond(orientation_wxyz[0], orientation_wxyz[1],
+                                                  orientation_wxyz[2], orientation_wxyz[3])
+                                   .normalized());
 }
 
 }  // namespace palpate

@@ -305,6 +305,74 @@ ToolFeedbackSample from_idl(const palpate_ToolFeedback& f, std::int64_t receive_
   return s;
 }
 
+void to_idl(const ToolOutput& out, const ToolPoseInput& pose, const ToolGeometry& tool,
+            std::string_view model_id, std::uint64_t compute_ns, palpate_ToolResponse& response) {
+  copy_bounded(response.tool_id, tool.id);
+  copy_bounded(response.model_id, model_id);
+  response.pose_sequence = out.sequence;
+  response.send_time_ns = out.send_time_ns;
+  const LocalContactModel& local = out.local;
+  for (int d = 0; d < 3; ++d) {
+    response.position[d] = pose.position_m[d];
+    response.force[d] = out.force_n[d];
+    response.torque[d] = out.torque_nm[d];
+    response.contact_force[d] = local.force_n[d];
+    response.contact_torque[d] = local.torque_nm[d];
+  }
+  response.orientation[0] = pose.orientation.w();
+  response.orientation[1] = pose.orientation.x();
+  response.orientation[2] = pose.orientation.y();
+  response.orientation[3] = pose.orientation.z();
+  response.jaw_angle = pose.jaw_angle_rad;
+  response.grip_force = out.grip_n;
+  response.contacts = static_cast<std::uint32_t>(out.contacts);
+  response.state = static_cast<palpate_ToolState>(out.state);
+  response.force_limited = out.force_limited;
+  response.watchdog = out.watchdog;
+  response.compute_ns = compute_ns;
+  // The model answers the pose it was made at; a failed tick's is the last
+  // one's, whose pose is not this one: no model then.
+  response.model_valid = local.valid && local.position_m == pose.position_m &&
+                         local.orientation.coeffs() == pose.orientation.coeffs();
+  response.holding = local.holding;
+  Eigen::Map<Eigen::Matrix<double, 6, 6, Eigen::RowMajor>>(response.stiffness) = local.stiffness;
+  response.force_limit = tool.force_limit_n;
+  response.max_force_rate = tool.max_force_rate_n_per_s;
+}
+
+ToolFeedbackSample from_idl(const palpate_ToolResponse& r, std::int64_t receive_time_ns) {
+  ToolFeedbackSample s;
+  s.sequence = r.pose_sequence;
+  s.send_time_ns = r.send_time_ns;
+  s.receive_time_ns = receive_time_ns;
+  s.force_n = to_array(r.force);
+  s.torque_nm = to_array(r.torque);
+  s.grip_n = r.grip_force;
+  s.contacts = r.contacts;
+  s.state = static_cast<ToolState>(received(r.state));
+  s.force_limited = r.force_limited;
+  s.watchdog = r.watchdog;
+  s.compute_ns = r.compute_ns;
+  LocalContactModel& local = s.local;
+  local.position_m = Eigen::Vector3d(r.position[0], r.position[1], r.position[2]);
+  local.orientation =
+      Eigen::Quaterniond(r.orientation[0], r.orientation[1], r.orientation[2], r.orientation[3]);
+  local.force_n = Eigen::Vector3d(r.contact_force[0], r.contact_force[1], r.contact_force[2]);
+  local.torque_nm = Eigen::Vector3d(r.contact_torque[0], r.contact_torque[1], r.contact_torque[2]);
+  local.stiffness = Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>>(r.stiffness);
+  local.holding = r.holding;
+  // Only a model of finite numbers with a unit quaternion is one.
+  const double norm = local.orientation.norm();
+  local.valid = r.model_valid && local.position_m.allFinite() && local.force_n.allFinite() &&
+                local.torque_nm.allFinite() && local.stiffness.allFinite() && norm > 0.9 &&
+                norm < 1.1;
+  if (local.valid) local.orientation.normalize();
+  s.jaw_angle_rad = r.jaw_angle;
+  s.force_limit_n = r.force_limit;
+  s.max_force_rate_n_per_s = r.max_force_rate;
+  return s;
+}
+
 void to_idl(ToolEventKind kind, const ToolOutput& output, std::string_view tool_id,
             std::string_view model_id, std::int64_t daemon_time_ns, palpate_ToolEvent& out) {
   copy_bounded(out.tool_id, tool_id);

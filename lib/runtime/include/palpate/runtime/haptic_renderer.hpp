@@ -77,7 +77,7 @@ struct RenderAnswer {
 struct RenderedWrench {
   Eigen::Vector3d force_n = Eigen::Vector3d::Zero();    ///< on the hand, model frame
   Eigen::Vector3d torque_nm = Eigen::Vector3d::Zero();  ///< about the hinge
-  bool limited = false;      ///< the force or slew limit acted
+  bool limited = false;                                 ///< the force or slew limit acted
   double damping = 0;        ///< α the passivity controller added this call, N·s/m
   double energy_j = 0;       ///< E after this call: ≥ 0 while passive
   double answer_age_s = -1;  ///< since the answer rendered came; −1: none

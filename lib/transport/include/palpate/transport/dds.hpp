@@ -108,10 +108,15 @@ inline constexpr const char* kToolFeedbackTopic = "palpate_tool_feedback";
 inline constexpr const char* kToolEventTopic = "palpate_tool_event";
 inline constexpr const char* kToolCommandTopic = "palpate_tool_command";
 inline constexpr const char* kToolNoticeTopic = "palpate_tool_notice";
+inline constexpr const char* kToolResponseTopic = "palpate_tool_response";
 
 /// Partition of the replies to client @p client_id.
 std::string reply_partition(std::string_view client_id);
 inline constexpr std::string_view kReplyPartitionPrefix = "palpate.client.";
+/// Partition of tool @p tool_id's responses and events (palpate_tool_response,
+/// palpate_tool_event): a station reads its own tools' only.
+std::string tool_partition(std::string_view tool_id);
+inline constexpr std::string_view kToolPartitionPrefix = "palpate.tool.";
 
 /// Model descriptions: reliable, transient-local, keep-last 1 per model.
 Qos model_qos();

@@ -119,6 +119,14 @@ struct ToolFeedbackSample {
   bool force_limited = false;    ///< clamped or rate limited this tick
   bool watchdog = false;         ///< poses stopped: the force ramps to zero
   std::uint64_t compute_ns = 0;  ///< palpated's time from taking the pose to writing this
+  /// From palpate_tool_response (docs/tools.md, "The local model"): the pose
+  /// it answers (local.position_m, local.orientation, and the jaw angle),
+  /// the contact wrench there before the device's limits and its stiffness;
+  /// local.valid is false from palpate_tool_feedback (no model). The
+  /// device's limits palpated applies to the tool, N and N/s (0: not told).
+  LocalContactModel local;
+  double jaw_angle_rad = 0;
+  double force_limit_n = 0, max_force_rate_n_per_s = 0;
 
   /// Round trip on this client's clock, ns.
   std::int64_t round_trip_ns() const { return receive_time_ns - send_time_ns; }

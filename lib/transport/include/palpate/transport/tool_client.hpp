@@ -2,12 +2,16 @@
 /// @file
 /// The haptic side of palpated's tool topics (docs/dds.md, docs/pliers.md):
 /// a device publishes its tool's pose at 1 kHz on palpate_tool_pose and
-/// reads, for each pose, the ToolFeedback palpated answers on
-/// palpate_tool_feedback; state changes (touch, grasp, ...) come reliably on
-/// palpate_tool_event, and the reason of a refused pose on
-/// palpate_tool_notice. A client ends a tool's session with end_session()
-/// (palpate_tool_command). Used by palpate-pliers; a device may use it or
-/// speak the IDL types directly.
+/// reads, for each pose, palpated's answer on palpate_tool_response, in its
+/// tool's own partition (dds::tool_partition): the force fed back and the
+/// local contact model; state changes (touch, grasp, ...) come reliably on
+/// palpate_tool_event, in the same partition, and the reason of a refused
+/// pose on palpate_tool_notice. A client ends a tool's session with
+/// end_session() (palpate_tool_command). Between answers a device renders
+/// with render(), at its own rate (HapticRenderer: the local model at the
+/// device's pose, the device's limits, passivity). Used by palpate-pliers
+/// and the C API (palpate/device.h); a device may use it or speak the IDL
+/// types directly.
 ///
 /// Clock: send_pose() stamps ToolPose.send_time_ns with the steady clock
 /// (std::chrono::steady_clock, CLOCK_MONOTONIC on Linux: nanoseconds since
@@ -15,9 +19,9 @@
 /// back). palpated echoes it unchanged, so now_ns() − send_time_ns of a
 /// feedback sample is the round trip on this host's clock alone.
 ///
-/// The per-tick calls (send_pose, wait_feedback, take_late_feedback) do not
-/// allocate once each tool has sent its first pose; they are not
-/// thread-safe: one thread drives a ToolClient.
+/// The per-tick calls (send_pose, wait_feedback, take_late_feedback,
+/// render) do not allocate once each tool is open (open_tool, or its first
+/// pose); they are not thread-safe: one thread drives a ToolClient.
 
 #include <array>
 #include <chrono>
@@ -29,6 +33,7 @@
 #include <string_view>
 #include <vector>
 
+#include "palpate/runtime/haptic_renderer.hpp"
 #include "palpate/transport/messages.hpp"
 #include "palpate/transport/presence.hpp"
 
@@ -49,6 +54,9 @@ struct ToolClientOptions {
   /// watchdog does when poses stop (docs/tools.md; its defaults).
   std::chrono::milliseconds feedback_timeout{50};
   std::chrono::milliseconds feedback_ramp{250};
+  /// render(): how each tool's renderer renders (its hold_s and ramp_s are
+  /// taken from feedback_timeout and feedback_ramp).
+  RenderSettings render;
 };
 
 class ToolClient {
@@ -76,9 +84,17 @@ class ToolClient {
   /// served when the wanted one is not).
   std::vector<std::string> models_seen() const;
 
+  /// Reads tool @p tool_id's responses and events from now on, in its
+  /// partition (send_pose() opens a tool itself; open it before
+  /// wait_for_daemon() so that the answers to its first poses are not lost
+  /// while the readers are matched). Idempotent.
+  /// @throws InputError for a bad id or more than kMaxTools tools.
+  void open_tool(std::string_view tool_id);
+
   /// Waits until a daemon reads the pose and command topics and writes the
-  /// feedback, event and notice topics (all volatile: samples written before
-  /// the match are lost). @returns false on timeout.
+  /// notice topic and, for every open tool, its response and event topics
+  /// (all volatile: samples written before the match are lost).
+  /// @returns false on timeout.
   bool wait_for_daemon(std::chrono::milliseconds timeout);
 
   /// Publishes one pose of tool @p tool_id (1..63 characters) on @p model_id:
@@ -107,12 +123,13 @@ class ToolClient {
   std::size_t take_late_feedback(std::string_view tool_id, std::span<ToolFeedbackSample> out);
   /// Late feedback dropped because take_late_feedback() was not called in time.
   std::uint64_t dropped_late_feedback() const;
-  /// Feedback samples of tools this client never sent a pose for (other
-  /// clients' tools: the feedback topic is not partitioned), ignored.
+  /// Responses of a tool that came in another tool's partition, ignored:
+  /// none from palpated, which writes each tool's in its own (a station no
+  /// longer receives every other station's answers).
   std::uint64_t foreign_feedback() const;
 
-  /// Every tool event received since the last call (any tool, this client's
-  /// or not), in arrival order. Allocates only when there are events.
+  /// The events of this client's tools received since the last call, in
+  /// arrival order per tool. Allocates only when there are events.
   std::vector<ToolEventSample> take_events();
 
   /// Why palpated refused poses of this client's tools, received since the
@@ -144,6 +161,19 @@ class ToolClient {
   /// the hand with no force within feedback_timeout + feedback_ramp, not with
   /// the last force held. @p now_ns: now_ns(). Allocates nothing.
   std::array<double, 3> force_to_render(std::string_view tool_id, std::int64_t now_ns);
+
+  /// The wrench the device should render now for tool @p tool_id, at the
+  /// device's own rate (1 to 10 kHz), with the device at hinge
+  /// @p position_m and orientation @p orientation_wxyz (tool → model):
+  /// takes the answers that came (without waiting; a late answer still
+  /// counts if it answers a newer pose), then HapticRenderer::render (the
+  /// local model at this pose, contacts that only push, the hold-and-ramp
+  /// of force_to_render, palpated's limits for the tool, the passivity
+  /// observer). Zero before any answer and while palpated is lost. Answers
+  /// it takes are also there for wait_feedback() and take_late_feedback().
+  /// @p now_ns: now_ns(). Allocates nothing. The tool must be open.
+  RenderedWrench render(std::string_view tool_id, const std::array<double, 3>& position_m,
+                        const std::array<double, 4>& orientation_wxyz, std::int64_t now_ns);
 
  private:
   struct Impl;

@@ -21,6 +21,7 @@
 
 #include "palpate.h"
 #include "palpate/runtime/request_status.hpp"
+#include "palpate/runtime/tool_geometry.hpp"
 #include "palpate/runtime/tool_state.hpp"
 #include "palpate/transport/messages.hpp"
 
@@ -103,7 +104,7 @@ LatencySummary from_idl(const palpate_Latency& latency);
 palpate_Latency to_idl(const LatencySummary& latency);
 StatusSample from_idl(const palpate_DaemonStatus& status);
 
-// ---- palpate_tool_pose, palpate_tool_feedback, palpate_tool_event ---------------
+// ---- palpate_tool_pose, _feedback, _response, _event ----------------------------
 
 /// A pose as a device sends it; send_time_ns is left to the caller, who
 /// stamps it last.
@@ -117,6 +118,12 @@ ToolPoseInput from_idl(const palpate_ToolPose& pose);
 void to_idl(const ToolOutput& output, std::string_view tool_id, std::string_view model_id,
             std::uint64_t compute_ns, palpate_ToolFeedback& out);
 ToolFeedbackSample from_idl(const palpate_ToolFeedback& feedback, std::int64_t receive_time_ns);
+
+/// What tool @p tool feels after a tick and its local model (output.local),
+/// with the pose @p pose it answers, as its response sample. Allocates nothing.
+void to_idl(const ToolOutput& output, const ToolPoseInput& pose, const ToolGeometry& tool,
+            std::string_view model_id, std::uint64_t compute_ns, palpate_ToolResponse& out);
+ToolFeedbackSample from_idl(const palpate_ToolResponse& response, std::int64_t receive_time_ns);
 
 /// Event @p kind of a tick whose output is @p output.
 void to_idl(ToolEventKind kind, const ToolOutput& output, std::string_view tool_id,

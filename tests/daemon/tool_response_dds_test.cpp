@@ -1,0 +1,168 @@
+// palpated's answers with the local contact model, end to end over real
+// Cyclone DDS on loopback (docs/tools.md, "The local model"; docs/dds.md,
+// ToolResponse): each answer carries the pose it answers and a stiffness
+// that predicts the next answer; each station reads its own tools'
+// answers only, while the unpartitioned ToolFeedback goes on for older
+// clients; the client library renders the model between answers and lets
+// go when they stop. The fixture: tools_over_dds.hpp.
+
+#include <dds/dds.h>
+
+#include "tools_over_dds.hpp"
+
+namespace palpate {
+namespace {
+
+using namespace std::chrono_literals;
+using Eigen::Vector3d;
+using testing::kPointingDown;
+using testing::kTimeout;
+
+class ToolResponsesOverDds : public testing::ToolsOverDdsTest {
+ protected:
+  /// The probe pressed 2 mm at the top face near (75, 25) mm and held until
+  /// its answers settle.
+  static Hand pressed_probe() {
+    const Vector3d surface = rest(top_vertex(75, 25)) + Vector3d(0.3e-3, 0.2e-3, 0);
+    const double r = 0.002;  // the probe's radius (tools_over_dds.hpp)
+    Hand probe("probe", surface + Vector3d(0, 0, r + 0.002));
+    probe.move(surface + Vector3d(0, 0, r - 0.002), 0);
+    probe.hold(40);
+    return probe;
+  }
+};
+
+/// Samples of @p type on @p topic_name in partition @p partition (or the
+/// default one), counted per tool id, on their own participant.
+class PartitionWatch {
+ public:
+  PartitionWatch(const dds_topic_descriptor_t* type, const char* topic_name,
+                 const std::string& partition)
+      : participant_(dds::join_domain(0, "")) {
+    const dds_entity_t p = participant_.get();
+    dds::Qos qos(dds_create_qos());
+    if (!partition.empty()) {
+      const char* partitions[] = {partition.c_str()};
+      dds_qset_partition(qos.get(), 1, partitions);
+    }
+    subscriber_ = dds::Entity(dds::check(dds_create_subscriber(p, qos.get(), nullptr), "sub"));
+    // The tool topics' QoS, but a history that keeps every sample.
+    const dds::Qos reader_qos = dds::tool_stream_qos();
+    dds_qset_history(reader_qos.get(), DDS_HISTORY_KEEP_LAST, 4096);
+    reader_ = dds::Entity(dds::check(
+        dds_create_reader(subscriber_.get(), dds::topic(p, type, topic_name), reader_qos.get(),
+                          nullptr),
+        "reader"));
+  }
+  bool matched() const {
+    dds_subscription_matched_status_t status{};
+    dds_get_subscription_matched_status(reader_.get(), &status);
+    return status.current_count > 0;
+  }
+  /// Takes what came; the tool id of each sample is its first field.
+  std::map<std::string, int> take() {
+    for (;;) {
+      void* samples[16] = {};
+      dds_sample_info_t infos[16];
+      const dds_return_t n = dds_take(reader_.get(), samples, infos, 16, 16);
+      if (n <= 0) break;
+      for (dds_return_t i = 0; i < n; ++i)
+        if (infos[i].valid_data) ++counts_[static_cast<const char*>(samples[i])];
+      dds_return_loan(reader_.get(), samples, n);
+    }
+    return counts_;
+  }
+
+ private:
+  dds::Participant participant_;
+  dds::Entity subscriber_, reader_;
+  std::map<std::string, int> counts_;
+};
+
+TEST_F(ToolResponsesOverDds, EachAnswerCarriesItsPoseAndAModelThatPredictsTheNextAnswer) {
+  Hand probe = pressed_probe();
+  ASSERT_TRUE(probe.last) << daemon_->log();
+  const ToolFeedbackSample settled = *probe.last;
+  ASSERT_EQ(settled.state, ToolState::kTouching);
+  const LocalContactModel& model = settled.local;
+  ASSERT_TRUE(model.valid);
+  EXPECT_EQ(model.position_m, probe.at) << "the pose it answers";
+  EXPECT_LE(model.orientation.angularDistance(Eigen::Quaterniond(0, 1, 0, 0)), 1e-12);
+  EXPECT_EQ(settled.force_limit_n, 100);
+  EXPECT_EQ(settled.max_force_rate_n_per_s, 1e6);
+  // Within the limits, the fed-back force is the model's contact force.
+  EXPECT_LE((Vector3d(settled.force_n.data()) - model.force_n).norm(), 1e-12);
+  EXPECT_GT(model.force_n.z(), 0.1) << "the organ pushes the probe up";
+  EXPECT_LT(model.stiffness(2, 2), 0) << "deeper, it pushes harder";
+
+  // One tick 2 µm deeper: the engine's next answer is the model's
+  // prediction to second order (2 µm over a 12.5 mm triangle and a 2 mm
+  // tip: within 1e-3 of the change, as local_model_test finds in process).
+  const Vector3d step(0, 0, -2e-6);
+  probe.at += step;
+  probe.tick();
+  ASSERT_TRUE(probe.last && probe.last->sequence == probe.sequence);
+  const Vector3d change = probe.last->local.force_n - model.force_n;
+  const Vector3d predicted = model.stiffness.topLeftCorner<3, 3>() * step;
+  EXPECT_LE((change - predicted).norm(), 1e-3 * predicted.norm() + 1e-9)
+      << "predicted " << predicted.transpose() << ", answered " << change.transpose();
+  probe.move(probe.at + Vector3d(0, 0, 0.006), 0);  // away
+}
+
+TEST_F(ToolResponsesOverDds, AStationReadsItsOwnToolsAnswersAndOlderClientsStillGetFeedback) {
+  // Readers of the probe's and the right grasper's partitions, and of the
+  // unpartitioned feedback topic (an older client, a viewer).
+  PartitionWatch probe_answers(&palpate_ToolResponse_desc, dds::kToolResponseTopic,
+                               dds::tool_partition("probe"));
+  PartitionWatch right_answers(&palpate_ToolResponse_desc, dds::kToolResponseTopic,
+                               dds::tool_partition("right"));
+  PartitionWatch feedback(&palpate_ToolFeedback_desc, dds::kToolFeedbackTopic, "");
+  // A station that drives the right grasper (it has not moved yet).
+  ToolClient station(ToolClientOptions{});
+  station.open_tool("right");
+  ASSERT_TRUE(station.wait_for_daemon(kTimeout));
+  const auto deadline = std::chrono::steady_clock::now() + kTimeout;
+  while (!(probe_answers.matched() && right_answers.matched() && feedback.matched()) &&
+         std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(5ms);
+
+  // 200 poses; the tool topics are best effort, so a loaded machine may
+  // lose a few samples on the way: 90 % of them is the bound.
+  Hand probe("probe", rest(top_vertex(75, 25)) + Vector3d(0, 0, 0.01));
+  probe.hold(200);
+  ASSERT_GE(probe.answered, 180) << daemon_->log();
+  std::this_thread::sleep_for(50ms);
+  EXPECT_GE(probe_answers.take()["probe"], 180);
+  EXPECT_EQ(probe_answers.take().size(), 1u) << "the probe's partition carries the probe's only";
+  EXPECT_TRUE(right_answers.take().empty()) << "nothing of the probe in the right tool's";
+  EXPECT_GE(feedback.take()["probe"], 180) << "the unpartitioned feedback still flows";
+  EXPECT_TRUE(station.take_events().empty());
+  EXPECT_EQ(station.foreign_feedback(), 0u);
+}
+
+TEST_F(ToolResponsesOverDds, TheClientRendersTheModelBetweenAnswersAndLetsGoWhenTheyStop) {
+  Hand probe = pressed_probe();
+  ASSERT_TRUE(probe.last && probe.last->local.valid);
+  const LocalContactModel model = probe.last->local;
+  // Rendered 20 µm deeper than the last pose answered, twice at the same
+  // place (no motion: the passivity observer has nothing to weigh): the
+  // local model there, F₀ + K δx.
+  const Vector3d deeper = probe.at + Vector3d(0, 0, -2e-5);
+  const std::array<double, 3> at{deeper.x(), deeper.y(), deeper.z()};
+  const std::int64_t now = ToolClient::now_ns();
+  client_->render("probe", at, kPointingDown, now);
+  const RenderedWrench w = client_->render("probe", at, kPointingDown, now + 250'000);
+  const Vector3d expected =
+      model.force_n + model.stiffness.topLeftCorner<3, 3>() * (deeper - model.position_m);
+  EXPECT_LE((w.force_n - expected).norm(), 1e-9 * expected.norm());
+  EXPECT_EQ(w.damping, 0.0);
+  // No more poses: palpated's watchdog lets the probe go and the renderer's
+  // ramp ends (hold 50 ms + ramp 250 ms): nothing is rendered after that.
+  std::this_thread::sleep_for(400ms);
+  const RenderedWrench later = client_->render("probe", at, kPointingDown, ToolClient::now_ns());
+  EXPECT_EQ(later.force_n.norm(), 0.0);
+  probe.move(probe.at + Vector3d(0, 0, 0.006), 0);  // lifted: a new session
+}
+
+}  // namespace
+}  // namespace palpate
