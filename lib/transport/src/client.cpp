@@ -44,7 +44,9 @@ Client::Client(const ClientOptions& options) : impl_(std::make_unique<Impl>()) {
   check_client_id(options.client_id);
   Impl& c = *impl_;
   c.options = options;
-  c.participant = dds::join_domain(options.domain_id, options.dds_config);
+  realtime::validate(options.realtime);
+  realtime::check_permitted(options.realtime);
+  c.participant = dds::join_domain(options.domain_id, options.dds_config, options.realtime);
   const dds_entity_t p = c.participant.get();
   auto topic = [p](const dds_topic_descriptor_t* type, const char* name) {
     return dds::topic(p, type, name);
@@ -72,6 +74,7 @@ Client::Client(const ClientOptions& options) : impl_(std::make_unique<Impl>()) {
     c.statuses =
         WaitableReader(p, p, status_topic, dds::status_qos().get(), "creating the status reader");
   c.watch = detail::DaemonWatch(p, status_topic, options.daemon_timeout);
+  realtime::lock_memory(options.realtime);
 }
 
 Client::~Client() = default;

@@ -24,7 +24,8 @@ dds_return_t check(dds_return_t status, std::string_view what) {
 
 std::string_view loopback_config() { return PALPATE_LOOPBACK_CONFIG; }
 
-DomainConfig resolve_domain_config(const std::string& user_config) {
+namespace {
+DomainConfig resolve_base_config(const std::string& user_config) {
   if (!user_config.empty()) {
     const bool is_xml = user_config.find('<') != std::string::npos;
     const bool is_uri = user_config.rfind("file://", 0) == 0;
@@ -42,12 +43,27 @@ DomainConfig resolve_domain_config(const std::string& user_config) {
     return {uri, "CYCLONEDDS_URI"};
   return {std::string(loopback_config()), "built-in loopback"};
 }
+}  // namespace
+
+DomainConfig resolve_domain_config(const std::string& user_config,
+                                   const RealtimeOptions& realtime) {
+  DomainConfig config = resolve_base_config(user_config);
+  if (realtime.priority > 0) {
+    config.text += ',';
+    config.text += realtime::cyclone_receive_thread_xml(realtime.priority);
+    config.receive_priority = realtime.priority;
+  }
+  config.cpus = realtime.cpus;
+  return config;
+}
 
 std::shared_ptr<Entity> acquire_domain(std::uint32_t domain_id, const DomainConfig& config) {
   static std::mutex mutex;
   static std::map<std::uint32_t, std::weak_ptr<Entity>> domains;
   const std::lock_guard lock(mutex);
   if (auto existing = domains[domain_id].lock()) return existing;
+  // Cyclone's threads, started here, inherit this thread's CPUs.
+  const realtime::ScopedAffinity on_cpus(config.cpus);
   auto domain = std::make_shared<Entity>(
       check(dds_create_domain(domain_id, config.text.c_str()),
             "creating DDS domain " + std::to_string(domain_id) + " (" + config.origin + ")"));
@@ -55,9 +71,10 @@ std::shared_ptr<Entity> acquire_domain(std::uint32_t domain_id, const DomainConf
   return domain;
 }
 
-Participant join_domain(std::uint32_t domain_id, const std::string& user_config) {
+Participant join_domain(std::uint32_t domain_id, const std::string& user_config,
+                        const RealtimeOptions& realtime) {
   Participant p;
-  p.config = resolve_domain_config(user_config);
+  p.config = resolve_domain_config(user_config, realtime);
   p.domain = acquire_domain(domain_id, p.config);
   p.entity = Entity(create_participant(domain_id, p.config));
   return p;

@@ -173,7 +173,9 @@ struct ToolClient::Impl {
 ToolClient::ToolClient(const ToolClientOptions& options) : impl_(std::make_unique<Impl>()) {
   Impl& c = *impl_;
   c.options = options;
-  c.participant = dds::join_domain(options.domain_id, options.dds_config);
+  realtime::validate(options.realtime);
+  realtime::check_permitted(options.realtime);
+  c.participant = dds::join_domain(options.domain_id, options.dds_config, options.realtime);
   const dds_entity_t p = c.participant.get();
   auto topic = [p](const dds_topic_descriptor_t* type, const char* name) {
     return dds::topic(p, type, name);
@@ -193,6 +195,7 @@ ToolClient::ToolClient(const ToolClientOptions& options) : impl_(std::make_uniqu
                  "creating the tool command writer");
   c.watch = detail::DaemonWatch(p, topic(&palpate_DaemonStatus_desc, dds::kStatusTopic),
                                 options.daemon_timeout);
+  realtime::lock_memory(options.realtime);
 }
 
 ToolClient::~ToolClient() = default;

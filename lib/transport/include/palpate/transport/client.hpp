@@ -16,6 +16,7 @@
 
 #include "palpate/transport/messages.hpp"
 #include "palpate/transport/presence.hpp"
+#include "palpate/transport/realtime.hpp"
 
 namespace palpate {
 
@@ -33,6 +34,11 @@ struct ClientOptions {
   /// says it is lost; 0: 3 heartbeat periods (as measured) + 1 s, i.e.
   /// 4 s at the default 1 Hz (docs/faults.md).
   std::chrono::milliseconds daemon_timeout{0};
+  /// Real-time operation, as ToolClientOptions::realtime: Cyclone's receive
+  /// thread gets the priority and CPUs, memory is locked once the client is
+  /// made, and the requesting thread applies them to itself with
+  /// realtime::apply_to_this_thread(options.realtime).
+  RealtimeOptions realtime{};
 };
 
 class Client {

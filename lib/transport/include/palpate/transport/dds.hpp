@@ -12,6 +12,9 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
+
+#include "palpate/transport/realtime.hpp"
 
 namespace palpate::dds {
 
@@ -60,17 +63,29 @@ std::string_view loopback_config();
 struct DomainConfig {
   std::string text;    ///< passed to dds_create_domain: XML or file:// URIs
   std::string origin;  ///< for logs: "built-in loopback", "--dds-config", "CYCLONEDDS_URI"
+  /// SCHED_FIFO priority of Cyclone's receive thread (0: normal
+  /// scheduling), asked for by a fragment appended to `text`
+  /// (realtime::cyclone_receive_thread_xml).
+  int receive_priority = 0;
+  /// CPUs of Cyclone's threads (empty: any): the domain is created by a
+  /// thread bound to them, and its threads inherit them.
+  std::vector<int> cpus{};
 };
 
 /// The user's configuration when there is one (@p user_config: a file path,
 /// a file:// URI or an XML fragment; then the CYCLONEDDS_URI environment
-/// variable), else loopback_config().
+/// variable), else loopback_config(); with @p realtime's priority and CPUs
+/// for Cyclone's receive thread (the priority as a configuration fragment
+/// appended after a comma, which Cyclone reads last: it overrides the same
+/// settings of the first part; nothing about interfaces or multicast).
 /// @throws InputError when @p user_config names a file that cannot be read.
-DomainConfig resolve_domain_config(const std::string& user_config);
+DomainConfig resolve_domain_config(const std::string& user_config,
+                                   const RealtimeOptions& realtime = {});
 
 /// The domain entity of @p domain_id in this process, created with @p config
 /// on first use and shared by every participant of the process (Cyclone
-/// accepts one dds_create_domain per domain and process).
+/// accepts one dds_create_domain per domain and process): the first
+/// participant's configuration, real-time settings included, holds for all.
 std::shared_ptr<Entity> acquire_domain(std::uint32_t domain_id, const DomainConfig& config);
 
 /// A participant and the domain it lives in (kept alive as long as it).
@@ -88,9 +103,11 @@ struct Participant {
 dds_entity_t create_participant(std::uint32_t domain_id, const DomainConfig& config);
 
 /// Joins domain @p domain_id with the configuration resolve_domain_config()
-/// gives for @p user_config: what every client of palpated does first.
+/// gives for @p user_config and @p realtime: what every client of palpated
+/// does first.
 /// @throws InputError (configuration) or SystemError naming what failed.
-Participant join_domain(std::uint32_t domain_id, const std::string& user_config);
+Participant join_domain(std::uint32_t domain_id, const std::string& user_config,
+                        const RealtimeOptions& realtime = {});
 
 // ------------------------------------------------------------------ topics
 

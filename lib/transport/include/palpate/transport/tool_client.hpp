@@ -36,6 +36,7 @@
 #include "palpate/runtime/haptic_renderer.hpp"
 #include "palpate/transport/messages.hpp"
 #include "palpate/transport/presence.hpp"
+#include "palpate/transport/realtime.hpp"
 
 namespace palpate {
 
@@ -57,6 +58,14 @@ struct ToolClientOptions {
   /// render(): how each tool's renderer renders (its hold_s and ramp_s are
   /// taken from feedback_timeout and feedback_ramp).
   RenderSettings render;
+  /// Real-time operation (docs/realtime.md): Cyclone's receive thread, which
+  /// takes the answers, gets `priority` (SCHED_FIFO) and `cpus`; with
+  /// `lock_memory` the process's memory is locked once the client is made.
+  /// The thread driving the client (the device's loop) applies them to itself:
+  /// realtime::apply_to_this_thread(options.realtime). Checked by the
+  /// constructor (InputError: a value out of range, a priority the process
+  /// may not use; ResourceError: memory it may not lock).
+  RealtimeOptions realtime{};
 };
 
 class ToolClient {
