@@ -30,6 +30,7 @@
 #include "palpate/daemon/service.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/transport/dds.hpp"
+#include "palpate/transport/realtime.hpp"
 
 namespace {
 
@@ -123,6 +124,18 @@ int run(int argc, char** argv) {
   std::string record_directory;
   app.add_option("--record", record_directory,
                  "record tool sessions (poses, forces, contacts) to HDF5 files in this directory");
+  std::string serve_mode, cpus;
+  app.add_option("--serve", serve_mode,
+                 "which thread serves poses and requests: listener (Cyclone's receive thread), "
+                 "waitset or busy (palpated's serving thread, sleeping or polling); as "
+                 "realtime.serve");
+  app.add_option("--rt-priority", overrides.realtime.priority,
+                 "SCHED_FIFO priority (1-99) of the threads serving poses and requests and of "
+                 "Cyclone's receive thread; 0: normal scheduling; as realtime.priority");
+  app.add_option("--cpus", cpus,
+                 "CPUs of those threads, as taskset -c (1, 0,2, 0-3); as realtime.cpus");
+  app.add_flag("--lock-memory", overrides.realtime.lock_memory,
+               "lock the process's memory once started (mlockall); as realtime.lock_memory");
   app.add_flag("--check-config", check_only,
                "check the configuration and the compliance files, then exit");
   bool print_dds_config = false;
@@ -150,9 +163,15 @@ int run(int argc, char** argv) {
 
   palpate::DaemonConfig config;
   if (!config_file.empty()) config = palpate::read_daemon_config(config_file);
+  if (app.count("--serve")) config.serve = palpate::parse_serve_mode(serve_mode, "--serve");
+  if (app.count("--rt-priority")) config.realtime.priority = overrides.realtime.priority;
+  if (app.count("--cpus")) config.realtime.cpus = palpate::realtime::parse_cpu_list(cpus, "--cpus");
+  if (app.count("--lock-memory")) config.realtime.lock_memory = true;
   if (print_dds_config) {
+    // With the real-time priority of Cyclone's receive thread, if any: what
+    // a benchmark gives ddsperf to compare like with like.
     const auto dds = palpate::dds::resolve_domain_config(
-        app.count("--dds-config") ? overrides.dds_config : config.dds_config);
+        app.count("--dds-config") ? overrides.dds_config : config.dds_config, config.realtime);
     std::printf("%s\n", dds.text.c_str());
     return 0;
   }
@@ -182,6 +201,8 @@ int run(int argc, char** argv) {
     entry->warped = true;
   }
   palpate::validate(config);
+  // A priority this process may not use stops it here, --check-config too.
+  palpate::realtime::check_permitted(config.realtime);
 
   // Structured logs on stderr, one event per line: ts level event=... key=value.
   auto log = spdlog::stderr_logger_mt("palpated");
@@ -199,8 +220,17 @@ int run(int argc, char** argv) {
                   model.material_summary.c_str());
     }
     const auto dds = palpate::dds::resolve_domain_config(config.dds_config);
-    std::printf("configuration OK: %zu model(s), domain %u, DDS configuration: %s\n",
-                config.models.size(), config.domain_id, dds.origin.c_str());
+    std::string serving;  // only when not the default
+    if (config.serve != palpate::ServeMode::kListener || config.realtime.any()) {
+      serving = std::string("; serving: ") + palpate::serve_mode_name(config.serve);
+      if (config.realtime.priority > 0)
+        serving += ", SCHED_FIFO " + std::to_string(config.realtime.priority);
+      if (!config.realtime.cpus.empty())
+        serving += ", CPUs " + palpate::realtime::format_cpu_list(config.realtime.cpus);
+      if (config.realtime.lock_memory) serving += ", memory locked";
+    }
+    std::printf("configuration OK: %zu model(s), domain %u, DDS configuration: %s%s\n",
+                config.models.size(), config.domain_id, dds.origin.c_str(), serving.c_str());
     return 0;
   }
 

@@ -223,5 +223,74 @@ TEST(DaemonConfig, ToolErrorsSayWhatIsAccepted) {
                            {"recording.directory", "nowhere", "not a directory"});
 }
 
+TEST(DaemonConfig, RealtimeIsOffByDefaultAndReadFromItsTable) {
+  const DaemonConfig defaults;
+  EXPECT_EQ(defaults.serve, ServeMode::kListener) << "Cyclone's receive thread serves";
+  EXPECT_EQ(defaults.realtime.priority, 0);
+  EXPECT_TRUE(defaults.realtime.cpus.empty());
+  EXPECT_FALSE(defaults.realtime.lock_memory);
+  EXPECT_FALSE(defaults.realtime.any());
+
+  testing::TempDir dir;
+  const auto config = read_daemon_config(write(dir, R"(
+[realtime]
+serve = "busy"
+priority = 49
+cpus = [1, 0, 1]
+lock_memory = true
+)"));
+  EXPECT_EQ(config.serve, ServeMode::kBusy);
+  EXPECT_EQ(config.realtime.priority, 49);
+  EXPECT_EQ(config.realtime.cpus, (std::vector<int>{0, 1})) << "sorted, each once";
+  EXPECT_TRUE(config.realtime.lock_memory);
+  // A CPU list as taskset -c takes it.
+  const auto listed =
+      read_daemon_config(write(dir, "[realtime]\nserve = \"waitset\"\ncpus = \"0-1,3\"\n"));
+  EXPECT_EQ(listed.serve, ServeMode::kWaitset);
+  EXPECT_EQ(listed.realtime.cpus, (std::vector<int>{0, 1, 3}));
+  for (const ServeMode mode : {ServeMode::kListener, ServeMode::kWaitset, ServeMode::kBusy})
+    EXPECT_EQ(parse_serve_mode(serve_mode_name(mode), "--serve"), mode);
+}
+
+TEST(DaemonConfig, RealtimeErrorsNameTheLineTheKeyAndWhatIsAccepted) {
+  testing::TempDir dir;
+  expect_error<InputError>(
+      [&] { read_daemon_config(write(dir, "[realtime]\nserve = \"fast\"\n")); },
+      {"palpated.toml:2", "realtime.serve: 'fast': expected \"listener\"", "\"waitset\"",
+       "\"busy\""});
+  expect_error<InputError>([&] { parse_serve_mode("poll", "--serve"); },
+                           {"--serve 'poll': expected \"listener\""});
+  expect_error<InputError>(
+      [&] { read_daemon_config(write(dir, "[realtime]\npriority = 100\n")); },
+      {"palpated.toml:2", "realtime.priority", "expected an integer in [0, 99]"});
+  expect_error<InputError>([&] { read_daemon_config(write(dir, "[realtime]\npriority = 2.5\n")); },
+                           {"realtime.priority", "expected an integer"});
+  expect_error<InputError>(
+      [&] { read_daemon_config(write(dir, "[realtime]\ncpus = \"2-1\"\n")); },
+      {"palpated.toml:2", "realtime.cpus: '2-1': the range 2-1 goes down", "taskset -c"});
+  expect_error<InputError>([&] { read_daemon_config(write(dir, "[realtime]\ncpus = [-1]\n")); },
+                           {"realtime.cpus", "expected an integer in [0, 1023]"});
+  expect_error<InputError>([&] { read_daemon_config(write(dir, "[realtime]\ncpus = 1\n")); },
+                           {"realtime.cpus", "an array of CPU numbers", "a CPU list string"});
+  expect_error<InputError>([&] { read_daemon_config(write(dir, "[realtime]\nlock_memory = 1\n")); },
+                           {"realtime.lock_memory", "expected true or false"});
+  expect_error<InputError>([&] { read_daemon_config(write(dir, "[realtime]\npriorty = 1\n")); },
+                           {"realtime.priorty", "unknown key", "priority, cpus, lock_memory"});
+
+  // A CPU this process may not run on is found by validate(), whatever set it.
+  std::ofstream(dir / "a.h5") << "x";
+  DaemonConfig config;
+  config.models = {{"a", dir / "a.h5"}};
+  const int absent = realtime::online_cpus().back() + 1;
+  config.realtime.cpus = {absent};
+  expect_error<InputError>(
+      [&] { validate(config); },
+      {"realtime.cpus [" + std::to_string(absent) + "]", "is not online on this machine"});
+  config.realtime = {};
+  config.realtime.priority = 120;  // as --rt-priority 120 sets it
+  expect_error<InputError>([&] { validate(config); },
+                           {"realtime.priority 120: expected a SCHED_FIFO priority from 1"});
+}
+
 }  // namespace
 }  // namespace palpate

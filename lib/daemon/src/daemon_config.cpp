@@ -1,5 +1,8 @@
 #include "palpate/daemon/daemon_config.hpp"
 
+#include <sched.h>
+
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <numbers>
@@ -15,8 +18,9 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
   const detail::TomlReader r(file.string());
   const auto base = std::filesystem::absolute(file).parent_path();
   DaemonConfig config;
-  r.only_keys(root, "",
-              {"daemon", "dds", "rates", "limits", "model", "tools", "contact", "recording"});
+  r.only_keys(
+      root, "",
+      {"daemon", "dds", "rates", "limits", "model", "tools", "contact", "recording", "realtime"});
 
   auto integer = [&](const toml::node& node, const std::string& key, std::int64_t lo,
                      std::int64_t hi) {
@@ -173,7 +177,70 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
       if (!dir.empty()) config.record_directory = detail::relative_to(base, dir);
     }
   }
+  if (const auto* n = root.get("realtime")) {
+    const auto& t = r.table(*n, "realtime");
+    r.only_keys(t, "realtime", {"serve", "priority", "cpus", "lock_memory"});
+    // The parsers' messages start with the name they are given: the
+    // reader's start with the file, the line and the key instead.
+    auto after = [](const InputError& e, std::string_view name) {
+      return std::string(e.what()).substr(name.size() + 1);
+    };
+    if (const auto* v = t.get("serve")) {
+      try {
+        config.serve = parse_serve_mode(r.string(*v, "realtime.serve"), "realtime.serve");
+      } catch (const InputError& e) {
+        r.fail(v, "realtime.serve", after(e, "realtime.serve"));
+      }
+    }
+    if (const auto* v = t.get("priority"))
+      config.realtime.priority =
+          static_cast<int>(integer(*v, "realtime.priority", 0, realtime::kMaxPriority));
+    if (const auto* v = t.get("cpus")) {
+      // An array of CPU numbers, or a CPU list as taskset -c takes it.
+      if (const auto* list = v->as_array()) {
+        std::vector<int> cpus;
+        for (const auto& cpu : *list)
+          cpus.push_back(static_cast<int>(integer(cpu, "realtime.cpus", 0, CPU_SETSIZE - 1)));
+        std::sort(cpus.begin(), cpus.end());
+        cpus.erase(std::unique(cpus.begin(), cpus.end()), cpus.end());
+        config.realtime.cpus = std::move(cpus);
+      } else if (const auto text = v->value<std::string>()) {
+        try {
+          config.realtime.cpus = realtime::parse_cpu_list(*text, "realtime.cpus");
+        } catch (const InputError& e) {
+          r.fail(v, "realtime.cpus", after(e, "realtime.cpus"));
+        }
+      } else {
+        r.fail(v, "realtime.cpus",
+               "expected an array of CPU numbers, e.g. [1], or a CPU list string, e.g. \"0-1\"");
+      }
+    }
+    if (const auto* v = t.get("lock_memory"))
+      config.realtime.lock_memory = r.boolean(*v, "realtime.lock_memory");
+  }
   return config;
+}
+
+const char* serve_mode_name(ServeMode mode) {
+  switch (mode) {
+    case ServeMode::kWaitset:
+      return "waitset";
+    case ServeMode::kBusy:
+      return "busy";
+    case ServeMode::kListener:
+      break;
+  }
+  return "listener";
+}
+
+ServeMode parse_serve_mode(const std::string& name, std::string_view what) {
+  for (const ServeMode mode : {ServeMode::kListener, ServeMode::kWaitset, ServeMode::kBusy})
+    if (name == serve_mode_name(mode)) return mode;
+  throw InputError(
+      fmt::format("{} '{}': expected \"listener\" (Cyclone's receive thread serves), "
+                  "\"waitset\" (palpated's serving thread, woken by the data) or \"busy\" (its "
+                  "serving thread polls, keeping a core busy)",
+                  what, name));
 }
 
 std::vector<ToolGeometry> DaemonConfig::default_tools() {
@@ -260,6 +327,7 @@ void validate(const DaemonConfig& config) {
   if (!config.record_directory.empty() && !std::filesystem::is_directory(config.record_directory))
     throw InputError("recording.directory " + config.record_directory.string() +
                      " is not a directory (create it, or leave the key empty to not record)");
+  realtime::validate(config.realtime);
   if (config.models.empty())
     throw InputError(
         "no model to serve: add a [[model]] table (id, file) to the configuration or --model "

@@ -16,6 +16,7 @@
 
 #include "palpate.h"
 #include "palpate/core/statistics.hpp"
+#include "pi_mutex.hpp"
 
 namespace palpate::daemon {
 
@@ -59,7 +60,7 @@ class LatencyLog {
   }
 
  private:
-  std::mutex mutex_;
+  PiMutex mutex_;
   std::vector<double> first_us_, second_us_;
   std::size_t count_ = 0;
 };

@@ -11,6 +11,7 @@
 
 #include "palpate.h"
 #include "palpate/transport/dds.hpp"
+#include "pi_mutex.hpp"
 
 namespace palpate::daemon {
 
@@ -50,7 +51,7 @@ class ReplyWriters {
   dds_entity_t participant_, reply_topic_;
   int max_clients_;
   // Discovery (the service thread) and requests (the listener) both add clients.
-  std::mutex mutex_;
+  PiMutex mutex_;
   std::vector<Writer> writers_;
 };
 

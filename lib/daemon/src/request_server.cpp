@@ -34,14 +34,20 @@ RequestServer::~RequestServer() {
   for (auto& r : requests_) dds_sample_free(&r, &palpate_ConstraintRequest_desc, DDS_FREE_CONTENTS);
 }
 
-void RequestServer::listen(dds_entity_t participant, dds_entity_t request_topic) {
+void RequestServer::listen(dds_entity_t participant, dds_entity_t request_topic,
+                           ServingThread* serving_thread) {
   listening_.store(true, std::memory_order_release);
-  dds_listener_t* listener = dds_create_listener(this);
-  dds_lset_data_available(listener, &RequestServer::on_requests);
+  dds_listener_t* listener = nullptr;
+  if (serving_thread == nullptr) {
+    listener = dds_create_listener(this);
+    dds_lset_data_available(listener, &RequestServer::on_requests);
+  }
   const dds_entity_t reader =
       dds_create_reader(participant, request_topic, dds::request_reply_qos().get(), listener);
-  dds_delete_listener(listener);
+  if (listener != nullptr) dds_delete_listener(listener);
   reader_ = dds::Entity(dds::check(reader, "creating the request reader"));
+  if (serving_thread != nullptr)
+    serving_thread->add(reader_.get(), &RequestServer::on_requests, this);
 }
 
 void RequestServer::stop() { reader_.reset(); }

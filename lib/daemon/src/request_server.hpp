@@ -14,13 +14,16 @@
 #include "palpate/transport/dds.hpp"
 #include "reply_writers.hpp"
 #include "served_model.hpp"
+#include "serving_thread.hpp"
 
 namespace palpate::daemon {
 
 /// Serves requests in the request reader's data-available listener, on
 /// Cyclone's receive thread: no thread wakes up between a request's arrival
 /// and its reply (take, validate, solve, reply). Cyclone calls one reader's
-/// listener from one thread at a time. The path allocates nothing of its own
+/// listener from one thread at a time. Or, with realtime.serve = "waitset" or
+/// "busy", on palpated's serving thread (ServingThread), which calls the same
+/// function. The path allocates nothing of its own
 /// and never throws: every failure is an error reply.
 class RequestServer {
  public:
@@ -32,8 +35,11 @@ class RequestServer {
   RequestServer& operator=(const RequestServer&) = delete;
 
   /// Creates the request reader of @p request_topic with its listener:
-  /// requests are served from then on (possibly before this returns).
-  void listen(dds_entity_t participant, dds_entity_t request_topic);
+  /// requests are served from then on (possibly before this returns). With
+  /// @p serving_thread, the reader has no listener: that thread serves it
+  /// once started.
+  void listen(dds_entity_t participant, dds_entity_t request_topic,
+              ServingThread* serving_thread = nullptr);
   /// Deletes the reader: no listener call after this returns.
   void stop();
 

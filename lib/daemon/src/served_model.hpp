@@ -17,6 +17,7 @@
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
 #include "palpate/runtime/warped_solver.hpp"
+#include "pi_mutex.hpp"
 
 namespace palpate::daemon {
 
@@ -55,7 +56,7 @@ class ShownState {
   bool copy_if_newer(std::uint64_t& version, Snapshot& out);
 
  private:
-  std::mutex mutex_;
+  PiMutex mutex_;
   std::uint64_t version_ = 1;  // the rest state: a late viewer gets a surface before any request
   Snapshot state_;
 };
@@ -99,7 +100,7 @@ struct ServedModel {
   /// The tools acting on the model. The pose listener and the watchdog
   /// (stream thread) take turns under `mutex`.
   struct Tools {
-    std::mutex mutex;
+    PiMutex mutex;
     std::unique_ptr<ToolContactEngine> engine;
     std::unique_ptr<SessionRecorder> recorder;   // when recording
     std::vector<std::uint32_t> record_vertices;  // one tool's contacts, for the recorder

@@ -3,16 +3,19 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <fstream>
 #include <thread>
 
 #include "daemon_stats.hpp"
 #include "palpate.h"
 #include "palpate/core/error.hpp"
 #include "palpate/transport/dds.hpp"
+#include "palpate/transport/realtime.hpp"
 #include "palpate/transport/wire.hpp"
 #include "reply_writers.hpp"
 #include "request_server.hpp"
 #include "served_model.hpp"
+#include "serving_thread.hpp"
 #include "stream_publisher.hpp"
 #include "tool_server.hpp"
 
@@ -38,6 +41,7 @@ struct Service::Impl {
   std::unique_ptr<daemon::RequestServer> requests;
   std::unique_ptr<daemon::ToolServer> tools;
   std::unique_ptr<daemon::StreamPublisher> stream;
+  std::unique_ptr<daemon::ServingThread> serving;  // realtime.serve = "waitset" or "busy"
   std::atomic<bool> stopping{false};
   std::string stream_failure;  // set by the stream thread before it stops the service
 
@@ -46,10 +50,13 @@ struct Service::Impl {
   void load_models();
   void join_domain();
   void publish_descriptions();
+  void warn_of_rt_throttling();
   void stop();
 };
 
 Service::Impl::Impl(const DaemonConfig& c) : config(c) {
+  // Before the long part: a priority this process may not use stops it now.
+  realtime::check_permitted(config.realtime);
   load_models();
   join_domain();
   auto topic = [this](const dds_topic_descriptor_t* type, const char* name) {
@@ -94,9 +101,38 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
       config, participant.get(), surface_topic, status_topic);
 
   publish_descriptions();
-  // The listeners are made last: they may fire at once.
-  requests->listen(participant.get(), request_topic);
-  tools->listen(participant.get(), tool_topics);
+  // Every buffer is made: from here on no page fault on the serving path.
+  realtime::lock_memory(config.realtime);
+  // The listeners (or the serving thread) are made last: they may serve at once.
+  if (config.serve != ServeMode::kListener)
+    serving =
+        std::make_unique<daemon::ServingThread>(participant.get(), config.serve, config.realtime);
+  requests->listen(participant.get(), request_topic, serving.get());
+  tools->listen(participant.get(), tool_topics, serving.get());
+  if (serving) serving->start();
+  if (config.serve == ServeMode::kBusy && config.realtime.priority > 0) warn_of_rt_throttling();
+  spdlog::info("event=realtime serve={} priority={} cpus=\"{}\" lock_memory={}",
+               serve_mode_name(config.serve), config.realtime.priority,
+               config.realtime.cpus.empty() ? std::string("any")
+                                            : realtime::format_cpu_list(config.realtime.cpus),
+               config.realtime.lock_memory);
+}
+
+// A SCHED_FIFO thread that never sleeps meets the kernel's real-time
+// throttling: after sched_rt_runtime_us of each sched_rt_period_us (950 of
+// 1000 ms by default) every real-time thread of its CPU waits out the rest.
+void Service::Impl::warn_of_rt_throttling() {
+  long runtime_us = 0, period_us = 0;
+  std::ifstream("/proc/sys/kernel/sched_rt_runtime_us") >> runtime_us;
+  std::ifstream("/proc/sys/kernel/sched_rt_period_us") >> period_us;
+  if (runtime_us < 0) return;
+  spdlog::warn(
+      "event=realtime_throttled serve=busy priority={} sched_rt_runtime_us={} "
+      "sched_rt_period_us={} hint=\"a polling SCHED_FIFO thread is stopped {} ms of every {} ms "
+      "with the receive thread of its CPU: give it a CPU of its own and sysctl "
+      "kernel.sched_rt_runtime_us=-1, or serve = waitset (docs/realtime.md)\"",
+      config.realtime.priority, runtime_us, period_us, (period_us - runtime_us) / 1000,
+      period_us / 1000);
 }
 
 void Service::Impl::load_models() {
@@ -135,7 +171,10 @@ void Service::Impl::load_models() {
 }
 
 void Service::Impl::join_domain() {
-  const dds::DomainConfig dds_config = dds::resolve_domain_config(config.dds_config);
+  // Cyclone's receive thread gets the real-time priority and CPUs: it runs
+  // the listeners, or wakes the serving thread.
+  const dds::DomainConfig dds_config =
+      dds::resolve_domain_config(config.dds_config, config.realtime);
   spdlog::info("event=dds_domain domain={} configuration=\"{}\"", config.domain_id,
                dds_config.origin);
   try {
@@ -149,7 +188,8 @@ void Service::Impl::join_domain() {
 }
 
 Service::Impl::~Impl() {
-  // No listener call after these; then the last ticks are written.
+  // No listener or serving call after these; then the last ticks are written.
+  if (serving) serving->stop();
   if (tools) tools->stop();
   if (requests) requests->stop();
   if (tools) tools->close_recorders();

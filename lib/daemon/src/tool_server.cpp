@@ -27,7 +27,8 @@ ToolServer::ToolServer(const std::vector<std::unique_ptr<ServedModel>>& models,
 
 ToolServer::~ToolServer() { stop(); }
 
-void ToolServer::listen(dds_entity_t participant, const Topics& topics) {
+void ToolServer::listen(dds_entity_t participant, const Topics& topics,
+                        ServingThread* serving_thread) {
   feedback_writer_ = dds::Entity(dds::check(
       dds_create_writer(participant, topics.feedback, dds::tool_stream_qos().get(), nullptr),
       "creating the tool feedback writer"));
@@ -63,11 +64,16 @@ void ToolServer::listen(dds_entity_t participant, const Topics& topics) {
   listening_.store(true, std::memory_order_release);
   auto reader = [&](dds_entity_t topic, const dds::Qos& qos, dds_on_data_available_fn on_data,
                     const char* what) {
-    dds_listener_t* listener = dds_create_listener(this);
-    dds_lset_data_available(listener, on_data);
+    dds_listener_t* listener = nullptr;
+    if (serving_thread == nullptr) {
+      listener = dds_create_listener(this);
+      dds_lset_data_available(listener, on_data);
+    }
     const dds_entity_t created = dds_create_reader(participant, topic, qos.get(), listener);
-    dds_delete_listener(listener);
-    return dds::Entity(dds::check(created, what));
+    if (listener != nullptr) dds_delete_listener(listener);
+    dds::Entity entity(dds::check(created, what));
+    if (serving_thread != nullptr) serving_thread->add(entity.get(), on_data, this);
+    return entity;
   };
   command_reader_ = reader(topics.command, dds::tool_command_qos(), &ToolServer::on_commands,
                            "creating the tool command reader");

@@ -14,11 +14,13 @@
 #include "palpate.h"
 #include "palpate/transport/dds.hpp"
 #include "served_model.hpp"
+#include "serving_thread.hpp"
 
 namespace palpate::daemon {
 
 /// Serves poses in the pose reader's data-available listener, on Cyclone's
-/// receive thread, as RequestServer serves requests: take the pose, check
+/// receive thread (or palpated's serving thread), as RequestServer serves
+/// requests: take the pose, check
 /// it, update the model's ToolContactEngine (every tool solved together),
 /// write the tool's response (with its local model) in the tool's own
 /// partition, its feedback for older clients and viewers, and its events
@@ -43,8 +45,10 @@ class ToolServer {
   /// Creates the feedback, event and notice writers, each tool's response
   /// and event writers in its partition (dds::tool_partition), then the pose
   /// and command readers with their listeners: poses are served from then
-  /// on (possibly before this returns).
-  void listen(dds_entity_t participant, const Topics& topics);
+  /// on (possibly before this returns). With @p serving_thread, the readers
+  /// have no listeners: that thread serves them once started.
+  void listen(dds_entity_t participant, const Topics& topics,
+              ServingThread* serving_thread = nullptr);
   /// Deletes the readers: no listener call after this returns.
   void stop();
 

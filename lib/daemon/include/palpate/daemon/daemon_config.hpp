@@ -12,6 +12,7 @@
 
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/tool_geometry.hpp"
+#include "palpate/transport/realtime.hpp"
 
 namespace palpate {
 
@@ -24,6 +25,17 @@ struct ModelEntry {
   /// rotations: warped compliance").
   bool warped = false;
 };
+
+/// Which thread serves poses and requests (docs/realtime.md, docs/dds.md
+/// "Threads"): Cyclone's receive thread in the readers' data-available
+/// listeners; or palpated's own serving thread, sleeping on a waitset of the
+/// readers or polling them without sleeping (it keeps its core busy).
+enum class ServeMode { kListener, kWaitset, kBusy };
+/// "listener", "waitset", "busy".
+const char* serve_mode_name(ServeMode mode);
+/// The mode of @p name (the key's or flag's value); @throws InputError
+/// naming @p what and the accepted values.
+ServeMode parse_serve_mode(const std::string& name, std::string_view what);
 
 struct DaemonConfig {
   std::string daemon_id = "palpated";  ///< key of the status topic
@@ -48,6 +60,11 @@ struct DaemonConfig {
   std::vector<ToolGeometry> tools = default_tools();
   ContactSettings contact;                 ///< [contact]
   std::filesystem::path record_directory;  ///< [recording] directory; empty: no recording
+  /// [realtime]: the serving thread, and the real-time options of the
+  /// threads that serve poses and requests (the serving thread, or
+  /// Cyclone's receive thread in listener mode) and of Cyclone's receive thread.
+  ServeMode serve = ServeMode::kListener;
+  RealtimeOptions realtime;
 
   static std::vector<ToolGeometry> default_tools();
 };
@@ -59,7 +76,9 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file);
 /// Parses "ID=PATH" (the --model flag). @throws InputError.
 ModelEntry parse_model_flag(const std::string& text);
 
-/// Checks ranges and model ids, and that every model file exists.
+/// Checks ranges and model ids, that every model file exists, and the
+/// [realtime] values (realtime::validate; not whether the process may use
+/// them: palpated checks that when it starts).
 /// @throws InputError saying what is wrong and what is accepted.
 void validate(const DaemonConfig& config);
 
