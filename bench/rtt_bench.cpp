@@ -13,6 +13,7 @@
 //
 // Usage: palpate_rtt_bench [--model-id ID] [-k K] [--rate-hz R] [--seconds S]
 //                          [--warmup-seconds W] [--update-state] [--domain D] [--json]
+//                          [--busy-wait] [--rt-priority P] [--cpus LIST] [--lock-memory]
 // Run it next to palpated inside a private network namespace (see
 // bench/dds_roundtrip.sh); it uses palpate's loopback DDS configuration.
 
@@ -31,6 +32,7 @@
 #include "palpate/core/error.hpp"
 #include "palpate/core/system_info.hpp"
 #include "palpate/transport/client.hpp"
+#include "palpate/transport/realtime.hpp"
 #include "patch.hpp"
 
 namespace {
@@ -105,6 +107,12 @@ int main(int argc, char** argv) try {
   bool busy_wait = false;
   app.add_flag("--busy-wait", busy_wait,
                "poll for the reply instead of sleeping on a waitset (ClientOptions::busy_wait)");
+  palpate::RealtimeOptions realtime;
+  std::string cpus;
+  app.add_option("--rt-priority", realtime.priority,
+                 "SCHED_FIFO priority of the requesting thread and Cyclone's receive thread");
+  app.add_option("--cpus", cpus, "their CPUs, as taskset -c");
+  app.add_flag("--lock-memory", realtime.lock_memory, "mlockall once connected");
   app.add_flag("--json", json, "print one JSON object instead of text");
   CLI11_PARSE(app, argc, argv);
 
@@ -112,7 +120,11 @@ int main(int argc, char** argv) try {
   options.client_id = "rtt-bench-" + std::to_string(getpid());
   options.domain_id = domain;
   options.busy_wait = busy_wait;
+  if (!cpus.empty()) realtime.cpus = palpate::realtime::parse_cpu_list(cpus, "--cpus");
+  palpate::realtime::validate(realtime, palpate::realtime::kFlagNames);
+  options.realtime = realtime;
   palpate::Client client(options);
+  palpate::realtime::apply_to_this_thread(realtime, palpate::realtime::kFlagNames);
   const auto model = client.wait_for_model(model_id, 20s);
   if (!model)
     throw palpate::SystemError("no description of model '" + model_id +
@@ -131,7 +143,7 @@ int main(int argc, char** argv) try {
   std::vector<double> rtt_us, solve_us;
   rtt_us.reserve(total_count);
   solve_us.reserve(total_count);
-  std::uint64_t timeouts = 0, errors = 0;
+  std::uint64_t timeouts = 0, errors = 0, measured_timeouts = 0;
   auto next = Clock::now();
   for (std::uint64_t i = 0; i < total_count; ++i) {
     const double depth = palpate::bench::press_depth_m(i);
@@ -149,6 +161,7 @@ int main(int argc, char** argv) try {
     const auto received = Clock::now();
     if (!reply) {
       ++timeouts;
+      if (i >= warmup_count) ++measured_timeouts;
       continue;
     }
     if (reply->status != palpate::RequestStatus::kOk) {
@@ -163,15 +176,32 @@ int main(int argc, char** argv) try {
   }
 
   const Summary rtt = summarize(rtt_us), solve = summarize(solve_us);
+  // Requests answered within a haptic tick (1 ms) among those sent in the
+  // measured part (a timeout is not answered in time).
+  const auto in_time =
+      std::count_if(rtt_us.begin(), rtt_us.end(), [](double us) { return us <= 1000; });
+  const double within_1ms_share =
+      static_cast<double>(in_time) /
+      static_cast<double>(std::max<std::size_t>(1, rtt_us.size() + measured_timeouts));
   const auto req_bytes = request_bytes(patch.vertex_ids.size(), options.client_id, model_id);
   const auto rep_bytes = reply_bytes(patch.vertex_ids.size(), options.client_id, model_id);
   if (json) {
-    nlohmann::json out = {{"k", patch.vertex_ids.size()}, {"rate_hz", rate_hz},
-                          {"seconds", seconds},           {"samples", rtt_us.size()},
-                          {"timeouts", timeouts},         {"errors", errors},
-                          {"update_state", update_state}, {"busy_wait", busy_wait},
-                          {"request_bytes", req_bytes},   {"reply_bytes", rep_bytes},
-                          {"round_trip", to_json(rtt)},   {"daemon_solve", to_json(solve)}};
+    nlohmann::json out = {{"k", patch.vertex_ids.size()},
+                          {"rate_hz", rate_hz},
+                          {"seconds", seconds},
+                          {"samples", rtt_us.size()},
+                          {"timeouts", timeouts},
+                          {"errors", errors},
+                          {"update_state", update_state},
+                          {"busy_wait", busy_wait},
+                          {"rt_priority", realtime.priority},
+                          {"cpus", palpate::realtime::format_cpu_list(realtime.cpus)},
+                          {"lock_memory", realtime.lock_memory},
+                          {"within_1ms_share", within_1ms_share},
+                          {"request_bytes", req_bytes},
+                          {"reply_bytes", rep_bytes},
+                          {"round_trip", to_json(rtt)},
+                          {"daemon_solve", to_json(solve)}};
     std::printf("%s\n", out.dump().c_str());
   } else {
     std::printf(
@@ -180,8 +210,10 @@ int main(int argc, char** argv) try {
         patch.vertex_ids.size(), rate_hz, seconds, rtt_us.size(),
         static_cast<unsigned long long>(timeouts), static_cast<unsigned long long>(errors),
         req_bytes, rep_bytes);
-    std::printf("  round trip   p50 %8.1f µs  p99 %8.1f µs  p99.9 %8.1f µs  max %8.1f µs\n",
-                rtt.p50, rtt.p99, rtt.p999, rtt.max);
+    std::printf(
+        "  round trip   p50 %8.1f µs  p99 %8.1f µs  p99.9 %8.1f µs  max %8.1f µs; within 1 ms "
+        "%.2f %%\n",
+        rtt.p50, rtt.p99, rtt.p999, rtt.max, 100 * within_1ms_share);
     std::printf("  daemon solve p50 %8.1f µs  p99 %8.1f µs  p99.9 %8.1f µs  max %8.1f µs\n",
                 solve.p50, solve.p99, solve.p999, solve.max);
   }

@@ -23,6 +23,7 @@
 #include "palpate/core/suggest.hpp"
 #include "palpate/file/atomic_file.hpp"
 #include "palpate/transport/client.hpp"
+#include "palpate/transport/realtime.hpp"
 
 namespace {
 
@@ -317,6 +318,19 @@ int run(int argc, char** argv) {
   app.add_option("--client-id", client_id, "client id (names the reply partition)");
   app.add_option("--domain", domain, "DDS domain id");
   app.add_option("--dds-config", dds_config, "Cyclone DDS configuration (default: loopback only)");
+  // Real-time operation of the requesting thread (docs/realtime.md).
+  palpate::RealtimeOptions realtime;
+  std::string cpus;
+  bool busy_wait = false;
+  app.add_flag("--busy-wait", busy_wait,
+               "poll for each reply instead of sleeping on a waitset (keeps a core busy while "
+               "waiting)");
+  app.add_option("--rt-priority", realtime.priority,
+                 "SCHED_FIFO priority (1-99) of the requesting thread and of Cyclone's receive "
+                 "thread (default 0: normal scheduling)");
+  app.add_option("--cpus", cpus,
+                 "CPUs of the requesting thread and Cyclone's threads, as taskset -c");
+  app.add_flag("--lock-memory", realtime.lock_memory, "lock the process's memory (mlockall)");
   app.fallthrough();
 
   std::string model_id = "sample-organ";
@@ -366,9 +380,16 @@ int run(int argc, char** argv) {
     return static_cast<int>(palpate::ExitCode::kUsage);
   }
 
+  if (!cpus.empty()) realtime.cpus = palpate::realtime::parse_cpu_list(cpus, "--cpus");
+  palpate::realtime::validate(realtime, palpate::realtime::kFlagNames);
+  palpate::realtime::check_permitted(realtime, palpate::realtime::kFlagNames);
   palpate::ClientOptions options{client_id, domain, dds_config, false,
                                  status->parsed() || demo_command->parsed()};
+  options.busy_wait = busy_wait;
+  options.realtime = {realtime.priority, realtime.cpus, /*lock_memory=*/false};
   palpate::Client client(options);
+  palpate::realtime::lock_memory(realtime, palpate::realtime::kFlagNames);
+  palpate::realtime::apply_to_this_thread(realtime, palpate::realtime::kFlagNames);
   if (*describe) {
     const palpate::ModelInfo m = describe_model(client, model_id, domain);
     std::printf(

@@ -36,6 +36,7 @@
 #include "palpate/core/statistics.hpp"
 #include "palpate/core/suggest.hpp"
 #include "palpate/runtime/gesture.hpp"
+#include "palpate/transport/realtime.hpp"
 #include "palpate/transport/tool_client.hpp"
 
 namespace {
@@ -212,6 +213,8 @@ struct Settings {
   bool busy_wait = false, quiet = false;
   std::uint32_t domain = 0;
   std::string dds_config;
+  palpate::RealtimeOptions realtime;  // --rt-priority, --cpus, --lock-memory (docs/realtime.md)
+  std::string cpus;
 };
 
 void write_csv(const std::string& path, const std::vector<ToolRun>& runs, std::size_t first_counted,
@@ -270,6 +273,11 @@ int run(int argc, char** argv) {
   app.add_option("--domain", o.domain, "DDS domain id")->check(CLI::Range(0, 232));
   app.add_option("--dds-config", o.dds_config,
                  "Cyclone DDS configuration (default: loopback only)");
+  app.add_option("--rt-priority", o.realtime.priority,
+                 "SCHED_FIFO priority (1-99) of the tick loop and of Cyclone's receive thread "
+                 "(default 0: normal scheduling)");
+  app.add_option("--cpus", o.cpus, "CPUs of the tick loop and Cyclone's threads, as taskset -c");
+  app.add_flag("--lock-memory", o.realtime.lock_memory, "lock the process's memory (mlockall)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -305,7 +313,15 @@ int run(int argc, char** argv) {
                                           static_cast<int>(palpate::ToolClient::kMaxTools)));
 
   // 2. palpated: the model's description, then a reader of the poses.
-  palpate::ToolClient client({o.domain, o.dds_config, o.busy_wait});
+  if (!o.cpus.empty()) o.realtime.cpus = palpate::realtime::parse_cpu_list(o.cpus, "--cpus");
+  palpate::realtime::validate(o.realtime, palpate::realtime::kFlagNames);
+  palpate::realtime::check_permitted(o.realtime, palpate::realtime::kFlagNames);
+  palpate::ToolClientOptions client_options;
+  client_options.domain_id = o.domain;
+  client_options.dds_config = o.dds_config;
+  client_options.busy_wait = o.busy_wait;
+  client_options.realtime = {o.realtime.priority, o.realtime.cpus, /*lock_memory=*/false};
+  palpate::ToolClient client(client_options);
   const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(o.timeout_s * 1e3));
   const auto give_up = Clock::now() + timeout;
   const auto model = client.wait_for_model(o.model_id, timeout);
@@ -359,6 +375,8 @@ int run(int argc, char** argv) {
   }
 
   // 3. The ticks. Nothing below allocates per tick but the events (rare).
+  palpate::realtime::lock_memory(o.realtime, palpate::realtime::kFlagNames);
+  palpate::realtime::apply_to_this_thread(o.realtime, palpate::realtime::kFlagNames);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   std::array<palpate::ToolFeedbackSample, 64> late{};
@@ -598,6 +616,9 @@ int run(int argc, char** argv) {
                                     {"rate_hz", o.rate_hz},
                                     {"repeat", o.repeat},
                                     {"busy_wait", o.busy_wait},
+                                    {"rt_priority", o.realtime.priority},
+                                    {"cpus", palpate::realtime::format_cpu_list(o.realtime.cpus)},
+                                    {"lock_memory", o.realtime.lock_memory},
                                     {"ticks", played},
                                     {"counted_from_tick", first_counted},
                                     {"budget_us", budget_us},
