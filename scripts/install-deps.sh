@@ -19,8 +19,9 @@ packages=(
   libhdf5-dev libgmsh-dev
   # command line, configuration, logging, JSON
   libssl-dev libcli11-dev libtomlplusplus-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
-  # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev
+  # tests and benchmarks; stress-ng loads the cores for the real-time
+  # round trips (bench/realtime_roundtrip.sh, docs/realtime.md)
+  libgtest-dev libgmock-dev libbenchmark-dev stress-ng
   # independent reader used by the tests (Debian's python3, not a venv)
   python3 python3-h5py python3-numpy
   # the independent contact check (tests/runtime/contact_reference): sparse LU, NNLS
