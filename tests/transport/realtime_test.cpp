@@ -156,23 +156,25 @@ TEST(Realtime, APermittedPriorityMakesTheThreadFifo) {
   }
 }
 
-// A process without the privilege (RLIMIT_RTPRIO 0; as root, also given up
-// by becoming nobody) is refused with the way to grant it: in a child, so
-// that this process keeps its own.
-TEST(Realtime, APriorityTheProcessMayNotUseIsRefusedWithTheWayToGrantIt) {
+/// The message of what @p f throws (InputError or ResourceError), run in a
+/// child process with @p limit lowered to @p value and, when this process
+/// is root, as nobody (so without root's capabilities): this process keeps
+/// its own.
+template <typename F>
+std::string message_without_privilege(int limit, rlim_t value, F f) {
   int pipe_fds[2];
-  ASSERT_EQ(pipe(pipe_fds), 0);
+  if (pipe(pipe_fds) != 0) return "pipe failed";
   const pid_t child = fork();
-  ASSERT_GE(child, 0);
+  if (child < 0) return "fork failed";
   if (child == 0) {
     close(pipe_fds[0]);
-    const rlimit none{0, 0};
-    setrlimit(RLIMIT_RTPRIO, &none);
+    const rlimit lowered{value, value};
+    setrlimit(static_cast<__rlimit_resource>(limit), &lowered);
     if (geteuid() == 0 && (setgid(65534) != 0 || setuid(65534) != 0)) _exit(3);
     std::string message = "no error";
     try {
-      realtime::check_permitted({50, {}, false}, realtime::kFlagNames);
-    } catch (const InputError& e) {
+      f();
+    } catch (const std::exception& e) {
       message = e.what();
     }
     (void)!write(pipe_fds[1], message.data(), message.size());
@@ -186,11 +188,43 @@ TEST(Realtime, APriorityTheProcessMayNotUseIsRefusedWithTheWayToGrantIt) {
   close(pipe_fds[0]);
   int status = 0;
   waitpid(child, &status, 0);
-  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "the child could not drop root";
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return "the child could not drop root";
+  return message;
+}
+
+// A process without the privilege (RLIMIT_RTPRIO 0, no CAP_SYS_NICE) is
+// refused with the way to grant it.
+TEST(Realtime, APriorityTheProcessMayNotUseIsRefusedWithTheWayToGrantIt) {
+  const std::string message = message_without_privilege(RLIMIT_RTPRIO, 0, [] {
+    realtime::check_permitted({50, {}, false}, realtime::kFlagNames);
+  });
   for (const char* must :
        {"--rt-priority 50: the kernel refuses SCHED_FIFO at this priority", "RLIMIT_RTPRIO 0",
-        "without CAP_SYS_NICE", "LimitRTPRIO=50", "rtprio 50", "(--rt-priority 0;"})
+        "without CAP_SYS_NICE", "LimitRTPRIO=50 and RestrictRealtime=no", "rtprio 50",
+        "(--rt-priority 0;"})
     EXPECT_NE(message.find(must), std::string::npos) << must << " in: " << message;
+  EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+}
+
+// Likewise memory it may not lock (RLIMIT_MEMLOCK 64 kB, no CAP_IPC_LOCK):
+// a ResourceError (exit 4) naming the limit and how to raise it.
+TEST(Realtime, MemoryTheProcessMayNotLockIsRefusedWithTheLimit) {
+  const std::string message = message_without_privilege(RLIMIT_MEMLOCK, 65536, [] {
+    try {
+      realtime::lock_memory({0, {}, true}, realtime::kFlagNames);
+    } catch (const ResourceError& e) {
+      throw std::runtime_error(std::string("ResourceError: ") + e.what());
+    }
+  });
+  EXPECT_EQ(message.rfind("ResourceError: --lock-memory: ", 0), 0u) << message;
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  EXPECT_NE(message.find("AddressSanitizer or ThreadSanitizer"), std::string::npos) << message;
+#else
+  for (const char* must :
+       {"mlockall failed", "may lock 65536 bytes (RLIMIT_MEMLOCK)", "without CAP_IPC_LOCK",
+        "LimitMEMLOCK=infinity", "leave --lock-memory off"})
+    EXPECT_NE(message.find(must), std::string::npos) << must << " in: " << message;
+#endif
   EXPECT_EQ(message.find('\n'), std::string::npos) << message;
 }
 

@@ -16,6 +16,16 @@
 
 #include "palpate/core/error.hpp"
 
+// AddressSanitizer and ThreadSanitizer reserve terabytes of shadow memory,
+// which mlockall(MCL_CURRENT) would try to make resident.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define PALPATE_SHADOW_MEMORY 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define PALPATE_SHADOW_MEMORY 1
+#endif
+#endif
+
 namespace palpate::realtime {
 
 namespace {
@@ -62,9 +72,8 @@ bool set_affinity(std::span<const int> cpus) {
       "{} {}: the kernel refuses SCHED_FIFO at this priority ({}; RLIMIT_RTPRIO {}, {} "
       "CAP_SYS_NICE): run it as root, or allow it real-time priority {} (systemd: "
       "LimitRTPRIO={} and RestrictRealtime=no; /etc/security/limits.conf: '<user> - rtprio {}'); "
-      "as root, its control "
-      "group may have no real-time time (cpu.rt_runtime_us); or do without ({} 0; "
-      "docs/realtime.md)",
+      "as root, its control group may have no real-time time (cpu.rt_runtime_us); or do without "
+      "({} 0; docs/realtime.md)",
       names.priority, options.priority, std::strerror(error), limit_text(rtprio.rlim_cur),
       has_capability(kCapSysNice) ? "with" : "without", options.priority, options.priority,
       options.priority, names.priority));
@@ -191,6 +200,11 @@ void apply_to_this_thread(const RealtimeOptions& options, const Names& names) {
 
 void lock_memory(const RealtimeOptions& options, const Names& names) {
   if (!options.lock_memory) return;
+#ifdef PALPATE_SHADOW_MEMORY
+  throw ResourceError(std::string(names.lock_memory) +
+                      ": not in a build with AddressSanitizer or ThreadSanitizer, whose shadow "
+                      "memory (terabytes reserved) it would try to make resident");
+#endif
   if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) return;
   const int error = errno;
   rlimit memlock{};
