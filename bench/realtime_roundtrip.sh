@@ -22,7 +22,7 @@
 #      1 kHz, ceil(SECONDS / 10.6) plays, the first second left out.
 #   2. ddsperf ping-pong at 1 kHz, SECONDS + 2 s (the first 2 s dropped):
 #      reliable with the request/reply payload, best effort (-u) with the
-#      pose/feedback payload; pong in palpated's wake-up mode (listener:
+#      mean of the pose's and the ToolResponse's sizes (334 bytes); pong in palpated's wake-up mode (listener:
 #      the reply written on Cyclone's receive thread; waitset: a thread
 #      woken), ping in the client's (waitset). It prints HALF its round trip
 #      (bench/ddsperf_log.py doubles it): both sides of every ratio are full
@@ -140,8 +140,14 @@ phase() {
   [ "$SERVE" != listener ] && _pong=waitset
   _size=$(/usr/bin/python3 -c 'import json,sys; r=json.load(open(sys.argv[1])); print((r["request_bytes"]+r["reply_bytes"])//2)' "$work/requests-$_name.json")
   ddsperf_phase "$work" "requests-$_name" $((SECONDS_MEASURED + WARMUP)) "$_size" "$_pong" "$_uri" "$_prefix"
-  # The pose and feedback samples' mean size (bench/pliers_roundtrip.sh says how).
-  ddsperf_phase "$work" "poses-$_name" $((SECONDS_MEASURED + WARMUP)) $(( (4 + 16 + 16 + 80 + 4 + 16 + 16 + 96) / 2 )) \
+  # The mean size of a pose and of the answer the client reads (XCDR2,
+  # approximate): the pose as in bench/pliers_roundtrip.sh, 4 + 16 + 16 + 80;
+  # the ToolResponse (appendable: a 4-byte header more) 4 + 4 + 16 + 16 +
+  # 16 (sequence, send time) + 56 (pose) + 56 (force, torque, grip) + 8
+  # (contacts, state) + 8 (two flags, padded) + 8 (compute) + 8 (two flags,
+  # padded) + 48 (contact wrench) + 288 (6 x 6 stiffness) + 16 (limits).
+  ddsperf_phase "$work" "poses-$_name" $((SECONDS_MEASURED + WARMUP)) \
+    $(( (4 + 16 + 16 + 80 + 4 + 4 + 16 + 16 + 16 + 56 + 56 + 8 + 8 + 8 + 8 + 48 + 288 + 16) / 2 )) \
     "$_pong" "$_uri" "$_prefix" -u
 }
 
