@@ -49,10 +49,10 @@ class PartitionWatch {
     // The tool topics' QoS, but a history that keeps every sample.
     const dds::Qos reader_qos = dds::tool_stream_qos();
     dds_qset_history(reader_qos.get(), DDS_HISTORY_KEEP_LAST, 4096);
-    reader_ = dds::Entity(dds::check(
-        dds_create_reader(subscriber_.get(), dds::topic(p, type, topic_name), reader_qos.get(),
-                          nullptr),
-        "reader"));
+    reader_ =
+        dds::Entity(dds::check(dds_create_reader(subscriber_.get(), dds::topic(p, type, topic_name),
+                                                 reader_qos.get(), nullptr),
+                               "reader"));
   }
   bool matched() const {
     dds_subscription_matched_status_t status{};
