@@ -34,6 +34,7 @@ void HapticRenderer::reset() {
   has_answer_ = false;
   has_previous_ = false;
   previous_force_.setZero();
+  previous_torque_.setZero();
   energy_j_ = 0;
 }
 
@@ -96,30 +97,44 @@ RenderedWrench HapticRenderer::render(double now_s, const Vector3d& position_m,
       out.limited = true;
     }
   }
-  // Passivity: E = −Σ (F·v + τ·ω) Δt must stay ≥ 0.
-  if (free && force.squaredNorm() == 0) energy_j_ = 0;
-  if (dt > 0) {
-    const Vector3d v = (position_m - previous_position_) / dt;
-    const Vector3d w = rotation_vector(orientation, previous_orientation_) / dt;
-    double energy = energy_j_ - (force.dot(v) + torque.dot(w)) * dt;
-    if (settings_.passivity && energy < 0) {
+  // Passivity (Hannaford and Ryu 2002), on the energy that flowed: the
+  // wrench of the previous call was held until now (the device's
+  // zero-order hold), so over the last interval the environment took
+  //   ΔE = −(F_{k−1}·(x_k − x_{k−1}) + τ_{k−1}·θ_k)
+  // from the hand. (Pairing the new wrench with the past motion instead
+  // credits a force that grows as the hand presses in with work it never
+  // did: a held answer's step, the controller's own damping.)
+  Vector3d dx = Vector3d::Zero(), dtheta = Vector3d::Zero();
+  if (has_previous_) {
+    dx = position_m - previous_position_;
+    dtheta = rotation_vector(orientation, previous_orientation_);
+    energy_j_ -= previous_force_.dot(dx) + previous_torque_.dot(dtheta);
+  }
+  // Free: what the touch stored is gone with it; a debt is still owed.
+  if (free && force.squaredNorm() == 0) energy_j_ = std::min(energy_j_, 0.0);
+  out.energy_j = energy_j_;
+  // The controller: the wrench chosen now is held until the next call. With
+  // the next interval's motion predicted as the last one's (v = Δx/Δt), the
+  // least damping −α v (then −β ω) that keeps the predicted E ≥ 0.
+  if (settings_.passivity && dt > 0) {
+    const Vector3d v = dx / dt, w = dtheta / dt;
+    double predicted = energy_j_ - (force.dot(dx) + torque.dot(dtheta));
+    if (predicted < 0) {
       const double speed2 = v.squaredNorm();
       if (speed2 > settings_.min_speed_m_per_s * settings_.min_speed_m_per_s) {
-        const double alpha = std::min(settings_.max_damping_n_s_per_m, -energy / (speed2 * dt));
+        const double alpha = std::min(settings_.max_damping_n_s_per_m, -predicted / (speed2 * dt));
         force -= alpha * v;
-        energy += alpha * speed2 * dt;
+        predicted += alpha * speed2 * dt;
         out.damping = alpha;
       }
       const double spin2 = w.squaredNorm();
-      if (energy < 0 && spin2 > settings_.min_angular_speed_rad_per_s *
-                                    settings_.min_angular_speed_rad_per_s) {
+      if (predicted < 0 &&
+          spin2 > settings_.min_angular_speed_rad_per_s * settings_.min_angular_speed_rad_per_s) {
         const double beta =
-            std::min(settings_.max_angular_damping_nm_s_per_rad, -energy / (spin2 * dt));
+            std::min(settings_.max_angular_damping_nm_s_per_rad, -predicted / (spin2 * dt));
         torque -= beta * w;
-        energy += beta * spin2 * dt;
       }
     }
-    energy_j_ = energy;
   }
   out.force_n = force;
   out.torque_nm = torque;
@@ -129,6 +144,7 @@ RenderedWrench HapticRenderer::render(double now_s, const Vector3d& position_m,
   previous_position_ = position_m;
   previous_orientation_ = orientation;
   previous_force_ = force;
+  previous_torque_ = torque;
   return out;
 }
 
