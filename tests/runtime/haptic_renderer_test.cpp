@@ -300,6 +300,40 @@ TEST(HapticRenderer, AnEnergyDebtOutlivesTheContactUntilTheHandPaysIt) {
   }
 }
 
+TEST(HapticRenderer, TheControllersDampingIsNotSlewedIntoASpring) {
+  // A held 2 N pushes a hand that trembles (0.5 mm at 20 Hz, up to
+  // 63 mm/s) as it leaves at 40 mm/s: the controller damps, α ≤ 50 N·s/m,
+  // so the rendered force stays within α |v| of the held 2 N (v: the
+  // controller's estimate, the last tick's mean).
+  // Slewing from the damped force of the last call would add each call's
+  // damping to the last (−α Σ v: a spring of α/Δt) up to the force limit.
+  RenderSettings s;
+  s.local_model = false;
+  HapticRenderer r(s);
+  RenderAnswer a = Wall{}.free();
+  a.fed_back_force_n = Vector3d(0, 0, 2);
+  a.max_force_rate_n_per_s = 500;  // palpated's default: 0.125 N per 4 kHz tick
+  a.force_limit_n = 100;
+  double largest = 0, most_damping = 0;
+  for (int i = 0; i < 400; ++i) {
+    const double t = i * kTick;
+    if (i % 4 == 0) {  // palpated answers at 1 kHz, the same force
+      ++a.sequence;
+      r.take(a, t);
+    }
+    const auto z = [](double time) {
+      return 0.04 * time + 0.0005 * std::sin(2 * std::numbers::pi * 20 * time);
+    };
+    const RenderedWrench w = r.render(t, Vector3d(0, 0, z(t)), Quaterniond::Identity());
+    const double speed = std::abs(z(t) - z(t - kTick)) / kTick;  // the controller's estimate
+    if (t > 0.005)
+      largest = std::max(largest, (w.force_n - a.fed_back_force_n).norm() - 50 * speed);
+    most_damping = std::max(most_damping, w.damping);
+  }
+  EXPECT_GT(most_damping, 0) << "the held force gives energy: the controller acts";
+  EXPECT_LE(largest, 1e-9);
+}
+
 TEST(HapticRenderer, AnActiveFieldIsMadePassiveAndWithoutTheObserverItGivesEnergy) {
   // A curl field F = c (−y, x, 0) (a local model whose stiffness is not
   // symmetric) does work on a hand that circles: 2π c r² per turn. Without

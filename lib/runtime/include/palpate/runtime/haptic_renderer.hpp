@@ -18,7 +18,9 @@
 ///     linearly to zero over ramp_s, as palpated's watchdog ramps a tool
 ///     whose poses stop (a daemon that dies or hangs leaves the hand free);
 ///  3. the device's limits as palpated applies them: |F| ≤ force_limit
-///     (the torque scaled with it), then |ΔF| ≤ max_force_rate · Δt per call;
+///     (the torque scaled with it), then |ΔF| ≤ max_force_rate · Δt per call
+///     (on this force: the controller's damping below is not slewed, and
+///     |F| ≤ force_limit holds for the sum);
 ///  4. passivity: a time-domain passivity observer sums the energy the
 ///     rendered environment has taken from the hand. The device holds each
 ///     wrench until the next call (its DAC's zero-order hold), so the
@@ -131,7 +133,8 @@ class HapticRenderer {
   double previous_s_ = 0;
   Eigen::Vector3d previous_position_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond previous_orientation_ = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d previous_force_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d previous_force_ = Eigen::Vector3d::Zero();    // rendered, damping included
+  Eigen::Vector3d previous_limited_ = Eigen::Vector3d::Zero();  // after the limits, before it
   Eigen::Vector3d previous_torque_ = Eigen::Vector3d::Zero();
   double energy_j_ = 0;
 };
