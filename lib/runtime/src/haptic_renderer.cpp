@@ -61,6 +61,24 @@ void HapticRenderer::evaluate(const LocalContactModel& model, const Vector3d& po
   }
 }
 
+double HapticRenderer::reference_energy(const Vector3d& force) const {
+  // E_ref = ½ F_n² / k_n: what a spring of the answer's normal stiffness
+  // stores at the force rendered (Ryu, Preusche, Hannaford and Hirzinger
+  // 2005). A contact that stiffens as it deepens (a tip's area grows) stores
+  // more, U = ∫ F dx ≥ ½ F²/k: E_ref never asks more than a passive organ
+  // gives. At most ½ F_n × 10 mm, for a normal stiffness near zero; none
+  // without one (no model, or none along the force).
+  if (!settings_.reference_energy || !has_answer_ || !answer_.model.valid) return 0;
+  const LocalContactModel& model = answer_.model;
+  const double f0 = model.force_n.norm();
+  if (!(f0 > 0)) return 0;
+  const Vector3d n = model.force_n / f0;
+  const double k_n = -n.dot(model.stiffness.topLeftCorner<3, 3>() * n);
+  const double f_n = std::max(0.0, force.dot(n));
+  constexpr double kDeepest = 0.01;  // m
+  return k_n > 0 ? 0.5 * f_n * std::min(f_n / k_n, kDeepest) : 0.0;
+}
+
 RenderedWrench HapticRenderer::render(double now_s, const Vector3d& position_m,
                                       const Quaterniond& orientation) {
   RenderedWrench out;
@@ -120,10 +138,10 @@ RenderedWrench HapticRenderer::render(double now_s, const Vector3d& position_m,
   out.energy_j = energy_j_;
   // The controller: the wrench chosen now is held until the next call. With
   // the next interval's motion predicted as the last one's (v = Δx/Δt), the
-  // least damping −α v (then −β ω) that keeps the predicted E ≥ 0.
+  // least damping −α v (then −β ω) that keeps the predicted E ≥ E_ref.
   if (settings_.passivity && dt > 0) {
     const Vector3d v = dx / dt, w = dtheta / dt;
-    double predicted = energy_j_ - (force.dot(dx) + torque.dot(dtheta));
+    double predicted = energy_j_ - (force.dot(dx) + torque.dot(dtheta)) - reference_energy(force);
     if (predicted < 0) {
       const double speed2 = v.squaredNorm();
       if (speed2 > settings_.min_speed_m_per_s * settings_.min_speed_m_per_s) {

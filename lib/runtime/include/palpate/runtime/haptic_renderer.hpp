@@ -31,7 +31,9 @@
 ///     environment would give back more than it was given: a delayed or
 ///     switching model does), it adds the damping −α v (and −β ω) that
 ///     dissipates exactly the excess, α ≤ max_damping (Hannaford and Ryu,
-///     IEEE Trans. Robotics and Automation 18(1), 2002). What a touch
+///     IEEE Trans. Robotics and Automation 18(1), 2002); "negative" means
+///     below what the contact still stores, E_ref = ½ F_n²/k_n with the
+///     answer's normal stiffness (RenderSettings::reference_energy). What a touch
 ///     stored is dropped whenever the tool is free (it never pays for the
 ///     next touch); a debt (E < 0, the controller held by max_damping or
 ///     the hand too slow to damp) is kept until motion pays it back.
@@ -60,6 +62,15 @@ struct RenderSettings {
   double ramp_s = 0.25;
   /// The passivity observer and controller.
   bool passivity = true;
+  /// The controller keeps E above what the contact stores now, as a spring
+  /// of the answer's normal stiffness, E_ref = ½ F_n²/k_n, rather than
+  /// above zero (reference energy following: J.-H. Ryu, C. Preusche,
+  /// B. Hannaford and G. Hirzinger, "Time domain passivity control with
+  /// reference energy following", IEEE Trans. Control Systems Technology
+  /// 13(5), 2005). Without it, a held answer may spend on an oscillation
+  /// about the pressed pose all the energy the press stored before the
+  /// controller acts (tests/runtime/passivity_test.cpp).
+  bool reference_energy = true;
   /// Most damping the controller may add: a device's own stable limit.
   double max_damping_n_s_per_m = 50;
   double max_angular_damping_nm_s_per_rad = 0.05;
@@ -124,6 +135,9 @@ class HapticRenderer {
                        Eigen::Vector3d& torque_nm);
 
  private:
+  /// E_ref for @p force rendered now (RenderSettings::reference_energy), J.
+  double reference_energy(const Eigen::Vector3d& force) const;
+
   RenderSettings settings_;
   RenderAnswer answer_;
   bool has_answer_ = false;
