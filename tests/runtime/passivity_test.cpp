@@ -47,8 +47,7 @@ constexpr double kLateFromS = 2.1;
 /// The set point's depth below its start at @p t, m.
 double set_depth(double t) {
   const double down = std::min(kDownSpeed * t, kApproachM + kSetDepthM);
-  return std::max(-kAboveM + kApproachM,
-                  down - kUpSpeed * std::max(0.0, t - kHoldUntilS) * (t > kHoldUntilS));
+  return std::max(-kAboveM + kApproachM, down - kUpSpeed * std::max(0.0, t - kHoldUntilS));
 }
 
 struct Press {
