@@ -76,11 +76,12 @@ class Column {
     hdf5::Handle file_space(H5Dget_space(set_), H5Sclose, "get a dataspace");
     const hsize_t start[2] = {rows_, 0}, count[2] = {rows, width_};
     hdf5::check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr),
-          fmt::format("select rows of {}", name_));
+                fmt::format("select rows of {}", name_));
     hdf5::Handle mem_space(H5Screate_simple(rank(width_), count, nullptr), H5Sclose,
-                     "create a dataspace");
-    hdf5::check(H5Dwrite(set_, H5Type<T>::mem(), mem_space, file_space, H5P_DEFAULT, staged_.data()),
-          fmt::format("write dataset {}", name_));
+                           "create a dataspace");
+    hdf5::check(
+        H5Dwrite(set_, H5Type<T>::mem(), mem_space, file_space, H5P_DEFAULT, staged_.data()),
+        fmt::format("write dataset {}", name_));
     rows_ += rows;
     staged_.clear();
   }
@@ -93,9 +94,11 @@ class Column {
   static hdf5::Handle create(hid_t parent, const char* name, hsize_t width, hsize_t chunk_rows) {
     const hsize_t dims[2] = {0, width}, max_dims[2] = {H5S_UNLIMITED, width};
     const hsize_t chunk[2] = {chunk_rows, width};
-    hdf5::Handle space(H5Screate_simple(rank(width), dims, max_dims), H5Sclose, "create a dataspace");
+    hdf5::Handle space(H5Screate_simple(rank(width), dims, max_dims), H5Sclose,
+                       "create a dataspace");
     hdf5::Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "create dataset properties");
-    hdf5::check(H5Pset_chunk(properties, rank(width), chunk), fmt::format("chunk dataset {}", name));
+    hdf5::check(H5Pset_chunk(properties, rank(width), chunk),
+                fmt::format("chunk dataset {}", name));
     return hdf5::Handle(
         H5Dcreate2(parent, name, H5Type<T>::file(), space, H5P_DEFAULT, properties, H5P_DEFAULT),
         H5Dclose, fmt::format("create dataset {}", name));
