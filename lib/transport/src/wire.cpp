@@ -373,6 +373,42 @@ ToolFeedbackSample from_idl(const palpate_ToolResponse& r, std::int64_t receive_
   return s;
 }
 
+void to_idl(std::string_view tool_id, std::string_view model_id, std::uint64_t pose_sequence,
+            std::span<const RenderedRecord> steps, std::span<palpate_RenderedStep> storage,
+            palpate_ToolRendered& out) {
+  copy_bounded(out.tool_id, tool_id);
+  copy_bounded(out.model_id, model_id);
+  out.pose_sequence = pose_sequence;
+  const std::size_t n = std::min({steps.size(), storage.size(), std::size_t{32}});
+  const std::size_t first = steps.size() - n;  // the newest n
+  for (std::size_t i = 0; i < n; ++i) {
+    const RenderedRecord& r = steps[first + i];
+    palpate_RenderedStep& s = storage[i];
+    s.time_ns = r.time_ns;
+    s.answer_sequence = r.answer_sequence;
+    std::copy_n(r.position_m, 3, s.position);
+    std::copy_n(r.force_n, 3, s.force);
+    s.damping = r.damping;
+  }
+  view(out.steps, storage.first(n));
+}
+
+std::size_t from_idl(const palpate_ToolRendered& rendered, std::int32_t tool,
+                     std::span<RenderedRecord> out) {
+  const std::size_t n = std::min<std::size_t>(rendered.steps._length, out.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    const palpate_RenderedStep& s = rendered.steps._buffer[i];
+    RenderedRecord& r = out[i];
+    r.tool = tool;
+    r.time_ns = s.time_ns;
+    r.answer_sequence = s.answer_sequence;
+    std::copy_n(s.position, 3, r.position_m);
+    std::copy_n(s.force, 3, r.force_n);
+    r.damping = s.damping;
+  }
+  return n;
+}
+
 void to_idl(ToolEventKind kind, const ToolOutput& output, std::string_view tool_id,
             std::string_view model_id, std::int64_t daemon_time_ns, palpate_ToolEvent& out) {
   copy_bounded(out.tool_id, tool_id);

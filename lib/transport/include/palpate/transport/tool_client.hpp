@@ -57,6 +57,10 @@ struct ToolClientOptions {
   /// render(): how each tool's renderer renders (its hold_s and ramp_s are
   /// taken from feedback_timeout and feedback_ramp).
   RenderSettings render;
+  /// Send palpated, with each pose, what render() rendered since the
+  /// previous pose (palpate_tool_rendered), for its session recording
+  /// (docs/session-recording.md, "What the device rendered").
+  bool report_rendering = false;
 };
 
 class ToolClient {
