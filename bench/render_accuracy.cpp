@@ -78,18 +78,6 @@ constexpr int kServerEvery = 4;          // palpated takes every 4th pose: 1 kHz
   std::exit(2);
 }
 
-/// What palpated would send for a tool output (limits out of reach).
-RenderAnswer answer_of(const palpate::ToolOutput& out, const ToolGeometry& g) {
-  RenderAnswer a;
-  a.sequence = out.sequence;
-  a.model = out.local;
-  a.fed_back_force_n = out.force_n;
-  a.fed_back_torque_nm = out.torque_nm;
-  a.force_limit_n = g.force_limit_n;
-  a.max_force_rate_n_per_s = g.max_force_rate_n_per_s;
-  return a;
-}
-
 struct Tick {
   double time_s;
   Vector3d reference, local, held, fast;  // fast: one engine taking every 4 kHz pose
@@ -159,7 +147,7 @@ std::vector<Tick> play(const palpate::SurfaceModel& model, const palpate::Gestur
       sent.sequence = ++server_sequence;
       if (server.update(0, sent, t) != palpate::RequestStatus::kOk)
         die(std::string("server solve failed: ") + server.solver_message());
-      line.push_back({t + round_trip_s, answer_of(server.output(0), g)});
+      line.push_back({t + round_trip_s, render_answer(server.output(0), g)});
     }
     Tick tick;
     tick.time_s = t;

@@ -70,17 +70,6 @@ struct Outcome {
   bool ended_free = false;
 };
 
-RenderAnswer answer_of(const ToolOutput& out, const ToolGeometry& g) {
-  RenderAnswer a;
-  a.sequence = out.sequence;
-  a.model = out.local;
-  a.fed_back_force_n = out.force_n;
-  a.fed_back_torque_nm = out.torque_nm;
-  a.force_limit_n = g.force_limit_n;
-  a.max_force_rate_n_per_s = g.max_force_rate_n_per_s;
-  return a;
-}
-
 class Passivity : public testing::BoxModelSuite<8, 500> {
  protected:
   static Outcome press(const Press& run) {
@@ -123,7 +112,7 @@ class Passivity : public testing::BoxModelSuite<8, 500> {
         EXPECT_EQ(engine.check(0, pose), PoseProblem::kNone) << engine.problem_message();
         EXPECT_EQ(engine.update(0, pose, t), RequestStatus::kOk) << engine.solver_message();
         const ToolOutput& out = engine.output(0);
-        line.push_back({t + run.round_trip_s, answer_of(out, g)});
+        line.push_back({t + run.round_trip_s, render_answer(out, g)});
         if (t >= kLateFromS && t < kHoldUntilS) o.stiffness_n_per_m = -out.local.stiffness(2, 2);
         o.ended_free = out.state == ToolState::kFree;
       }

@@ -20,6 +20,17 @@ Vector3d rotation_vector(const Quaterniond& to, const Quaterniond& from) {
 
 }  // namespace
 
+RenderAnswer render_answer(const ToolOutput& output, const ToolGeometry& tool) {
+  RenderAnswer a;
+  a.sequence = output.sequence;
+  a.model = output.local;
+  a.fed_back_force_n = output.force_n;
+  a.fed_back_torque_nm = output.torque_nm;
+  a.force_limit_n = tool.force_limit_n;
+  a.max_force_rate_n_per_s = tool.max_force_rate_n_per_s;
+  return a;
+}
+
 HapticRenderer::HapticRenderer(const RenderSettings& settings) : settings_(settings) {}
 
 bool HapticRenderer::take(const RenderAnswer& answer, double received_s) {

@@ -47,6 +47,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 
+#include "palpate/runtime/tool_geometry.hpp"
 #include "palpate/runtime/tool_state.hpp"
 
 namespace palpate {
@@ -92,6 +93,10 @@ struct RenderAnswer {
   double force_limit_n = 8;
   double max_force_rate_n_per_s = 500;
 };
+
+/// What palpated sends of tool output @p output of a tool @p tool: the
+/// answer the renderer takes (in process: tests and benchmarks).
+RenderAnswer render_answer(const ToolOutput& output, const ToolGeometry& tool);
 
 /// What to render now.
 struct RenderedWrench {
