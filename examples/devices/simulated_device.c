@@ -197,7 +197,8 @@ int main(int argc, char** argv) {
   double depth = kPhases[0].from_m, velocity = 0;
   double free_max_n = 0, contact_max_n = 0, max_damping = 0;
   double hold_force = 0, hold_spring = 0, hold_answer = 0;
-  long hold_samples = 0, steps = 0;
+  long hold_samples = 0, steps = 0, free_steps = 0;
+  int64_t free_since = -1; /* when the answers began to say the tool is free */
   int touch = 0, leave = 0, ended = 0, refused = 0;
   int64_t t = palpate_device_now_ns() + 1000000;
   for (int p = 0; p < PHASES && status == PALPATE_DEVICE_OK; ++p) {
@@ -228,8 +229,17 @@ int main(int argc, char** argv) {
       state.struct_size = sizeof state;
       palpate_device_get_state(tool, &state, NULL, 0);
       if (state.damping_n_s_per_m > max_damping) max_damping = state.damping_n_s_per_m;
-      /* Free: the tip a clear 5 mm outside the rest surface, whatever the answer. */
-      if (depth < -0.005 && magnitude > free_max_n) free_max_n = magnitude;
+      /* Free: the tip a clear 5 mm outside the rest surface, and palpated
+       * has said so for 20 ms (a touch's force, slew limited at 500 N/s,
+       * is gone by then): nothing at all is rendered. */
+      if (!state.has_answer || state.tool_state != PALPATE_DEVICE_FREE)
+        free_since = -1;
+      else if (free_since < 0)
+        free_since = t;
+      if (depth < -0.005 && free_since >= 0 && t - free_since >= 20000000) {
+        ++free_steps;
+        if (magnitude > free_max_n) free_max_n = magnitude;
+      }
       if (magnitude > contact_max_n) contact_max_n = magnitude;
       /* The last half of the hold, settled: the device's force and the hand's. */
       if (strcmp(phase->name, "hold") == 0 && 2 * k >= n) {
@@ -274,17 +284,18 @@ int main(int argc, char** argv) {
   const double samples = hold_samples > 0 ? (double)hold_samples : 1;
   printf(
       "simulated_device: %ld steps, %llu poses, %llu answers; pushed back %.3f N held (the "
-      "hand's spring %.3f N, palpated's answer %.3f N), at most %.3f N; free at most %.3g N; "
+      "hand's spring %.3f N, palpated's answer %.3f N), at most %.3f N; free (answered so) at most "
+      "%.3g N; "
       "damping at most %.3g N s/m\n",
       steps, (unsigned long long)state.poses_sent, (unsigned long long)state.answers_taken,
       hold_force / samples, hold_spring / samples, hold_answer / samples, contact_max_n, free_max_n,
       max_damping);
   printf(
       "result steps=%ld poses=%llu answers=%llu hold_force_n=%.6f hold_spring_n=%.6f "
-      "hold_answer_n=%.6f max_force_n=%.6f free_max_n=%.9f max_damping=%.6f touch=%d leave=%d "
-      "ended=%d refused=%d\n",
+      "hold_answer_n=%.6f max_force_n=%.6f free_steps=%ld free_max_n=%.9f max_damping=%.6f "
+      "touch=%d leave=%d ended=%d refused=%d\n",
       steps, (unsigned long long)state.poses_sent, (unsigned long long)state.answers_taken,
-      hold_force / samples, hold_spring / samples, hold_answer / samples, contact_max_n, free_max_n,
-      max_damping, touch, leave, ended, refused);
+      hold_force / samples, hold_spring / samples, hold_answer / samples, contact_max_n, free_steps,
+      free_max_n, max_damping, touch, leave, ended, refused);
   return refused > 0 ? 3 : 0;
 }

@@ -308,7 +308,8 @@ TEST_F(DeviceSession, OpenPosesRenderEventsAndEnd) {
     return top + Eigen::Vector3d(0, 0, reach - depth_m);
   };
   std::int64_t now = palpate_device_now_ns() + 2'000'000;
-  int steps = 0, sent_poses = 0;
+  std::int64_t free_since = -1;  // since when palpated's answers say the tool is free
+  int steps = 0, sent_poses = 0, free_steps = 0;
   double free_max = 0, held_z = 0, held_answer_z = 0, max_z = 0;
   std::uint64_t first = 0, last = 0;
   std::uint64_t allocations_in_loop = 0;
@@ -331,7 +332,20 @@ TEST_F(DeviceSession, OpenPosesRenderEventsAndEnd) {
       last = sent;
     }
     max_z = std::max(max_z, f[2]);
-    if (depth_m <= -0.005) free_max = std::max(free_max, Eigen::Vector3d(f).norm());
+    // Free: 5 mm above the surface, and answered free for 20 ms (a touch's
+    // force, slew limited at 500 N/s, is gone by then): nothing rendered,
+    // however late the answers.
+    palpate_device_state s;
+    s.struct_size = sizeof s;
+    ASSERT_EQ(palpate_device_get_state(tool, &s, error, sizeof error), PALPATE_DEVICE_OK);
+    if (!s.has_answer || s.tool_state != PALPATE_DEVICE_FREE)
+      free_since = -1;
+    else if (free_since < 0)
+      free_since = now;
+    if (depth_m <= -0.005 && free_since >= 0 && now - free_since >= 20'000'000) {
+      ++free_steps;
+      free_max = std::max(free_max, Eigen::Vector3d(f).norm());
+    }
     now += kStepNs;
     ++steps;
   };
@@ -351,7 +365,6 @@ TEST_F(DeviceSession, OpenPosesRenderEventsAndEnd) {
   EXPECT_GE(state.energy_j, 0.0) << "passive";
   for (int i = 1; i <= kRate / 5; ++i) step(0.003 - 0.009 * i / (kRate / 5));  // up in 0.2 s
   for (int i = 0; i < kRate / 10; ++i) step(-0.006);                           // away 0.1 s
-  const double away = Eigen::Vector3d(f).norm();
 
   // Poses at 1 kHz of a 4 kHz loop, on its own clock: one every four steps.
   EXPECT_EQ(sent_poses, (steps + 3) / 4);
@@ -360,8 +373,8 @@ TEST_F(DeviceSession, OpenPosesRenderEventsAndEnd) {
   // up, and the local model at the held pose renders palpated's own answer
   // (the pose has not moved since it was answered; 1 mN + 1 % for the
   // answer of a pose a step older).
-  EXPECT_EQ(free_max, 0.0);
-  EXPECT_EQ(away, 0.0) << "the tool left: nothing rendered";
+  EXPECT_GT(free_steps, 0);
+  EXPECT_EQ(free_max, 0.0) << "free, before the touch and after the leave";
   EXPECT_GT(held_z, 0.05) << "3 mm into an 85 kPa box";
   EXPECT_LT(max_z, 8.0 + 1e-9) << "the default tool's force limit";
   EXPECT_NEAR(held_z, held_answer_z, 1e-3 + 0.01 * std::abs(held_answer_z));
@@ -484,7 +497,9 @@ TEST_F(DeviceSession, TheSimulatedDeviceFeelsThePress) {
   EXPECT_EQ(r.at("steps"), 9600) << out;
   EXPECT_EQ(r.at("poses"), 2400) << out;
   EXPECT_GT(r.at("answers"), 0) << out;
-  // Free, the tip 5 mm or more outside the surface: nothing at all.
+  // Free, the tip 5 mm or more outside the surface and answered so for
+  // 20 ms: nothing at all.
+  EXPECT_GT(r.at("free_steps"), 0) << out;
   EXPECT_EQ(r.at("free_max_n"), 0.0) << out;
   // Held 6 mm deep by the hand's 300 N/m spring: the organ pushes the
   // handle back out, by some tenths of a newton, within the tool's limit.
