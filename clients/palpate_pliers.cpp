@@ -368,6 +368,8 @@ int run(int argc, char** argv) {
     options.pose_rate_hz = o.rate_hz;
     options.busy_wait = o.busy_wait ? 1 : 0;
     options.first_sequence = first_sequence - 1;  // the first pose is first_sequence
+    // What was rendered goes into palpated's session recording.
+    options.report_rendering = 1;
     // The first tool waits for palpated up to --timeout, the next ones for what is left.
     options.timeout_s = std::max(
         0.1, &run == &runs.front() ? o.timeout_s

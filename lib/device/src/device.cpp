@@ -356,6 +356,7 @@ int palpate_device_open(const palpate_device_options* options, palpate_device** 
     client_options.render.passivity = o.passivity != 0;
     client_options.render.max_damping_n_s_per_m = o.max_damping_n_s_per_m;
     client_options.render.max_angular_damping_nm_s_per_rad = o.max_angular_damping_nm_s_per_rad;
+    client_options.report_rendering = o.report_rendering != 0;
     auto d = std::make_unique<palpate_device>(client_options);
     d->model_id = o.model_id;
     d->tool_id = o.tool_id;

@@ -157,6 +157,10 @@ typedef struct palpate_device_options {
   double hold_s;                           /* an answer is rendered as it is this long; 0.05 */
   double ramp_s;                           /* then ramped to zero over this long; 0.25 */
   palpate_device_frame frame;              /* identity */
+  /* 1: send palpated, with each pose, what was rendered since the previous
+   * one, for its session recording (docs/session-recording.md, "What the
+   * device rendered"); 0 */
+  int report_rendering;
 } palpate_device_options;
 
 /* What the handle knows now: palpated, the newest answer, the last render. */
