@@ -3,10 +3,12 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <optional>
+#include <span>
 
 #include "active_set.hpp"
 #include "contact_geometry.hpp"
@@ -109,10 +111,13 @@ struct ToolContactEngine::Impl {
   std::vector<Vector3d> candidate_position;
   std::vector<TipCandidate> found;
   detail::JawGrasp grasp;
-  std::vector<int> near_triangles;      // around the candidates, distinct
-  std::vector<int> grasp_triangles;     // near the closing jaws
-  std::vector<Vector3d> grasp_corners;  // 3 per grasp triangle, deformed
-  std::vector<HeldPoint> touched;       // the tip's points at the last tick
+  std::vector<int> near_triangles;         // around the candidates, distinct
+  std::vector<int> grasp_triangles;        // near the closing jaws
+  std::vector<Vector3d> grasp_corners;     // 3 per grasp triangle, deformed
+  std::vector<HeldPoint> touched;          // the tip's points at the last tick
+  std::vector<std::uint64_t> wanted_bits;  // per compliance vertex: its position is wanted
+  std::vector<int> wanted;                 // the wanted ones, ascending
+  std::vector<Vector3d> wanted_u;          // their displacements
 
   // The last successful solve: every tool's contact points and their loads.
   int count = 0;
@@ -216,6 +221,9 @@ struct ToolContactEngine::Impl {
     grasp_triangles.resize(static_cast<std::size_t>(triangles));
     near_triangles.resize(static_cast<std::size_t>(triangles));
     grasp_corners.resize(3 * static_cast<std::size_t>(triangles));
+    wanted_bits.assign((static_cast<std::size_t>(n) + 63) / 64, 0);
+    wanted.resize(static_cast<std::size_t>(n));
+    wanted_u.resize(static_cast<std::size_t>(n));
     const auto k = static_cast<std::size_t>(limits.max_constraints);
     touched.reserve(k);
     points.resize(k);
@@ -290,6 +298,49 @@ struct ToolContactEngine::Impl {
           rest[vv] + integrated_rotation(rotation_vector(v)) *
                          rotations->material(v, [this](int j) { return load_displacement(j); });
     return position[vv];
+  }
+
+  /// The deformed positions of the corners of @p triangles not computed in
+  /// this epoch, as deformed() computes them (the same sums in the same
+  /// order, so the same numbers), but load by load: G^{v l} for one load l
+  /// and every vertex v lies in G's three columns of l, read downwards with
+  /// the vertices in ascending order, where deformed() alone reads three
+  /// columns per vertex and load. A wide tip meets hundreds of vertices
+  /// under tens of loads (BENCHMARKS.md, "The wide tick"). Linear model
+  /// only: the warped one goes through its rotation memo, vertex by vertex.
+  void deform_corners(std::span<const int> triangles) {
+    if (warping != nullptr) return;
+    int wanted_count = 0;
+    for (const int tri : triangles)
+      for (int i = 0; i < 3; ++i) {
+        const int v =
+            triangle_vertices[3 * static_cast<std::size_t>(tri) + static_cast<std::size_t>(i)];
+        if (v >= compliance_count || position_seen[static_cast<std::size_t>(v)] == epoch) continue;
+        std::uint64_t& word = wanted_bits[static_cast<std::size_t>(v) / 64];
+        const std::uint64_t bit = std::uint64_t{1} << (v % 64);
+        if ((word & bit) == 0) ++wanted_count;
+        word |= bit;
+      }
+    if (wanted_count == 0) return;
+    int k = 0;
+    for (std::size_t w = 0; w < wanted_bits.size(); ++w) {
+      for (std::uint64_t word = wanted_bits[w]; word != 0; word &= word - 1)
+        wanted[static_cast<std::size_t>(k++)] = static_cast<int>(64 * w) + std::countr_zero(word);
+      wanted_bits[w] = 0;
+    }
+    const auto wanted_n = static_cast<std::size_t>(k);
+    for (std::size_t j = 0; j < wanted_n; ++j) wanted_u[j].setZero();
+    for (int l = 0; l < load_count; ++l) {
+      const int a = load_index[static_cast<std::size_t>(l)];
+      const Eigen::Map<const Vector3d> f(&load_force[3 * static_cast<std::size_t>(l)]);
+      for (std::size_t j = 0; j < wanted_n; ++j)
+        wanted_u[j].noalias() += model.G_block(wanted[j], a) * f;
+    }
+    for (std::size_t j = 0; j < wanted_n; ++j) {
+      const auto v = static_cast<std::size_t>(wanted[j]);
+      position[v] = rest[v] + wanted_u[j];
+      position_seen[v] = epoch;
+    }
   }
 
   /// Longest reach of a tool from its hinge along z, and its radius of interest.
@@ -381,11 +432,13 @@ struct ToolContactEngine::Impl {
           elsewhere |= owner_held_elsewhere(corner[i], t);
       }
       if (fixed == 3 || elsewhere) continue;
-      grasp_triangles[near] = tri;
-      for (int i = 0; i < 3; ++i)
-        grasp_corners[3 * near + static_cast<std::size_t>(i)] = deformed(corner[i]);
-      ++near;
+      grasp_triangles[near++] = tri;
     }
+    deform_corners({grasp_triangles.data(), near});
+    for (std::size_t k = 0; k < near; ++k)
+      for (std::size_t i = 0; i < 3; ++i)
+        grasp_corners[3 * k + i] =
+            deformed(triangle_vertices[3 * static_cast<std::size_t>(grasp_triangles[k]) + i]);
     // What the tip pressed at the last tick.
     touched.clear();
     for (int c = 0; c < count; ++c) {
@@ -434,11 +487,14 @@ struct ToolContactEngine::Impl {
     const bool jaws_open = g.jaw_length_m > 0 && tool.pose.jaw_angle_rad > g.grasp_angle_rad;
     const int n = gather_candidates(tool);
     int total = 0;
-    const int m = gather_triangles(n);
-    for (int k = 0; k < m; ++k) {
+    // The triangles to test, in the order met: none with a vertex of a
+    // held point, none wholly fixed.
+    int m = 0;
+    const int met = gather_triangles(n);
+    for (int k = 0; k < met; ++k) {
       const int tri = near_triangles[static_cast<std::size_t>(k)];
       const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
-      bool blocked = false;  // a vertex of a held point, or the whole triangle fixed
+      bool blocked = false;
       int fixed = 0;
       for (int i = 0; i < 3; ++i) {
         if (corner[i] >= compliance_count)
@@ -446,7 +502,12 @@ struct ToolContactEngine::Impl {
         else if (owner[static_cast<std::size_t>(corner[i])] >= 0)
           blocked = true;
       }
-      if (blocked || fixed == 3) continue;
+      if (!blocked && fixed < 3) near_triangles[static_cast<std::size_t>(m++)] = tri;
+    }
+    deform_corners({near_triangles.data(), static_cast<std::size_t>(m)});
+    for (int k = 0; k < m; ++k) {
+      const int tri = near_triangles[static_cast<std::size_t>(k)];
+      const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
       const Vector3d& a = deformed(corner[0]);
       const Vector3d& b = deformed(corner[1]);
       const Vector3d& cc = deformed(corner[2]);
