@@ -110,6 +110,11 @@ struct ToolContactEngine::Impl {
   std::vector<int> candidates;  // compliance vertices near a tool
   std::vector<Vector3d> candidate_position;
   std::vector<TipCandidate> found;
+  struct Ranked {
+    double depth;
+    int index;  // into found
+  };
+  std::vector<Ranked> ranked;  // found's depths, to sort
   detail::JawGrasp grasp;
   std::vector<int> near_triangles;         // around the candidates, distinct
   std::vector<int> grasp_triangles;        // near the closing jaws
@@ -218,6 +223,7 @@ struct ToolContactEngine::Impl {
     candidates.resize(static_cast<std::size_t>(drawn));
     candidate_position.resize(static_cast<std::size_t>(drawn));
     found.resize(static_cast<std::size_t>(triangles));
+    ranked.resize(static_cast<std::size_t>(triangles));
     grasp_triangles.resize(static_cast<std::size_t>(triangles));
     near_triangles.resize(static_cast<std::size_t>(triangles));
     grasp_corners.resize(3 * static_cast<std::size_t>(triangles));
@@ -332,9 +338,21 @@ struct ToolContactEngine::Impl {
     for (std::size_t j = 0; j < wanted_n; ++j) wanted_u[j].setZero();
     for (int l = 0; l < load_count; ++l) {
       const int a = load_index[static_cast<std::size_t>(l)];
-      const Eigen::Map<const Vector3d> f(&load_force[3 * static_cast<std::size_t>(l)]);
+      const Vector3d f = Eigen::Map<const Vector3d>(&load_force[3 * static_cast<std::size_t>(l)]);
+      if (model.float32()) {
+        for (std::size_t j = 0; j < wanted_n; ++j)
+          wanted_u[j].noalias() += model.G_block(wanted[j], a) * f;
+        continue;
+      }
+      // G's three columns of load a, from its row 0.
+      const Eigen::Index ld = model.G.rows();
+      const double* columns = model.G.data() + 3 * a * ld;
+      Vector3d* u = wanted_u.data();
+      const int* v = wanted.data();
       for (std::size_t j = 0; j < wanted_n; ++j)
-        wanted_u[j].noalias() += model.G_block(wanted[j], a) * f;
+        u[j].noalias() += Eigen::Map<const Matrix3d, 0, Eigen::OuterStride<>>(
+                              columns + 3 * v[j], 3, 3, Eigen::OuterStride<>(ld)) *
+                          f;
     }
     for (std::size_t j = 0; j < wanted_n; ++j) {
       const auto v = static_cast<std::size_t>(wanted[j]);
@@ -511,6 +529,18 @@ struct ToolContactEngine::Impl {
       const Vector3d& a = deformed(corner[0]);
       const Vector3d& b = deformed(corner[1]);
       const Vector3d& cc = deformed(corner[2]);
+      // Most of a wide tip's triangles are far from it: a triangle within
+      // the ball about its centre through its farthest corner, a ball
+      // r + near away from the axis, has no point nearer, and goes without
+      // its closest points. The margin, 1e-6 r, is far above the round-off
+      // of either distance: this skips only what the test below would.
+      const Vector3d centre = (a + b + cc) / 3;
+      const double ball = std::sqrt(std::max(
+          {(a - centre).squaredNorm(), (b - centre).squaredNorm(), (cc - centre).squaredNorm()}));
+      if ((centre - closest_on_segment(tool.pose.position_m, axis, tip_length(g), centre)).norm() -
+              ball >=
+          r + near + 1e-6 * r)
+        continue;
       const detail::SegmentTrianglePair pair =
           detail::closest_segment_triangle(tool.pose.position_m, axis, tip_length(g), a, b, cc);
       const bool was = previous_triangle_owner[static_cast<std::size_t>(tri)] == t;
@@ -550,6 +580,7 @@ struct ToolContactEngine::Impl {
         movable |= corner[i] < compliance_count;
       }
       if (!movable) continue;  // a point of the attachment's edge
+      ranked[static_cast<std::size_t>(total)] = {candidate.depth, total};
       found[static_cast<std::size_t>(total++)] = candidate;
     }
     // Deepest first; a point on an edge or a vertex is found from every
@@ -558,13 +589,16 @@ struct ToolContactEngine::Impl {
     // stays within ~(0.05 r)²/2r = 0.1 % of r of the tip). A sticking point
     // fixes three components, so with friction points keep 0.3 r apart
     // (within ~4.5 % of r): closer ones make a nearly singular system.
-    std::sort(found.begin(), found.begin() + total,
-              [](const TipCandidate& x, const TipCandidate& y) { return x.depth > y.depth; });
+    // (Their depths are sorted, not the points: the same comparisons, so
+    // the same order, equal depths included, without moving the points.)
+    std::sort(ranked.begin(), ranked.begin() + total,
+              [](const Ranked& x, const Ranked& y) { return x.depth > y.depth; });
     const int room = std::max(0, per_tool_cap - static_cast<int>(tool.held.size()));
     const double spacing2 = (g.friction > 0 ? 0.09 : 0.0025) * r * r;
     int kept = 0;
     for (int c = 0; c < total && kept < room; ++c) {
-      const TipCandidate& x = found[static_cast<std::size_t>(c)];
+      const TipCandidate& x =
+          found[static_cast<std::size_t>(ranked[static_cast<std::size_t>(c)].index)];
       const Vector3d point = x.target - x.depth * x.normal;  // on the deformed triangle
       bool near = false;
       for (int k = 0; k < kept && !near; ++k) {
