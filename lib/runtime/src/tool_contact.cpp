@@ -16,6 +16,7 @@
 #include "local_model.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/rotation_field.hpp"
+#include "vertex_grid.hpp"
 #include "warped_rotations.hpp"
 
 namespace palpate {
@@ -105,10 +106,11 @@ struct ToolContactEngine::Impl {
   // Warped: û and ω of the compliance vertices met this tick.
   std::optional<detail::WarpedRotations> rotations;
   Vector3d box_min, box_max;
+  detail::VertexGrid grid;  // the drawn vertices at rest, by cell
 
   // Scratch, sized once.
-  std::vector<int> candidates;  // compliance vertices near a tool
-  std::vector<Vector3d> candidate_position;
+  std::vector<int> candidates;           // drawn vertices near a tool, ascending
+  std::vector<std::uint64_t> near_bits;  // per drawn vertex: near the tool (gather_candidates)
   std::vector<TipCandidate> found;
   struct Ranked {
     double depth;
@@ -221,7 +223,18 @@ struct ToolContactEngine::Impl {
     previous_triangle_owner.assign(static_cast<std::size_t>(triangles), -1);
     owner.assign(static_cast<std::size_t>(n), -1);
     candidates.resize(static_cast<std::size_t>(drawn));
-    candidate_position.resize(static_cast<std::size_t>(drawn));
+    near_bits.assign((static_cast<std::size_t>(drawn) + 63) / 64, 0);
+    double edges_m = 0;
+    for (int tri = 0; tri < triangles; ++tri)
+      for (int c = 0; c < 3; ++c)
+        edges_m +=
+            (rest[static_cast<std::size_t>(triangle_vertices[3 * static_cast<std::size_t>(tri) +
+                                                             static_cast<std::size_t>(c)])] -
+             rest[static_cast<std::size_t>(
+                 triangle_vertices[3 * static_cast<std::size_t>(tri) +
+                                   static_cast<std::size_t>((c + 1) % 3)])])
+                .norm();
+    grid = detail::VertexGrid(rest, triangles > 0 ? 1.5 * edges_m / (3.0 * triangles) : 0.0);
     found.resize(static_cast<std::size_t>(triangles));
     ranked.resize(static_cast<std::size_t>(triangles));
     grasp_triangles.resize(static_cast<std::size_t>(triangles));
@@ -378,12 +391,39 @@ struct ToolContactEngine::Impl {
     const double radius = std::max(g.tip_radius_m, wedge + g.tip_radius_m) +
                           settings.search_margin_m + max_displacement;
     const double radius2 = radius * radius;
+    const auto near = [&](const Vector3d& x) {
+      return (x - closest_on_segment(tool.pose.position_m, axis, length, x)).squaredNorm() <=
+             radius2;
+    };
     int n = 0;
     const int vertices = static_cast<int>(rest.size());
-    for (int j = 0; j < vertices; ++j) {
-      const Vector3d& x = rest[static_cast<std::size_t>(j)];
-      if ((x - closest_on_segment(tool.pose.position_m, axis, length, x)).squaredNorm() <= radius2)
-        candidates[static_cast<std::size_t>(n++)] = j;
+    // The grid's cells that the box around the segment (plus the radius and
+    // a margin far above the round-off of the test) overlaps: a vertex
+    // outside them is farther than the radius in one coordinate. Their
+    // vertices are tested, marked, and taken in the order of the scan of
+    // every vertex; a box over half the grid is the scan.
+    const Vector3d end = tool.pose.position_m + length * axis;
+    const Vector3d reach = Vector3d::Constant(radius * (1 + 1e-6));
+    const std::array<int, 3> lo = grid.cell_of(tool.pose.position_m.cwiseMin(end) - reach);
+    const std::array<int, 3> hi = grid.cell_of(tool.pose.position_m.cwiseMax(end) + reach);
+    const std::int64_t cells =
+        std::int64_t{hi[0] - lo[0] + 1} * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1);
+    if (!(2 * cells < grid.cell_count())) {
+      for (int j = 0; j < vertices; ++j)
+        if (near(rest[static_cast<std::size_t>(j)])) candidates[static_cast<std::size_t>(n++)] = j;
+      return n;
+    }
+    for (int z = lo[2]; z <= hi[2]; ++z)
+      for (int y = lo[1]; y <= hi[1]; ++y)
+        for (int x = lo[0]; x <= hi[0]; ++x)
+          for (const int j : grid.vertices_in({x, y, z}))
+            if (near(rest[static_cast<std::size_t>(j)]))
+              near_bits[static_cast<std::size_t>(j) / 64] |= std::uint64_t{1} << (j % 64);
+    for (std::size_t w = 0; w < near_bits.size(); ++w) {
+      for (std::uint64_t word = near_bits[w]; word != 0; word &= word - 1)
+        candidates[static_cast<std::size_t>(n++)] =
+            static_cast<int>(64 * w) + std::countr_zero(word);
+      near_bits[w] = 0;
     }
     return n;
   }
