@@ -98,6 +98,10 @@ struct ToolContactEngine::Impl {
   std::vector<int> vertex_triangles_begin, vertex_triangles;  // triangles around each vertex
   std::vector<int> owner;  // per compliance vertex: tool holding it this tick, or -1
   std::vector<int> previous_triangle_owner;  // per triangle: tool whose tip touched it last tick
+  std::vector<Vector3d> triangle_centre;     // per triangle: centre of its corners at rest, m
+  std::vector<double> triangle_radius;       // per triangle: farthest corner from it, m
+  std::vector<double> triangle_softness;  // per triangle: max √‖G^{vv}‖_F over its corners, √(m/N)
+  double max_softness = 0;                // over the triangles
   std::vector<std::uint32_t> triangle_seen;  // per triangle: the last find_tips that met it
   std::uint32_t triangle_epoch = 0;
   std::vector<std::uint32_t> position_seen;  // per drawn vertex: the epoch of `position`
@@ -136,6 +140,9 @@ struct ToolContactEngine::Impl {
   std::vector<double> load_force;  // 3 per load, N
   std::vector<int> load_slot;      // per compliance vertex: its load this tool, or -1
   double max_displacement = 0;     // over the points, m
+  // fᵀ G f of the loads, J (f_Cᵀ u_C over the points, material): with
+  // ‖G^{vv}‖, it bounds every vertex's displacement (far_from_tip).
+  double load_energy = 0;
   char message[256] = {};
   mutable char problem[256] = {};  // why check() refused the last pose it refused
 
@@ -221,6 +228,28 @@ struct ToolContactEngine::Impl {
             tri;
     triangle_seen.assign(static_cast<std::size_t>(triangles), 0);
     previous_triangle_owner.assign(static_cast<std::size_t>(triangles), -1);
+    // Each triangle's ball at rest and the largest √‖G^{vv}‖ of its
+    // compliance vertices (far_from_tip).
+    triangle_centre.resize(static_cast<std::size_t>(triangles));
+    triangle_radius.resize(static_cast<std::size_t>(triangles));
+    triangle_softness.assign(static_cast<std::size_t>(triangles), 0.0);
+    for (int tri = 0; tri < triangles; ++tri) {
+      const auto tt = static_cast<std::size_t>(tri);
+      const int* corner = &triangle_vertices[3 * tt];
+      Vector3d centre = Vector3d::Zero();
+      for (int i = 0; i < 3; ++i) centre += rest[static_cast<std::size_t>(corner[i])] / 3;
+      double radius2 = 0;
+      for (int i = 0; i < 3; ++i) {
+        radius2 =
+            std::max(radius2, (rest[static_cast<std::size_t>(corner[i])] - centre).squaredNorm());
+        if (corner[i] < n)
+          triangle_softness[tt] =
+              std::max(triangle_softness[tt], std::sqrt(m.G_block(corner[i], corner[i]).norm()));
+      }
+      triangle_centre[tt] = centre;
+      triangle_radius[tt] = std::sqrt(radius2);
+      max_softness = std::max(max_softness, triangle_softness[tt]);
+    }
     owner.assign(static_cast<std::size_t>(n), -1);
     candidates.resize(static_cast<std::size_t>(drawn));
     near_bits.assign((static_cast<std::size_t>(drawn) + 63) / 64, 0);
@@ -374,6 +403,28 @@ struct ToolContactEngine::Impl {
     }
   }
 
+  /// True when no point of triangle @p tri, deformed under the loads, can
+  /// come within @p reach of @p tool's axis, known from the triangle at rest
+  /// without its deformed corners. A vertex's displacement is bounded by
+  /// the loads' energy: for a unit e, eᵀ u_v = eᵀ G_{v·} f ≤
+  /// √(eᵀ G^{vv} e) √(fᵀ G f) (Cauchy–Schwarz in the inner product of G,
+  /// symmetric positive definite), so |u_v| ≤ √(‖G^{vv}‖ fᵀ G f), and a
+  /// point of the triangle moves no farther than its corners' largest
+  /// bound. The margins (1e-6 relative, and 1e-6 of the reach) are far
+  /// above round-off and G's asymmetry (1e-15): nothing the closest points
+  /// would find near is dropped. Linear model only (the warped one meets
+  /// its vertices' rotations in the order deformed() asks for them).
+  bool far_from_tip(const Tool& tool, int tri, double reach) const {
+    if (warping != nullptr) return false;
+    const auto tt = static_cast<std::size_t>(tri);
+    const Vector3d& c = triangle_centre[tt];
+    const double moved = (1 + 1e-6) * triangle_softness[tt] * std::sqrt(std::max(load_energy, 0.0));
+    const double distance = (c - closest_on_segment(tool.pose.position_m, tool.rotation.col(2),
+                                                    tip_length(tool.geometry), c))
+                                .norm();
+    return distance - triangle_radius[tt] - moved >= (1 + 1e-6) * reach;
+  }
+
   /// Longest reach of a tool from its hinge along z, and its radius of interest.
   static double reach_length(const ToolGeometry& g) {
     return std::max(g.tip == TipShape::kCapsule ? g.tip_length_m : 0.0, g.jaw_length_m);
@@ -382,14 +433,19 @@ struct ToolContactEngine::Impl {
     return g.tip == TipShape::kCapsule ? g.tip_length_m : 0.0;
   }
 
+  /// How far from a tool's segment its candidate vertices lie at rest, m.
+  double search_radius(const ToolGeometry& g) const {
+    const double wedge = g.jaw_length_m * std::tan(0.5 * g.max_jaw_angle_rad);
+    return std::max(g.tip_radius_m, wedge + g.tip_radius_m) + settings.search_margin_m +
+           max_displacement;
+  }
+
   /// Drawn vertices whose rest position is near tool @p t; returns their count.
   int gather_candidates(const Tool& tool) {
     const ToolGeometry& g = tool.geometry;
     const Vector3d axis = tool.rotation.col(2);
     const double length = reach_length(g);
-    const double wedge = g.jaw_length_m * std::tan(0.5 * g.max_jaw_angle_rad);
-    const double radius = std::max(g.tip_radius_m, wedge + g.tip_radius_m) +
-                          settings.search_margin_m + max_displacement;
+    const double radius = search_radius(g);
     const double radius2 = radius * radius;
     const auto near = [&](const Vector3d& x) {
       return (x - closest_on_segment(tool.pose.position_m, axis, length, x)).squaredNorm() <=
@@ -549,6 +605,13 @@ struct ToolContactEngine::Impl {
     // held point, none wholly fixed.
     int m = 0;
     const int met = gather_triangles(n);
+    // far_from_tip pays only where it can skip triangles: each candidate
+    // triangle has a corner within the search radius of the axis, so none is
+    // skipped unless the loads move the softest triangle's points less than
+    // that radius minus r + near (a deep wide press moves them more).
+    const bool screen =
+        warping == nullptr &&
+        max_softness * std::sqrt(std::max(load_energy, 0.0)) + r + near < search_radius(g);
     for (int k = 0; k < met; ++k) {
       const int tri = near_triangles[static_cast<std::size_t>(k)];
       const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
@@ -560,7 +623,8 @@ struct ToolContactEngine::Impl {
         else if (owner[static_cast<std::size_t>(corner[i])] >= 0)
           blocked = true;
       }
-      if (!blocked && fixed < 3) near_triangles[static_cast<std::size_t>(m++)] = tri;
+      if (!blocked && fixed < 3 && !(screen && far_from_tip(tool, tri, r + near)))
+        near_triangles[static_cast<std::size_t>(m++)] = tri;
     }
     deform_corners({near_triangles.data(), static_cast<std::size_t>(m)});
     for (int k = 0; k < m; ++k) {
@@ -790,6 +854,7 @@ struct ToolContactEngine::Impl {
     }
     count = 0;
     max_displacement = 0;
+    load_energy = 0;
     for (auto& tool : tools) {
       tool.raw_force.setZero();
       tool.raw_torque.setZero();
@@ -829,6 +894,7 @@ struct ToolContactEngine::Impl {
       point.normal =
           row.kind == ConstraintKind::kNormalDisplacement ? row_world_normal[bb] : Vector3d::Zero();
       max_displacement = std::max(max_displacement, displacement.norm());
+      load_energy += material_force[c].dot(active_set.displacement(b));
       local_rows[bb].position = point.position_m;
       local_rows[bb].force = point.force_n;
       local_rows[bb].material_force = material_force[c];
