@@ -414,15 +414,15 @@ struct ToolContactEngine::Impl {
   /// above round-off and G's asymmetry (1e-15): nothing the closest points
   /// would find near is dropped. Linear model only (the warped one meets
   /// its vertices' rotations in the order deformed() asks for them).
-  bool far_from_tip(const Tool& tool, int tri, double reach) const {
+  /// (@p spread: (1 + 1e-6) √(fᵀ G f), the same for every triangle of a tick.)
+  bool far_from_tip(const Tool& tool, int tri, double reach, double spread) const {
     if (warping != nullptr) return false;
     const auto tt = static_cast<std::size_t>(tri);
     const Vector3d& c = triangle_centre[tt];
-    const double moved = (1 + 1e-6) * triangle_softness[tt] * std::sqrt(std::max(load_energy, 0.0));
-    const double distance = (c - closest_on_segment(tool.pose.position_m, tool.rotation.col(2),
-                                                    tip_length(tool.geometry), c))
-                                .norm();
-    return distance - triangle_radius[tt] - moved >= (1 + 1e-6) * reach;
+    const double beyond = (1 + 1e-6) * reach + triangle_radius[tt] + triangle_softness[tt] * spread;
+    return (c - closest_on_segment(tool.pose.position_m, tool.rotation.col(2),
+                                   tip_length(tool.geometry), c))
+               .squaredNorm() >= beyond * beyond;
   }
 
   /// Longest reach of a tool from its hinge along z, and its radius of interest.
@@ -609,9 +609,8 @@ struct ToolContactEngine::Impl {
     // triangle has a corner within the search radius of the axis, so none is
     // skipped unless the loads move the softest triangle's points less than
     // that radius minus r + near (a deep wide press moves them more).
-    const bool screen =
-        warping == nullptr &&
-        max_softness * std::sqrt(std::max(load_energy, 0.0)) + r + near < search_radius(g);
+    const double spread = (1 + 1e-6) * std::sqrt(std::max(load_energy, 0.0));
+    const bool screen = warping == nullptr && max_softness * spread + r + near < search_radius(g);
     for (int k = 0; k < met; ++k) {
       const int tri = near_triangles[static_cast<std::size_t>(k)];
       const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
@@ -623,7 +622,7 @@ struct ToolContactEngine::Impl {
         else if (owner[static_cast<std::size_t>(corner[i])] >= 0)
           blocked = true;
       }
-      if (!blocked && fixed < 3 && !(screen && far_from_tip(tool, tri, r + near)))
+      if (!blocked && fixed < 3 && !(screen && far_from_tip(tool, tri, r + near, spread)))
         near_triangles[static_cast<std::size_t>(m++)] = tri;
     }
     deform_corners({near_triangles.data(), static_cast<std::size_t>(m)});
@@ -638,12 +637,13 @@ struct ToolContactEngine::Impl {
       // r + near away from the axis, has no point nearer, and goes without
       // its closest points. The margin, 1e-6 r, is far above the round-off
       // of either distance: this skips only what the test below would.
-      const Vector3d centre = (a + b + cc) / 3;
+      // (Any centre will do; the distances compare squared.)
+      const Vector3d centre = (a + b + cc) * (1.0 / 3);
       const double ball = std::sqrt(std::max(
           {(a - centre).squaredNorm(), (b - centre).squaredNorm(), (cc - centre).squaredNorm()}));
-      if ((centre - closest_on_segment(tool.pose.position_m, axis, tip_length(g), centre)).norm() -
-              ball >=
-          r + near + 1e-6 * r)
+      const double beyond = r + near + 1e-6 * r + ball;
+      if ((centre - closest_on_segment(tool.pose.position_m, axis, tip_length(g), centre))
+              .squaredNorm() >= beyond * beyond)
         continue;
       const detail::SegmentTrianglePair pair =
           detail::closest_segment_triangle(tool.pose.position_m, axis, tip_length(g), a, b, cc);
