@@ -3,10 +3,12 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <optional>
+#include <span>
 
 #include "active_set.hpp"
 #include "contact_geometry.hpp"
@@ -14,6 +16,7 @@
 #include "local_model.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/rotation_field.hpp"
+#include "vertex_grid.hpp"
 #include "warped_rotations.hpp"
 
 namespace palpate {
@@ -95,6 +98,10 @@ struct ToolContactEngine::Impl {
   std::vector<int> vertex_triangles_begin, vertex_triangles;  // triangles around each vertex
   std::vector<int> owner;  // per compliance vertex: tool holding it this tick, or -1
   std::vector<int> previous_triangle_owner;  // per triangle: tool whose tip touched it last tick
+  std::vector<Vector3d> triangle_centre;     // per triangle: centre of its corners at rest, m
+  std::vector<double> triangle_radius;       // per triangle: farthest corner from it, m
+  std::vector<double> triangle_softness;  // per triangle: max √‖G^{vv}‖_F over its corners, √(m/N)
+  double max_softness = 0;                // over the triangles
   std::vector<std::uint32_t> triangle_seen;  // per triangle: the last find_tips that met it
   std::uint32_t triangle_epoch = 0;
   std::vector<std::uint32_t> position_seen;  // per drawn vertex: the epoch of `position`
@@ -103,16 +110,25 @@ struct ToolContactEngine::Impl {
   // Warped: û and ω of the compliance vertices met this tick.
   std::optional<detail::WarpedRotations> rotations;
   Vector3d box_min, box_max;
+  detail::VertexGrid grid;  // the drawn vertices at rest, by cell
 
   // Scratch, sized once.
-  std::vector<int> candidates;  // compliance vertices near a tool
-  std::vector<Vector3d> candidate_position;
+  std::vector<int> candidates;           // drawn vertices near a tool, ascending
+  std::vector<std::uint64_t> near_bits;  // per drawn vertex: near the tool (gather_candidates)
   std::vector<TipCandidate> found;
+  struct Ranked {
+    double depth;
+    int index;  // into found
+  };
+  std::vector<Ranked> ranked;  // found's depths, to sort
   detail::JawGrasp grasp;
-  std::vector<int> near_triangles;      // around the candidates, distinct
-  std::vector<int> grasp_triangles;     // near the closing jaws
-  std::vector<Vector3d> grasp_corners;  // 3 per grasp triangle, deformed
-  std::vector<HeldPoint> touched;       // the tip's points at the last tick
+  std::vector<int> near_triangles;         // around the candidates, distinct
+  std::vector<int> grasp_triangles;        // near the closing jaws
+  std::vector<Vector3d> grasp_corners;     // 3 per grasp triangle, deformed
+  std::vector<HeldPoint> touched;          // the tip's points at the last tick
+  std::vector<std::uint64_t> wanted_bits;  // per compliance vertex: its position is wanted
+  std::vector<int> wanted;                 // the wanted ones, ascending
+  std::vector<Vector3d> wanted_u;          // their displacements
 
   // The last successful solve: every tool's contact points and their loads.
   int count = 0;
@@ -124,6 +140,9 @@ struct ToolContactEngine::Impl {
   std::vector<double> load_force;  // 3 per load, N
   std::vector<int> load_slot;      // per compliance vertex: its load this tool, or -1
   double max_displacement = 0;     // over the points, m
+  // fᵀ G f of the loads, J (f_Cᵀ u_C over the points, material): with
+  // ‖G^{vv}‖, it bounds every vertex's displacement (far_from_tip).
+  double load_energy = 0;
   char message[256] = {};
   mutable char problem[256] = {};  // why check() refused the last pose it refused
 
@@ -209,13 +228,50 @@ struct ToolContactEngine::Impl {
             tri;
     triangle_seen.assign(static_cast<std::size_t>(triangles), 0);
     previous_triangle_owner.assign(static_cast<std::size_t>(triangles), -1);
+    // Each triangle's ball at rest and the largest √‖G^{vv}‖ of its
+    // compliance vertices (far_from_tip).
+    triangle_centre.resize(static_cast<std::size_t>(triangles));
+    triangle_radius.resize(static_cast<std::size_t>(triangles));
+    triangle_softness.assign(static_cast<std::size_t>(triangles), 0.0);
+    for (int tri = 0; tri < triangles; ++tri) {
+      const auto tt = static_cast<std::size_t>(tri);
+      const int* corner = &triangle_vertices[3 * tt];
+      Vector3d centre = Vector3d::Zero();
+      for (int i = 0; i < 3; ++i) centre += rest[static_cast<std::size_t>(corner[i])] / 3;
+      double radius2 = 0;
+      for (int i = 0; i < 3; ++i) {
+        radius2 =
+            std::max(radius2, (rest[static_cast<std::size_t>(corner[i])] - centre).squaredNorm());
+        if (corner[i] < n)
+          triangle_softness[tt] =
+              std::max(triangle_softness[tt], std::sqrt(m.G_block(corner[i], corner[i]).norm()));
+      }
+      triangle_centre[tt] = centre;
+      triangle_radius[tt] = std::sqrt(radius2);
+      max_softness = std::max(max_softness, triangle_softness[tt]);
+    }
     owner.assign(static_cast<std::size_t>(n), -1);
     candidates.resize(static_cast<std::size_t>(drawn));
-    candidate_position.resize(static_cast<std::size_t>(drawn));
+    near_bits.assign((static_cast<std::size_t>(drawn) + 63) / 64, 0);
+    double edges_m = 0;
+    for (int tri = 0; tri < triangles; ++tri)
+      for (int c = 0; c < 3; ++c)
+        edges_m +=
+            (rest[static_cast<std::size_t>(triangle_vertices[3 * static_cast<std::size_t>(tri) +
+                                                             static_cast<std::size_t>(c)])] -
+             rest[static_cast<std::size_t>(
+                 triangle_vertices[3 * static_cast<std::size_t>(tri) +
+                                   static_cast<std::size_t>((c + 1) % 3)])])
+                .norm();
+    grid = detail::VertexGrid(rest, triangles > 0 ? 1.5 * edges_m / (3.0 * triangles) : 0.0);
     found.resize(static_cast<std::size_t>(triangles));
+    ranked.resize(static_cast<std::size_t>(triangles));
     grasp_triangles.resize(static_cast<std::size_t>(triangles));
     near_triangles.resize(static_cast<std::size_t>(triangles));
     grasp_corners.resize(3 * static_cast<std::size_t>(triangles));
+    wanted_bits.assign((static_cast<std::size_t>(n) + 63) / 64, 0);
+    wanted.resize(static_cast<std::size_t>(n));
+    wanted_u.resize(static_cast<std::size_t>(n));
     const auto k = static_cast<std::size_t>(limits.max_constraints);
     touched.reserve(k);
     points.resize(k);
@@ -292,6 +348,83 @@ struct ToolContactEngine::Impl {
     return position[vv];
   }
 
+  /// The deformed positions of the corners of @p triangles not computed in
+  /// this epoch, as deformed() computes them (the same sums in the same
+  /// order, so the same numbers), but load by load: G^{v l} for one load l
+  /// and every vertex v lies in G's three columns of l, read downwards with
+  /// the vertices in ascending order, where deformed() alone reads three
+  /// columns per vertex and load. A wide tip meets hundreds of vertices
+  /// under tens of loads (BENCHMARKS.md, "The wide tick"). Linear model
+  /// only: the warped one goes through its rotation memo, vertex by vertex.
+  void deform_corners(std::span<const int> triangles) {
+    if (warping != nullptr) return;
+    int wanted_count = 0;
+    for (const int tri : triangles)
+      for (int i = 0; i < 3; ++i) {
+        const int v =
+            triangle_vertices[3 * static_cast<std::size_t>(tri) + static_cast<std::size_t>(i)];
+        if (v >= compliance_count || position_seen[static_cast<std::size_t>(v)] == epoch) continue;
+        std::uint64_t& word = wanted_bits[static_cast<std::size_t>(v) / 64];
+        const std::uint64_t bit = std::uint64_t{1} << (v % 64);
+        if ((word & bit) == 0) ++wanted_count;
+        word |= bit;
+      }
+    if (wanted_count == 0) return;
+    int k = 0;
+    for (std::size_t w = 0; w < wanted_bits.size(); ++w) {
+      for (std::uint64_t word = wanted_bits[w]; word != 0; word &= word - 1)
+        wanted[static_cast<std::size_t>(k++)] = static_cast<int>(64 * w) + std::countr_zero(word);
+      wanted_bits[w] = 0;
+    }
+    const auto wanted_n = static_cast<std::size_t>(k);
+    for (std::size_t j = 0; j < wanted_n; ++j) wanted_u[j].setZero();
+    for (int l = 0; l < load_count; ++l) {
+      const int a = load_index[static_cast<std::size_t>(l)];
+      const Vector3d f = Eigen::Map<const Vector3d>(&load_force[3 * static_cast<std::size_t>(l)]);
+      if (model.float32()) {
+        for (std::size_t j = 0; j < wanted_n; ++j)
+          wanted_u[j].noalias() += model.G_block(wanted[j], a) * f;
+        continue;
+      }
+      // G's three columns of load a, from its row 0.
+      const Eigen::Index ld = model.G.rows();
+      const double* columns = model.G.data() + 3 * a * ld;
+      Vector3d* u = wanted_u.data();
+      const int* v = wanted.data();
+      for (std::size_t j = 0; j < wanted_n; ++j)
+        u[j].noalias() += Eigen::Map<const Matrix3d, 0, Eigen::OuterStride<>>(
+                              columns + 3 * v[j], 3, 3, Eigen::OuterStride<>(ld)) *
+                          f;
+    }
+    for (std::size_t j = 0; j < wanted_n; ++j) {
+      const auto v = static_cast<std::size_t>(wanted[j]);
+      position[v] = rest[v] + wanted_u[j];
+      position_seen[v] = epoch;
+    }
+  }
+
+  /// True when no point of triangle @p tri, deformed under the loads, can
+  /// come within @p reach of @p tool's axis, known from the triangle at rest
+  /// without its deformed corners. A vertex's displacement is bounded by
+  /// the loads' energy: for a unit e, eᵀ u_v = eᵀ G_{v·} f ≤
+  /// √(eᵀ G^{vv} e) √(fᵀ G f) (Cauchy–Schwarz in the inner product of G,
+  /// symmetric positive definite), so |u_v| ≤ √(‖G^{vv}‖ fᵀ G f), and a
+  /// point of the triangle moves no farther than its corners' largest
+  /// bound. The margins (1e-6 relative, and 1e-6 of the reach) are far
+  /// above round-off and G's asymmetry (1e-15): nothing the closest points
+  /// would find near is dropped. Linear model only (the warped one meets
+  /// its vertices' rotations in the order deformed() asks for them).
+  /// (@p spread: (1 + 1e-6) √(fᵀ G f), the same for every triangle of a tick.)
+  bool far_from_tip(const Tool& tool, int tri, double reach, double spread) const {
+    if (warping != nullptr) return false;
+    const auto tt = static_cast<std::size_t>(tri);
+    const Vector3d& c = triangle_centre[tt];
+    const double beyond = (1 + 1e-6) * reach + triangle_radius[tt] + triangle_softness[tt] * spread;
+    return (c - closest_on_segment(tool.pose.position_m, tool.rotation.col(2),
+                                   tip_length(tool.geometry), c))
+               .squaredNorm() >= beyond * beyond;
+  }
+
   /// Longest reach of a tool from its hinge along z, and its radius of interest.
   static double reach_length(const ToolGeometry& g) {
     return std::max(g.tip == TipShape::kCapsule ? g.tip_length_m : 0.0, g.jaw_length_m);
@@ -300,21 +433,53 @@ struct ToolContactEngine::Impl {
     return g.tip == TipShape::kCapsule ? g.tip_length_m : 0.0;
   }
 
+  /// How far from a tool's segment its candidate vertices lie at rest, m.
+  double search_radius(const ToolGeometry& g) const {
+    const double wedge = g.jaw_length_m * std::tan(0.5 * g.max_jaw_angle_rad);
+    return std::max(g.tip_radius_m, wedge + g.tip_radius_m) + settings.search_margin_m +
+           max_displacement;
+  }
+
   /// Drawn vertices whose rest position is near tool @p t; returns their count.
   int gather_candidates(const Tool& tool) {
     const ToolGeometry& g = tool.geometry;
     const Vector3d axis = tool.rotation.col(2);
     const double length = reach_length(g);
-    const double wedge = g.jaw_length_m * std::tan(0.5 * g.max_jaw_angle_rad);
-    const double radius = std::max(g.tip_radius_m, wedge + g.tip_radius_m) +
-                          settings.search_margin_m + max_displacement;
+    const double radius = search_radius(g);
     const double radius2 = radius * radius;
+    const auto near = [&](const Vector3d& x) {
+      return (x - closest_on_segment(tool.pose.position_m, axis, length, x)).squaredNorm() <=
+             radius2;
+    };
     int n = 0;
     const int vertices = static_cast<int>(rest.size());
-    for (int j = 0; j < vertices; ++j) {
-      const Vector3d& x = rest[static_cast<std::size_t>(j)];
-      if ((x - closest_on_segment(tool.pose.position_m, axis, length, x)).squaredNorm() <= radius2)
-        candidates[static_cast<std::size_t>(n++)] = j;
+    // The grid's cells that the box around the segment (plus the radius and
+    // a margin far above the round-off of the test) overlaps: a vertex
+    // outside them is farther than the radius in one coordinate. Their
+    // vertices are tested, marked, and taken in the order of the scan of
+    // every vertex; a box over half the grid is the scan.
+    const Vector3d end = tool.pose.position_m + length * axis;
+    const Vector3d reach = Vector3d::Constant(radius * (1 + 1e-6));
+    const std::array<int, 3> lo = grid.cell_of(tool.pose.position_m.cwiseMin(end) - reach);
+    const std::array<int, 3> hi = grid.cell_of(tool.pose.position_m.cwiseMax(end) + reach);
+    const std::int64_t cells =
+        std::int64_t{hi[0] - lo[0] + 1} * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1);
+    if (!(2 * cells < grid.cell_count())) {
+      for (int j = 0; j < vertices; ++j)
+        if (near(rest[static_cast<std::size_t>(j)])) candidates[static_cast<std::size_t>(n++)] = j;
+      return n;
+    }
+    for (int z = lo[2]; z <= hi[2]; ++z)
+      for (int y = lo[1]; y <= hi[1]; ++y)
+        for (int x = lo[0]; x <= hi[0]; ++x)
+          for (const int j : grid.vertices_in({x, y, z}))
+            if (near(rest[static_cast<std::size_t>(j)]))
+              near_bits[static_cast<std::size_t>(j) / 64] |= std::uint64_t{1} << (j % 64);
+    for (std::size_t w = 0; w < near_bits.size(); ++w) {
+      for (std::uint64_t word = near_bits[w]; word != 0; word &= word - 1)
+        candidates[static_cast<std::size_t>(n++)] =
+            static_cast<int>(64 * w) + std::countr_zero(word);
+      near_bits[w] = 0;
     }
     return n;
   }
@@ -381,11 +546,13 @@ struct ToolContactEngine::Impl {
           elsewhere |= owner_held_elsewhere(corner[i], t);
       }
       if (fixed == 3 || elsewhere) continue;
-      grasp_triangles[near] = tri;
-      for (int i = 0; i < 3; ++i)
-        grasp_corners[3 * near + static_cast<std::size_t>(i)] = deformed(corner[i]);
-      ++near;
+      grasp_triangles[near++] = tri;
     }
+    deform_corners({grasp_triangles.data(), near});
+    for (std::size_t k = 0; k < near; ++k)
+      for (std::size_t i = 0; i < 3; ++i)
+        grasp_corners[3 * k + i] =
+            deformed(triangle_vertices[3 * static_cast<std::size_t>(grasp_triangles[k]) + i]);
     // What the tip pressed at the last tick.
     touched.clear();
     for (int c = 0; c < count; ++c) {
@@ -434,11 +601,20 @@ struct ToolContactEngine::Impl {
     const bool jaws_open = g.jaw_length_m > 0 && tool.pose.jaw_angle_rad > g.grasp_angle_rad;
     const int n = gather_candidates(tool);
     int total = 0;
-    const int m = gather_triangles(n);
-    for (int k = 0; k < m; ++k) {
+    // The triangles to test, in the order met: none with a vertex of a
+    // held point, none wholly fixed.
+    int m = 0;
+    const int met = gather_triangles(n);
+    // far_from_tip pays only where it can skip triangles: each candidate
+    // triangle has a corner within the search radius of the axis, so none is
+    // skipped unless the loads move the softest triangle's points less than
+    // that radius minus r + near (a deep wide press moves them more).
+    const double spread = (1 + 1e-6) * std::sqrt(std::max(load_energy, 0.0));
+    const bool screen = warping == nullptr && max_softness * spread + r + near < search_radius(g);
+    for (int k = 0; k < met; ++k) {
       const int tri = near_triangles[static_cast<std::size_t>(k)];
       const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
-      bool blocked = false;  // a vertex of a held point, or the whole triangle fixed
+      bool blocked = false;
       int fixed = 0;
       for (int i = 0; i < 3; ++i) {
         if (corner[i] >= compliance_count)
@@ -446,10 +622,29 @@ struct ToolContactEngine::Impl {
         else if (owner[static_cast<std::size_t>(corner[i])] >= 0)
           blocked = true;
       }
-      if (blocked || fixed == 3) continue;
+      if (!blocked && fixed < 3 && !(screen && far_from_tip(tool, tri, r + near, spread)))
+        near_triangles[static_cast<std::size_t>(m++)] = tri;
+    }
+    deform_corners({near_triangles.data(), static_cast<std::size_t>(m)});
+    for (int k = 0; k < m; ++k) {
+      const int tri = near_triangles[static_cast<std::size_t>(k)];
+      const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
       const Vector3d& a = deformed(corner[0]);
       const Vector3d& b = deformed(corner[1]);
       const Vector3d& cc = deformed(corner[2]);
+      // Most of a wide tip's triangles are far from it: a triangle within
+      // the ball about its centre through its farthest corner, a ball
+      // r + near away from the axis, has no point nearer, and goes without
+      // its closest points. The margin, 1e-6 r, is far above the round-off
+      // of either distance: this skips only what the test below would.
+      // (Any centre will do; the distances compare squared.)
+      const Vector3d centre = (a + b + cc) * (1.0 / 3);
+      const double ball = std::sqrt(std::max(
+          {(a - centre).squaredNorm(), (b - centre).squaredNorm(), (cc - centre).squaredNorm()}));
+      const double beyond = r + near + 1e-6 * r + ball;
+      if ((centre - closest_on_segment(tool.pose.position_m, axis, tip_length(g), centre))
+              .squaredNorm() >= beyond * beyond)
+        continue;
       const detail::SegmentTrianglePair pair =
           detail::closest_segment_triangle(tool.pose.position_m, axis, tip_length(g), a, b, cc);
       const bool was = previous_triangle_owner[static_cast<std::size_t>(tri)] == t;
@@ -489,6 +684,7 @@ struct ToolContactEngine::Impl {
         movable |= corner[i] < compliance_count;
       }
       if (!movable) continue;  // a point of the attachment's edge
+      ranked[static_cast<std::size_t>(total)] = {candidate.depth, total};
       found[static_cast<std::size_t>(total++)] = candidate;
     }
     // Deepest first; a point on an edge or a vertex is found from every
@@ -497,13 +693,16 @@ struct ToolContactEngine::Impl {
     // stays within ~(0.05 r)²/2r = 0.1 % of r of the tip). A sticking point
     // fixes three components, so with friction points keep 0.3 r apart
     // (within ~4.5 % of r): closer ones make a nearly singular system.
-    std::sort(found.begin(), found.begin() + total,
-              [](const TipCandidate& x, const TipCandidate& y) { return x.depth > y.depth; });
+    // (Their depths are sorted, not the points: the same comparisons, so
+    // the same order, equal depths included, without moving the points.)
+    std::sort(ranked.begin(), ranked.begin() + total,
+              [](const Ranked& x, const Ranked& y) { return x.depth > y.depth; });
     const int room = std::max(0, per_tool_cap - static_cast<int>(tool.held.size()));
     const double spacing2 = (g.friction > 0 ? 0.09 : 0.0025) * r * r;
     int kept = 0;
     for (int c = 0; c < total && kept < room; ++c) {
-      const TipCandidate& x = found[static_cast<std::size_t>(c)];
+      const TipCandidate& x =
+          found[static_cast<std::size_t>(ranked[static_cast<std::size_t>(c)].index)];
       const Vector3d point = x.target - x.depth * x.normal;  // on the deformed triangle
       bool near = false;
       for (int k = 0; k < kept && !near; ++k) {
@@ -655,6 +854,7 @@ struct ToolContactEngine::Impl {
     }
     count = 0;
     max_displacement = 0;
+    load_energy = 0;
     for (auto& tool : tools) {
       tool.raw_force.setZero();
       tool.raw_torque.setZero();
@@ -694,6 +894,7 @@ struct ToolContactEngine::Impl {
       point.normal =
           row.kind == ConstraintKind::kNormalDisplacement ? row_world_normal[bb] : Vector3d::Zero();
       max_displacement = std::max(max_displacement, displacement.norm());
+      load_energy += material_force[c].dot(active_set.displacement(b));
       local_rows[bb].position = point.position_m;
       local_rows[bb].force = point.force_n;
       local_rows[bb].material_force = material_force[c];
