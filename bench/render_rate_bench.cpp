@@ -49,8 +49,8 @@ void render(benchmark::State& state, bool local_model, bool passivity) {
       renderer.take(next, t);
     }
     const double phase = 1e-3 * static_cast<double>(step);
-    const Vector3d x = answer.model.position_m + Vector3d(1e-4 * std::sin(phase), 0,
-                                                          -1e-4 * std::cos(3 * phase));
+    const Vector3d x =
+        answer.model.position_m + Vector3d(1e-4 * std::sin(phase), 0, -1e-4 * std::cos(3 * phase));
     const Eigen::Quaterniond q(Eigen::AngleAxisd(0.01 * std::sin(phase), Vector3d::UnitX()));
     benchmark::DoNotOptimize(renderer.render(t, x, q));
     t += 250e-6;
