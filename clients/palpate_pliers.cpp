@@ -1,10 +1,13 @@
 // palpate-pliers: a haptic device in software. Plays a gesture file
-// (docs/pliers.md) at the haptic rate over DDS for one or two tools: each
-// tick publishes every tool's pose, waits for its ToolFeedback until the
-// next tick, and records the round trip, the force, the grip and the state.
-// Prints a summary per tool; --csv writes every tick, --json the summary.
-// Ends each tool's session when done (palpate_tool_command END), so that
-// palpated lets go at once rather than by its watchdog.
+// (docs/pliers.md) over DDS for one or two tools through palpate's C API
+// for devices (palpate/device.h), as a device's servo loop would: at the
+// device's rate (4 kHz) it gives each tool's pose and renders the newest
+// answer's local contact model there; at the haptic rate (1 kHz) a pose goes
+// to palpated, whose answer is awaited until the next tick and recorded with
+// its round trip, force, grip and state, beside what was rendered. Prints a
+// summary per tool; --csv writes every tick, --json the summary. Ends each
+// tool's session when done (palpate_tool_command END), so that palpated lets
+// go at once rather than by its watchdog.
 //
 // Exit codes: 0 played; 2 bad command line, gesture file or model (unknown
 // model id, unknown tool, anchor), or palpated refused poses (its reason is
@@ -35,9 +38,12 @@
 #include "palpate/core/error.hpp"
 #include "palpate/core/statistics.hpp"
 #include "palpate/core/suggest.hpp"
+#include "palpate/device.h"
 #include "palpate/runtime/gesture.hpp"
+#include "palpate/runtime/tool_state.hpp"
+#include "palpate/transport/dds.hpp"
+#include "palpate/transport/presence.hpp"
 #include "palpate/transport/realtime.hpp"
-#include "palpate/transport/tool_client.hpp"
 
 namespace {
 
@@ -92,30 +98,61 @@ struct TickRecord {
   double compute_us = kNaN;
   Eigen::Vector3d tip_m = Eigen::Vector3d::Zero();
   double jaw_rad = 0;
-  /// |ToolClient::force_to_render()| after this tick's wait: what a device
-  /// would render (zero while palpated is lost).
+  /// What palpate_device_force() rendered at the tick's last device step
+  /// (N, model frame; zero while palpated is lost), the largest |force| over
+  /// the tick's device steps, the passivity controller's largest damping
+  /// (N·s/m) and the observer's energy at the last step (J).
   double rendered_n = 0;
+  std::array<double, 3> rendered_force_n{};
+  double rendered_max_n = 0, damping_n_s_per_m = 0, energy_j = 0;
   palpate::DaemonState daemon = palpate::DaemonState::kUnknown;  ///< at that time
 };
+
+/// Closes a palpate_device handle (ending its session if it is live).
+struct DeviceCloser {
+  void operator()(palpate_device* d) const { palpate_device_close(d); }
+};
+using Device = std::unique_ptr<palpate_device, DeviceCloser>;
 
 struct ToolRun {
   std::string id;
   int gesture_index = 0;
+  Device device;  ///< this tool on the model (palpate/device.h)
   std::vector<TickRecord> ticks;
   std::array<std::uint64_t, 7> events{};  // by ToolEventKind
   std::uint64_t notices = 0;              // poses palpated said it refused (rate limited)
   std::string first_refusal;              // the first reason palpated gave
 };
 
-void fill(TickRecord& r, const palpate::ToolFeedbackSample& f) {
-  r.rtt_us = static_cast<double>(f.round_trip_ns()) * 1e-3;
-  r.force_n = f.force_n;
-  r.grip_n = f.grip_n;
-  r.contacts = f.contacts;
-  r.state = f.state;
-  r.force_limited = f.force_limited;
-  r.watchdog = f.watchdog;
-  r.compute_us = static_cast<double>(f.compute_ns) * 1e-3;
+void fill(TickRecord& r, const palpate_device_answer& a) {
+  r.rtt_us = static_cast<double>(a.receive_time_ns - a.send_time_ns) * 1e-3;
+  r.force_n = {a.force_n[0], a.force_n[1], a.force_n[2]};
+  r.grip_n = a.grip_n;
+  r.contacts = a.contacts;
+  r.state = static_cast<ToolState>(a.tool_state);
+  r.force_limited = a.force_limited != 0;
+  r.watchdog = a.watchdog != 0;
+  r.compute_us = static_cast<double>(a.compute_ns) * 1e-3;
+}
+
+/// A failed call of the C API (palpate/device.h) as the exception of its
+/// class: the exit code palpate-pliers gives it (docs/errors.md).
+[[noreturn]] void throw_device_error(int status, const char* message) {
+  switch (status) {
+    case PALPATE_DEVICE_E_NO_PALPATED:
+    case PALPATE_DEVICE_E_NO_TOOLS:
+      throw NoAnswer(message);
+    case PALPATE_DEVICE_E_NO_MODEL:
+      throw palpate::InputError(std::string(message) + " (use --model)");
+    case PALPATE_DEVICE_E_ARGUMENT:
+    case PALPATE_DEVICE_E_CONFIG:
+      throw palpate::InputError(message);
+    case PALPATE_DEVICE_E_DDS:
+      throw palpate::SystemError(message);
+    default:
+      throw std::runtime_error(std::string("palpate/device.h: ") +
+                               palpate_device_status_name(status) + ": " + message);
+  }
 }
 
 struct Percentiles {
@@ -146,6 +183,10 @@ struct ToolSummary {
   double max_rendered_n = 0;
   std::size_t ticks_while_lost = 0;  // palpated lost (heartbeat silent)
   double max_rendered_while_lost_n = 0;
+  // At the device's rate: the largest |force| of any step, the passivity
+  // controller's largest damping and the ticks it damped.
+  double max_rendered_step_n = 0, max_damping = 0;
+  std::size_t damped_ticks = 0;
 };
 
 ToolSummary summarize(const ToolRun& run, std::size_t first_counted, double budget_us) {
@@ -156,6 +197,9 @@ ToolSummary summarize(const ToolRun& run, std::size_t first_counted, double budg
     ++s.ticks;
     lag.push_back(r.lag_us);
     s.max_rendered_n = std::max(s.max_rendered_n, r.rendered_n);
+    s.max_rendered_step_n = std::max(s.max_rendered_step_n, r.rendered_max_n);
+    s.max_damping = std::max(s.max_damping, r.damping_n_s_per_m);
+    s.damped_ticks += r.damping_n_s_per_m > 0 ? 1 : 0;
     if (r.daemon == palpate::DaemonState::kLost) {
       ++s.ticks_while_lost;
       s.max_rendered_while_lost_n = std::max(s.max_rendered_while_lost_n, r.rendered_n);
@@ -208,7 +252,7 @@ constexpr std::array<ToolEventKind, 7> kEventKinds{
 struct Settings {
   std::string gesture_file, model_id = "sample-organ", csv, json;
   std::vector<std::string> only_tools;
-  double rate_hz = 1000, timeout_s = 10, warmup_s = 0;
+  double rate_hz = 1000, device_rate_hz = 4000, timeout_s = 10, warmup_s = 0;
   int repeat = 1;
   bool busy_wait = false, quiet = false;
   std::uint32_t domain = 0;
@@ -224,21 +268,24 @@ void write_csv(const std::string& path, const std::vector<ToolRun>& runs, std::s
   out << "tick,tool,counted,time_s,sequence,send_ms,lag_us,outcome,newer_sequence,duplicates,rtt_"
          "us,"
          "force_x_n,force_y_n,force_z_n,grip_n,contacts,state,force_limited,watchdog,compute_us,"
-         "tip_x_m,tip_y_m,tip_z_m,jaw_deg,rendered_n,daemon\n";
+         "tip_x_m,tip_y_m,tip_z_m,jaw_deg,rendered_n,daemon,rendered_x_n,rendered_y_n,rendered_z_n,"
+         "rendered_max_n,damping_n_s_per_m,energy_j\n";
   for (std::size_t i = 0; !runs.empty() && i < runs.front().ticks.size(); ++i)
     for (const ToolRun& run : runs) {
       const TickRecord& r = run.ticks[i];
       out << fmt::format(
           "{},{},{},{:.4f},{},{:.4f},{:.1f},{},{},{},{:.1f},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},"
           "{:d},{:.2f},"
-          "{:.6f},{:.6f},{:.6f},{:.2f},{:.6g},{}\n",
+          "{:.6f},{:.6f},{:.6f},{:.2f},{:.6g},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g}\n",
           i, run.id, i >= first_counted ? 1 : 0, r.time_s, r.sequence,
           static_cast<double>(r.send_ns - start_ns) * 1e-6, r.lag_us, outcome_name(r.outcome),
           r.newer ? std::to_string(r.newer_sequence) : "", r.duplicates, r.rtt_us, r.force_n[0],
           r.force_n[1], r.force_n[2], r.grip_n, r.contacts,
           r.outcome == Outcome::kMissing ? "" : palpate::tool_state_name(r.state), r.force_limited,
           r.watchdog, r.compute_us, r.tip_m.x(), r.tip_m.y(), r.tip_m.z(),
-          r.jaw_rad * 180 / std::numbers::pi, r.rendered_n, daemon_state_name(r.daemon));
+          r.jaw_rad * 180 / std::numbers::pi, r.rendered_n, daemon_state_name(r.daemon),
+          r.rendered_force_n[0], r.rendered_force_n[1], r.rendered_force_n[2], r.rendered_max_n,
+          r.damping_n_s_per_m, r.energy_j);
     }
   if (!out) throw palpate::SystemError(fmt::format("--csv {}: write failed", path));
 }
@@ -255,6 +302,10 @@ int run(int argc, char** argv) {
                  "play only this tool of the gesture (repeatable; default: all)")
       ->allow_extra_args(false);
   app.add_option("--rate", o.rate_hz, "ticks per second (default 1000)")
+      ->check(CLI::Range(10.0, 20000.0));
+  app.add_option("--device-rate", o.device_rate_hz,
+                 "device steps per second: the local model rendered (default 4000; a multiple of "
+                 "--rate, at least it)")
       ->check(CLI::Range(10.0, 20000.0));
   app.add_option("--repeat", o.repeat, "play the gesture this many times in a row (default 1)")
       ->check(CLI::Range(1, 100000));
@@ -307,52 +358,71 @@ int run(int argc, char** argv) {
       throw palpate::InputError(
           fmt::format("--tool {}: not a tool of {} (its tools: {})", wanted, o.gesture_file, ids));
     }
-  if (static_cast<int>(runs.size()) > palpate::ToolClient::kMaxTools)
-    throw palpate::InputError(fmt::format("{}: {} tools; palpate-pliers plays at most {}",
-                                          o.gesture_file, runs.size(),
-                                          static_cast<int>(palpate::ToolClient::kMaxTools)));
-
-  // 2. palpated: the model's description, then a reader of the poses.
+  // 2. palpated: each tool opened through the C API (the model's
+  // description, then palpated's tool topics, within --timeout in all).
+  // Sequences start at the steady clock in µs, the same for every tool:
+  // above those of any earlier run on this host (at most one per ms), so
+  // that palpated never takes a new run's poses for stale ones of the last
+  // (its watchdog resets a tool only 50 ms after its poses stop).
+  const std::uint64_t first_sequence = static_cast<std::uint64_t>(palpate_device_now_ns() / 1000);
+  // Real-time operation: the process's DDS domain made first, here, with
+  // Cyclone's receive thread at the priority and on the CPUs; the tools'
+  // clients join it (one domain per process).
   if (!o.cpus.empty()) o.realtime.cpus = palpate::realtime::parse_cpu_list(o.cpus, "--cpus");
   palpate::realtime::validate(o.realtime, palpate::realtime::kFlagNames);
   palpate::realtime::check_permitted(o.realtime, palpate::realtime::kFlagNames);
-  palpate::ToolClientOptions client_options;
-  client_options.domain_id = o.domain;
-  client_options.dds_config = o.dds_config;
-  client_options.busy_wait = o.busy_wait;
-  client_options.realtime = {o.realtime.priority, o.realtime.cpus, /*lock_memory=*/false};
-  palpate::ToolClient client(client_options);
-  const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(o.timeout_s * 1e3));
-  const auto give_up = Clock::now() + timeout;
-  const auto model = client.wait_for_model(o.model_id, timeout);
-  if (!model) {
-    const auto seen = client.models_seen();
-    if (seen.empty())
-      throw NoAnswer(fmt::format(
-          "no palpated within {:g} s: no model description on DDS domain {} (is palpated running, "
-          "in this network namespace?)",
-          o.timeout_s, o.domain));
-    std::string ids;
-    for (const auto& id : seen) ids += (ids.empty() ? "" : ", ") + id;
-    throw palpate::InputError(fmt::format(
-        "model '{}' is not served by palpated; served: {} (use --model)", o.model_id, ids));
+  const auto domain = palpate::dds::acquire_domain(
+      o.domain, palpate::dds::resolve_domain_config(o.dds_config, o.realtime));
+  const auto give_up = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                          std::chrono::duration<double>(o.timeout_s));
+  for (ToolRun& run : runs) {
+    palpate_device_options options;
+    palpate_device_options_init(&options);
+    options.model_id = o.model_id.c_str();
+    options.tool_id = run.id.c_str();
+    options.domain_id = o.domain;
+    options.dds_config = o.dds_config.c_str();
+    options.pose_rate_hz = o.rate_hz;
+    options.busy_wait = o.busy_wait ? 1 : 0;
+    options.first_sequence = first_sequence - 1;  // the first pose is first_sequence
+    // What was rendered goes into palpated's session recording.
+    options.report_rendering = 1;
+    // The first tool waits for palpated up to --timeout, the next ones for what is left.
+    options.timeout_s = std::max(
+        0.1, &run == &runs.front() ? o.timeout_s
+                                   : std::chrono::duration<double>(give_up - Clock::now()).count());
+    char error[512];
+    palpate_device* device = nullptr;
+    const int status = palpate_device_open(&options, &device, error, sizeof error);
+    if (status != PALPATE_DEVICE_OK) throw_device_error(status, error);
+    run.device.reset(device);
   }
-  const palpate::DrawnSurface& surface = model->surface;
+  palpate_device_model description;
+  description.struct_size = sizeof description;
+  if (const int status =
+          palpate_device_get_model(runs.front().device.get(), &description, nullptr, 0);
+      status != PALPATE_DEVICE_OK)
+    throw_device_error(status, "the model's description");
+  palpate::DrawnSurface surface;
+  surface.compliance_vertex_count = static_cast<int>(description.compliance_vertex_count);
+  surface.vertex_ids.assign(description.vertex_ids,
+                            description.vertex_ids + description.vertex_count);
+  surface.rest_positions_m.assign(description.rest_positions_m,
+                                  description.rest_positions_m + 3 * description.vertex_count);
+  surface.triangles.assign(description.triangles,
+                           description.triangles + 3 * description.triangle_count);
   const palpate::GesturePlayer player(gesture, palpate::place_gesture(gesture, surface));
-  // Each tool's answers come in its own partition: its readers first, so
-  // that the answers to the first poses are not lost while they are matched.
-  for (const auto& run : runs) client.open_tool(run.id);
-  if (!client.wait_for_daemon(
-          std::max(std::chrono::milliseconds(100),
-                   std::chrono::duration_cast<std::chrono::milliseconds>(give_up - Clock::now()))))
-    throw NoAnswer(fmt::format(
-        "palpated serves model '{}' but reads no tool poses (or writes no feedback) within {:g} s: "
-        "is it a palpated with tools?",
-        o.model_id, o.timeout_s));
 
-  const double period_s = 1.0 / o.rate_hz;
-  const auto period =
-      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period_s));
+  // Ticks at --rate, each of `steps` device steps. One clock in integer ns
+  // for the ticks and the C API's pose rate, so that the pose of tick i is
+  // sent at its first step, exactly (palpate_device_set_pose: at most
+  // pose_rate_hz, on the clock it is given).
+  const auto period_ns = std::llround(1e9 / o.rate_hz);
+  const double period_s = static_cast<double>(period_ns) * 1e-9;
+  const auto period = std::chrono::nanoseconds(period_ns);
+  const auto steps =
+      static_cast<std::int64_t>(std::max(1.0, std::round(o.device_rate_hz / o.rate_hz)));
+  const double device_rate_hz = static_cast<double>(steps) / period_s;
   const auto ticks_per_play =
       static_cast<std::size_t>(std::floor(player.duration_s() * o.rate_hz + 1e-9)) + 1;
   const std::size_t total = ticks_per_play * static_cast<std::size_t>(o.repeat);
@@ -364,6 +434,10 @@ int run(int argc, char** argv) {
                 gesture.name.c_str(), o.gesture_file.c_str(), player.duration_s(), o.repeat,
                 o.rate_hz, o.model_id.c_str(), runs.size(), runs.size() == 1 ? "" : "s",
                 o.busy_wait ? "busy-wait" : "waitset");
+    std::printf(
+        "  rendering at %.0f Hz through palpate/device.h: the local model, the device's limits, "
+        "passivity\n",
+        device_rate_hz);
     for (const auto& r : runs) {
       const auto& a = player.anchor(r.gesture_index);
       std::printf(
@@ -379,131 +453,174 @@ int run(int argc, char** argv) {
   palpate::realtime::apply_to_this_thread(o.realtime, palpate::realtime::kFlagNames);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  std::array<palpate::ToolFeedbackSample, 64> late{};
-  // Sequences continue from the steady clock in µs: above those of any
-  // earlier run on this host (at most one per ms), so that palpated never
-  // takes a new run's poses for stale ones of the last (its watchdog resets
-  // a tool only 50 ms after its poses stop).
-  const std::uint64_t first_sequence =
-      static_cast<std::uint64_t>(palpate::ToolClient::now_ns() / 1000);
+  std::size_t played = 0;
+  const auto start = Clock::now() + std::chrono::milliseconds(5);
+  const std::int64_t start_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
   std::uint64_t other_sessions = 0;  // feedback for sequences this run never sent
-  auto collect_late = [&](ToolRun& run, std::size_t now_tick) {
-    for (;;) {
-      const std::size_t n = client.take_late_feedback(run.id, late);
-      for (std::size_t k = 0; k < n; ++k) {
-        const auto& f = late[k];
-        if (f.sequence < first_sequence || f.sequence > first_sequence + now_tick) {
-          ++other_sessions;
-          continue;
-        }
-        TickRecord& r = run.ticks[f.sequence - first_sequence];
-        if (r.outcome != Outcome::kMissing) {
-          ++r.duplicates;
-          continue;
-        }
-        r.outcome = Outcome::kLate;
-        fill(r, f);
+  std::uint64_t dropped_answers = 0;
+  // Every answer each handle took (in its wait, or while rendering): to the
+  // tick of its pose, in the tick or late by when it was taken against that
+  // tick's deadline (the next tick's start).
+  auto collect_answers = [&](ToolRun& run, std::size_t now_tick) {
+    palpate_device_answer a;
+    a.struct_size = sizeof a;
+    while (palpate_device_next_answer(run.device.get(), &a, nullptr, 0) == PALPATE_DEVICE_OK) {
+      if (a.sequence < first_sequence) {
+        ++other_sessions;
+        continue;
       }
-      if (n < late.size()) return;
+      const std::uint64_t k = a.sequence - first_sequence;
+      if (k > now_tick) {  // a pose this run has not sent: another client drives the tool
+        TickRecord& r = run.ticks[now_tick];
+        if (!r.newer) r.newer_sequence = a.sequence;
+        r.newer = true;
+        ++other_sessions;
+        continue;
+      }
+      TickRecord& r = run.ticks[k];
+      if (r.outcome != Outcome::kMissing) {
+        ++r.duplicates;
+        continue;
+      }
+      const std::int64_t deadline = start_ns + static_cast<std::int64_t>(k + 1) * period_ns;
+      r.outcome = a.receive_time_ns <= deadline ? Outcome::kInTime : Outcome::kLate;
+      fill(r, a);
     }
   };
   int event_lines = 0;
   constexpr int kMaxEventLines = 24;
   // palpated going and coming back: one line each, however quiet (docs/faults.md).
-  palpate::DaemonPresence presence = client.daemon_presence();
-  std::size_t played = 0;
-  const auto start = Clock::now() + std::chrono::milliseconds(5);
-  const std::int64_t start_ns =
-      std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
-  // Events and notices: printed (notices on stderr, even with -q) and counted.
+  auto presence_of = [](palpate_device* device) {
+    palpate_device_state st;
+    st.struct_size = sizeof st;
+    palpate::DaemonPresence p;
+    if (palpate_device_get_state(device, &st, nullptr, 0) != PALPATE_DEVICE_OK) return p;
+    p.state = st.daemon == PALPATE_DEVICE_DAEMON_PRESENT ? palpate::DaemonState::kPresent
+              : st.daemon == PALPATE_DEVICE_DAEMON_LOST  ? palpate::DaemonState::kLost
+                                                         : palpate::DaemonState::kUnknown;
+    p.losses = st.daemon_losses;
+    p.restarts = st.daemon_restarts;
+    p.silent_s = st.daemon_silent_s;
+    p.uptime_s = st.daemon_uptime_s;
+    return p;
+  };
+  palpate::DaemonPresence presence = presence_of(runs.front().device.get());
+  // Events and refusals: printed (refusals on stderr, even with -q) and counted.
   auto take_events_and_notices = [&] {
-    for (const auto& e : client.take_events()) {
-      const auto it = std::find_if(runs.begin(), runs.end(),
-                                   [&](const ToolRun& r) { return r.id == e.tool_id; });
-      // Another client's tools, or the end of an earlier run (its watchdog).
-      if (it == runs.end() || e.model_id != o.model_id || e.pose_sequence < first_sequence)
-        continue;
-      const auto kind = static_cast<std::size_t>(e.kind);
-      if (kind < it->events.size()) ++it->events[kind];
-      if (!o.quiet && ++event_lines <= kMaxEventLines) {
-        std::printf("  %7.3f s  %-6s %s", static_cast<double>(e.receive_time_ns - start_ns) * 1e-9,
-                    e.tool_id.c_str(), palpate::tool_event_name(e.kind));
-        if (e.kind == ToolEventKind::kGrasp)
-          std::printf(" (%u point%s held)", e.held_vertices, e.held_vertices == 1 ? "" : "s");
-        std::printf("  [pose %llu]\n",
-                    static_cast<unsigned long long>(e.pose_sequence - first_sequence + 1));
-        if (event_lines == kMaxEventLines)
-          std::printf("  … further events are only counted (summary)\n");
-        std::fflush(stdout);
+    for (ToolRun& run : runs) {
+      palpate_device_event e;
+      e.struct_size = sizeof e;
+      while (palpate_device_next_event(run.device.get(), &e, nullptr, 0) == PALPATE_DEVICE_OK) {
+        const unsigned long long pose = e.pose_sequence - first_sequence + 1;
+        if (e.kind == PALPATE_DEVICE_EVENT_REFUSED) {
+          if (run.notices++ == 0) run.first_refusal = e.message;
+          std::fprintf(stderr, "palpate-pliers: palpated refused pose %llu of tool '%s': %s\n",
+                       pose, run.id.c_str(), e.message);
+          continue;
+        }
+        const auto kind = static_cast<std::size_t>(e.kind);
+        if (kind < run.events.size()) ++run.events[kind];
+        if (!o.quiet && ++event_lines <= kMaxEventLines) {
+          std::printf("  %7.3f s  %-6s %s",
+                      static_cast<double>(e.receive_time_ns - start_ns) * 1e-9, run.id.c_str(),
+                      e.message);
+          if (e.kind == PALPATE_DEVICE_EVENT_GRASP)
+            std::printf(" (%u point%s held)", e.held_points, e.held_points == 1 ? "" : "s");
+          std::printf("  [pose %llu]\n", pose);
+          if (event_lines == kMaxEventLines)
+            std::printf("  … further events are only counted (summary)\n");
+          std::fflush(stdout);
+        }
       }
     }
-    for (const auto& n : client.take_notices()) {
-      const auto it = std::find_if(runs.begin(), runs.end(),
-                                   [&](const ToolRun& r) { return r.id == n.tool_id; });
-      if (it == runs.end() || n.model_id != o.model_id || n.pose_sequence < first_sequence)
-        continue;
-      if (it->notices++ == 0) it->first_refusal = n.message;
-      std::fprintf(stderr, "palpate-pliers: palpated refused pose %llu of tool '%s': %s\n",
-                   static_cast<unsigned long long>(n.pose_sequence - first_sequence + 1),
-                   n.tool_id.c_str(), n.message.c_str());
-    }
+  };
+  char error[512];
+  auto check = [&](int status) {
+    if (status != PALPATE_DEVICE_OK) throw_device_error(status, error);
   };
   for (std::size_t i = 0; i < total && !interrupted; ++i, ++played) {
     const auto scheduled = start + i * period;
-    std::this_thread::sleep_until(scheduled);
-    const double t = static_cast<double>(i % ticks_per_play) * period_s;
     const std::uint64_t sequence = first_sequence + i;
-    for (ToolRun& run : runs) {
-      const palpate::GesturePose pose = player.sample(run.gesture_index, t);
-      TickRecord& r = run.ticks[i];
-      r.time_s = t;
-      r.sequence = sequence;
-      r.tip_m = pose.tip_m;
-      r.jaw_rad = pose.jaw_angle_rad;
-      const auto& q = pose.orientation;
-      r.send_ns = client.send_pose(run.id, o.model_id, sequence,
-                                   {pose.hinge_m.x(), pose.hinge_m.y(), pose.hinge_m.z()},
-                                   {q.w(), q.x(), q.y(), q.z()}, pose.jaw_angle_rad);
-      r.lag_us = static_cast<double>(r.send_ns - start_ns) * 1e-3 -
-                 std::chrono::duration<double, std::micro>(i * period).count();
-    }
-    // Each tool's answer must come before the next tick.
-    const auto deadline = scheduled + period;
-    for (ToolRun& run : runs) {
-      TickRecord& r = run.ticks[i];
-      if (const auto f = client.wait_feedback(run.id, sequence, deadline)) {
-        if (f->sequence == sequence) {
-          r.outcome = Outcome::kInTime;
-          fill(r, *f);
-        } else {
-          r.newer = true;
-          r.newer_sequence = f->sequence;
+    const double tick_t = static_cast<double>(i % ticks_per_play) * period_s;
+    for (std::int64_t j = 0; j < steps; ++j) {
+      // Step j of the tick: the device's clock is the schedule, so that the
+      // rendering sees the gesture's own motion, not the thread's jitter.
+      const auto step_at = scheduled + j * period / steps;
+      const std::int64_t step_ns =
+          std::chrono::duration_cast<std::chrono::nanoseconds>(step_at.time_since_epoch()).count();
+      std::this_thread::sleep_until(step_at);
+      const double t = tick_t + static_cast<double>(j) * period_s / static_cast<double>(steps);
+      const bool last = j == steps - 1;
+      if (last) {
+        const palpate::DaemonPresence now_presence = presence_of(runs.front().device.get());
+        if (const auto line = palpate::describe_presence_change(presence, now_presence)) {
+          std::printf("  %7.3f s  %s\n",
+                      static_cast<double>(palpate_device_now_ns() - start_ns) * 1e-9,
+                      line->c_str());
+          std::fflush(stdout);
+        }
+        presence = now_presence;
+      }
+      for (ToolRun& run : runs) {
+        const palpate::GesturePose pose = player.sample(run.gesture_index, t);
+        TickRecord& r = run.ticks[i];
+        const auto& q = pose.orientation;
+        const double hinge[3] = {pose.hinge_m.x(), pose.hinge_m.y(), pose.hinge_m.z()};
+        const double wxyz[4] = {q.w(), q.x(), q.y(), q.z()};
+        std::uint64_t sent = 0;
+        const std::int64_t before_ns = palpate_device_now_ns();
+        check(palpate_device_set_pose(run.device.get(), step_ns, hinge, wxyz, pose.jaw_angle_rad,
+                                      &sent, error, sizeof error));
+        if (j == 0) {
+          r.time_s = t;
+          r.sequence = sent != 0 ? sent : sequence;
+          r.tip_m = pose.tip_m;
+          r.jaw_rad = pose.jaw_angle_rad;
+          r.send_ns = before_ns;
+          r.lag_us = static_cast<double>(before_ns - step_ns) * 1e-3;
+        }
+        double force[3], torque[3];
+        check(palpate_device_force(run.device.get(), step_ns, force, torque, error, sizeof error));
+        palpate_device_state st;
+        st.struct_size = sizeof st;
+        check(palpate_device_get_state(run.device.get(), &st, error, sizeof error));
+        const double magnitude = std::hypot(force[0], force[1], force[2]);
+        r.rendered_max_n = std::max(r.rendered_max_n, magnitude);
+        r.damping_n_s_per_m = std::max(r.damping_n_s_per_m, st.damping_n_s_per_m);
+        if (last) {
+          r.rendered_n = magnitude;
+          r.rendered_force_n = {force[0], force[1], force[2]};
+          r.energy_j = st.energy_j;
+          r.daemon = presence.state;
         }
       }
-      collect_late(run, i);
-    }
-    const palpate::DaemonPresence now_presence = client.daemon_presence();
-    if (const auto line = palpate::describe_presence_change(presence, now_presence)) {
-      std::printf("  %7.3f s  %s\n",
-                  static_cast<double>(palpate::ToolClient::now_ns() - start_ns) * 1e-9,
-                  line->c_str());
-      std::fflush(stdout);
-    }
-    presence = now_presence;
-    const std::int64_t render_ns = palpate::ToolClient::now_ns();
-    for (ToolRun& run : runs) {
-      const auto f = client.force_to_render(run.id, render_ns);
-      run.ticks[i].rendered_n = std::hypot(f[0], f[1], f[2]);
-      run.ticks[i].daemon = presence.state;
+      // Until the next step: each tool's answer to its newest pose, if it
+      // has not come yet.
+      const auto next_step = scheduled + (j + 1) * period / steps;
+      const std::int64_t next_ns =
+          std::chrono::duration_cast<std::chrono::nanoseconds>(next_step.time_since_epoch())
+              .count();
+      for (ToolRun& run : runs) {
+        const int status = palpate_device_wait(run.device.get(), next_ns, error, sizeof error);
+        if (status != PALPATE_DEVICE_NONE) check(status);
+        collect_answers(run, i);
+      }
     }
     take_events_and_notices();
   }
-  // Stragglers: feedback still on its way when the last tick ended.
-  const auto drain_until = Clock::now() + std::chrono::milliseconds(20);
+  // Stragglers: answers still on their way when the last tick ended.
+  const std::int64_t drain_until = palpate_device_now_ns() + 20'000'000;
   for (ToolRun& run : runs) {
     if (played == 0) break;
-    client.wait_feedback(run.id, first_sequence + played, drain_until);
-    collect_late(run, played - 1);
+    palpate_device_wait(run.device.get(), drain_until, nullptr, 0);
+    collect_answers(run, played - 1);
+  }
+  for (ToolRun& run : runs) {
+    palpate_device_state st;
+    st.struct_size = sizeof st;
+    if (palpate_device_get_state(run.device.get(), &st, nullptr, 0) == PALPATE_DEVICE_OK)
+      dropped_answers += st.answers_dropped;
   }
   for (auto& r : runs) r.ticks.resize(played);
   // The end of each tool's session: palpated lets go now (an `ended` event),
@@ -514,7 +631,8 @@ int run(int argc, char** argv) {
   bool ended = true;
   for (const ToolRun& run : runs)
     if (played > 0)
-      ended = client.end_session(run.id, o.model_id, std::chrono::milliseconds(500)) && ended;
+      ended = palpate_device_end_session(run.device.get(), 0.5, nullptr, 0) == PALPATE_DEVICE_OK &&
+              ended;
   // Only a tool palpated answered has a session to end (and an event to wait for).
   auto all_ended = [&] {
     return std::all_of(runs.begin(), runs.end(), [](const ToolRun& r) {
@@ -564,6 +682,10 @@ int run(int argc, char** argv) {
     }
     std::printf("    events: %s; palpated's compute p50 %.1f µs p99 %.1f µs\n",
                 events.empty() ? "none" : events.c_str(), s.compute.p50, s.compute.p99);
+    std::printf(
+        "    rendered at %.0f Hz: max |force| %.3f N; passivity damping in %zu ticks, at most %.3g "
+        "N·s/m\n",
+        device_rate_hz, s.max_rendered_step_n, s.damped_ticks, s.max_damping);
     if (run.notices > 0)
       std::printf("    poses refused by palpated: %llu or more (first: %s)\n",
                   static_cast<unsigned long long>(run.notices), run.first_refusal.c_str());
@@ -590,19 +712,25 @@ int run(int argc, char** argv) {
          {"force_limited", s.force_limited},
          {"watchdog", s.watchdog},
          {"max_rendered_force_n", s.max_rendered_n},
+         {"max_rendered_step_force_n", s.max_rendered_step_n},
+         {"max_damping_n_s_per_m", s.max_damping},
+         {"damped_ticks", s.damped_ticks},
          {"ticks_while_daemon_lost", s.ticks_while_lost},
          {"max_rendered_force_while_daemon_lost_n", s.max_rendered_while_lost_n},
          {"events", events_json},
          {"refusal_notices", run.notices},
          {"first_refusal", run.first_refusal}});
   }
-  if (client.foreign_feedback() > 0 || client.dropped_late_feedback() > 0 || other_sessions > 0)
+  // Answers of another tool in this tool's partition: none since palpated
+  // writes each tool's in its own (docs/dds.md, "Per-tool delivery").
+  constexpr std::uint64_t foreign_feedback = 0;
+  if (foreign_feedback > 0 || dropped_answers > 0 || other_sessions > 0)
     std::printf(
         "  feedback for other clients' tools %llu, for poses this run did not send %llu (an "
         "earlier run's, or another client driving the same tool), late feedback dropped %llu\n",
-        static_cast<unsigned long long>(client.foreign_feedback()),
+        static_cast<unsigned long long>(foreign_feedback),
         static_cast<unsigned long long>(other_sessions),
-        static_cast<unsigned long long>(client.dropped_late_feedback()));
+        static_cast<unsigned long long>(dropped_answers));
   if (presence.losses > 0 || presence.restarts > 0)
     std::printf("  palpated lost %llu time(s), restarted %llu time(s); now %s\n",
                 static_cast<unsigned long long>(presence.losses),
@@ -614,6 +742,7 @@ int run(int argc, char** argv) {
                                     {"gesture_file", o.gesture_file},
                                     {"model", o.model_id},
                                     {"rate_hz", o.rate_hz},
+                                    {"device_rate_hz", device_rate_hz},
                                     {"repeat", o.repeat},
                                     {"busy_wait", o.busy_wait},
                                     {"rt_priority", o.realtime.priority},
@@ -624,9 +753,9 @@ int run(int argc, char** argv) {
                                     {"budget_us", budget_us},
                                     {"interrupted", interrupted.load()},
                                     {"first_sequence", first_sequence},
-                                    {"foreign_feedback", client.foreign_feedback()},
+                                    {"foreign_feedback", foreign_feedback},
                                     {"other_session_feedback", other_sessions},
-                                    {"dropped_late_feedback", client.dropped_late_feedback()},
+                                    {"dropped_late_feedback", dropped_answers},
                                     {"daemon_losses", presence.losses},
                                     {"daemon_restarts", presence.restarts},
                                     {"tools", tools_json}};

@@ -243,9 +243,9 @@ kind_rules() {
       { echo "        <publish>"; topics palpate_reply; reply_partition; echo "        </publish>"; }
       { echo "        <publish>"; topics palpate_tool_response palpate_tool_event; tool_partition
         echo "        </publish>"; }
-      subscribe palpate_request palpate_tool_pose palpate_tool_command ;;
+      subscribe palpate_request palpate_tool_pose palpate_tool_command palpate_tool_rendered ;;
     pliers)
-      publish palpate_tool_pose palpate_tool_command
+      publish palpate_tool_pose palpate_tool_command palpate_tool_rendered
       subscribe palpate_model palpate_status palpate_tool_feedback palpate_tool_event \
         palpate_tool_notice
       { echo "        <subscribe>"; topics palpate_tool_response palpate_tool_event; tool_partition

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # palpate's demo on a fresh Debian 12 machine, as root: installs what is
 # missing, builds, precomputes an organ, serves it with palpated, opens the
-# live viewer, and plays a two-handed gesture with palpate-pliers (right
-# hand presses and glides, left hand grasps, pulls and releases), then prints
-# the latency and force summary, the recorded session's report and plots.
+# live viewer, and plays a two-handed gesture with palpate-pliers through the
+# C API for devices, the local model rendered at 4 kHz (right hand presses
+# and glides, left hand grasps, pulls and releases), then prints the latency
+# and force summary, the recorded session's report and plots.
 #
 # Usage: scripts/demo.sh              the sample organ (config/sample-organ.toml)
 #        scripts/demo.sh JOB.toml     a precompute job, e.g. config/openhelp-liver-h8.toml
@@ -214,7 +215,7 @@ started+=("$capture")
 wait_for "$out/capture.log" 'capture: ready' "$capture" 30 ||
   echo "demo: no screenshots: $(tail -1 "$out/capture.log")" >&2
 
-say "palpate-pliers plays $gesture $repeat time(s) at 1 kHz on the $warping model (docs/pliers.md)"
+say "palpate-pliers plays $gesture $repeat time(s) on the $warping model: poses at 1 kHz, the local model rendered at 4 kHz through the C API (docs/pliers.md, docs/devices.md)"
 status=0
 "${in_netns[@]}" "$build/bin/palpate-pliers" "$gesture" --model "$model" --repeat "$repeat" \
   --json "$out/pliers.json" || status=$?

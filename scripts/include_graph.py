@@ -6,8 +6,9 @@ Prints the number of units, of include edges between units, and of levels
 (the longest chain of includes); then checks the layer rule of
 docs/architecture.md: a unit of a layer includes only units of its own
 layer or of the layers beneath it (core < file < offline, runtime <
-transport < daemon; offline and runtime do not include each other), and the
-programs include only the library's public headers.
+transport < daemon, device; offline and runtime do not include each other,
+nor do daemon and device), and the programs include only the library's
+public headers.
 
     scripts/include_graph.py [ROOT]          # the numbers, then the rule
     scripts/include_graph.py --check [ROOT]  # exit 1 if the rule is broken
@@ -23,9 +24,11 @@ import re
 import sys
 from collections import defaultdict
 
-LAYERS = {"core": 0, "file": 1, "offline": 2, "runtime": 2, "transport": 3, "daemon": 4}
+LAYERS = {"core": 0, "file": 1, "offline": 2, "runtime": 2, "transport": 3, "daemon": 4,
+          "device": 4}
 # Layers of one rank that must not include each other.
-SIBLINGS = {("offline", "runtime"), ("runtime", "offline")}
+SIBLINGS = {("offline", "runtime"), ("runtime", "offline"), ("daemon", "device"),
+            ("device", "daemon")}
 SOURCE_DIRS = ["lib", "precompute", "server", "clients", "viewer", "bench", "fuzz", "examples"]
 EXTENSIONS = (".cpp", ".hpp", ".h", ".c")
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)

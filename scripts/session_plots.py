@@ -3,7 +3,8 @@
 
 Reads a file written by palpated's session recorder (docs/session-recording.md,
 section "Plots") and writes three PNGs:
-  <stem>-force.png     per tool, the force sent to the device (|f| and x, y, z)
+  <stem>-force.png     per tool, the force sent to the device (|f| and x, y, z),
+                       and what the device rendered at its own rate when recorded
                        against time, the tool's events (touch, grasp...) marked;
   <stem>-latency.png   cumulative distribution of the daemon's compute latency
                        per tick (pose taken -> feedback written, `compute_ns`),
@@ -92,6 +93,11 @@ class ToolSeries:
     latency_p99_us: float
     latency_max_us: float
     events: list = field(default_factory=list)  # [(time_s, kind name)] of this tool
+    # What the device rendered (the rendered group; empty without it), on the
+    # session clock: its client-clock times shifted by the median of the
+    # ticks' time_s − send_time_ns (the pose's one-way trip, tens of µs).
+    rendered_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    rendered_magnitude_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 @dataclass
@@ -126,7 +132,15 @@ def read_series(path):
                 events = [(float(t), kind_names[k] if 0 <= k < len(kind_names) else f"kind {k}")
                           for t, tool, k in zip(event_time_s, event_tool, event_kind)
                           if tool == index]
+                rendered_time_s, rendered_magnitude_n = np.zeros(0), np.zeros(0)
+                if "rendered" in g and len(g["rendered/time_ns"]) and len(g["time_s"]):
+                    offset_s = float(np.median(g["time_s"][:] -
+                                               g["send_time_ns"][:].astype(np.float64) * 1e-9))
+                    rendered_time_s = g["rendered/time_ns"][:].astype(np.float64) * 1e-9 + offset_s
+                    rendered_magnitude_n = np.linalg.norm(g["rendered/force"][:], axis=1)
                 tools.append(ToolSeries(
+                    rendered_time_s=rendered_time_s,
+                    rendered_magnitude_n=rendered_magnitude_n,
                     id=tool_id,
                     time_s=g["time_s"][:],
                     force_n=force,
@@ -194,6 +208,9 @@ def force_figure(session):
         for j, (axis, color) in enumerate(FORCE_COMPONENTS):
             ax.plot(tool.time_s, tool.force_n[:, j], drawstyle="steps-post", color=color,
                     linewidth=1.0, label=f"f{axis}")
+        if len(tool.rendered_time_s):
+            ax.plot(tool.rendered_time_s, tool.rendered_magnitude_n, drawstyle="steps-post",
+                    color="tab:orange", linewidth=0.6, label="|f| rendered by the device")
         mark_events(ax, tool)
         ax.set_title(f"tool {tool.id}: max |f| {tool.force_magnitude_n.max():.3g} N")
         ax.set_ylabel("force (N)")

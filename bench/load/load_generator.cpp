@@ -36,7 +36,8 @@
 // Output: a table on stdout, the summary as JSON (--json), every child's
 // raw data in --work. Checks (no timing in any of them): palpated alive at
 // the end and exiting 0; every child exiting 0; no lost and no error reply;
-// every tool answered and touching the organ at some point; no pose refused;
+// every tool answered and touching the organ at some point; no station
+// receiving another station's answers (per-tool partitions); no pose refused;
 // every viewer received surface samples of every model and a heartbeat;
 // palpated's RSS growth after the warm-up ≤ --rss-tolerance-mb.
 //
@@ -355,6 +356,11 @@ int run(int argc, char** argv) {
   for (const Child& c : children) {
     if (c.role.rfind("station", 0) != 0 || c.status != 0) continue;
     const StationData d = read_station(s.work, c.role);
+    // Each tool's answers come in its own partition (docs/dds.md, "Per-tool
+    // delivery"): a station receives none of another station's.
+    check(c.role + " received no other station's answers", d.meta["foreign_feedback"] == 0,
+          std::to_string(d.meta["foreign_feedback"].get<std::uint64_t>()) +
+              " answers of other stations' tools");
     stations_json.push_back({{"role", c.role},
                              {"foreign_feedback", d.meta["foreign_feedback"]},
                              {"dropped_late_feedback", d.meta["dropped_late_feedback"]},

@@ -7,6 +7,10 @@
 // go when they stop. The fixture: tools_over_dds.hpp.
 
 #include <dds/dds.h>
+#include <hdf5.h>
+
+#include <algorithm>
+#include <type_traits>
 
 #include "tools_over_dds.hpp"
 
@@ -49,10 +53,10 @@ class PartitionWatch {
     // The tool topics' QoS, but a history that keeps every sample.
     const dds::Qos reader_qos = dds::tool_stream_qos();
     dds_qset_history(reader_qos.get(), DDS_HISTORY_KEEP_LAST, 4096);
-    reader_ = dds::Entity(dds::check(
-        dds_create_reader(subscriber_.get(), dds::topic(p, type, topic_name), reader_qos.get(),
-                          nullptr),
-        "reader"));
+    reader_ =
+        dds::Entity(dds::check(dds_create_reader(subscriber_.get(), dds::topic(p, type, topic_name),
+                                                 reader_qos.get(), nullptr),
+                               "reader"));
   }
   bool matched() const {
     dds_subscription_matched_status_t status{};
@@ -162,6 +166,98 @@ TEST_F(ToolResponsesOverDds, TheClientRendersTheModelBetweenAnswersAndLetsGoWhen
   const RenderedWrench later = client_->render("probe", at, kPointingDown, ToolClient::now_ns());
   EXPECT_EQ(later.force_n.norm(), 0.0);
   probe.move(probe.at + Vector3d(0, 0, 0.006), 0);  // lifted: a new session
+}
+
+/// Dataset @p name of the HDF5 file @p file as rows × @p cols doubles (or
+/// int64 with @p T), read with the HDF5 C API; empty when absent.
+template <typename T>
+std::vector<T> read_dataset(const std::filesystem::path& file, const std::string& name,
+                            hsize_t cols = 1) {
+  std::vector<T> out;
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return out;
+  const hid_t set = H5Dopen2(f, name.c_str(), H5P_DEFAULT);
+  if (set >= 0) {
+    const hid_t space = H5Dget_space(set);
+    hsize_t dims[2] = {0, 1};
+    H5Sget_simple_extent_dims(space, dims, nullptr);
+    out.resize(dims[0] * cols);
+    if (!out.empty())
+      H5Dread(set, std::is_same_v<T, double> ? H5T_NATIVE_DOUBLE : H5T_NATIVE_INT64, H5S_ALL,
+              H5S_ALL, H5P_DEFAULT, out.data());
+    H5Sclose(space);
+    H5Dclose(set);
+  }
+  H5Fclose(f);
+  return out;
+}
+
+TEST_F(ToolResponsesOverDds, WhatTheDeviceRenderedIsInTheSessionRecording) {
+  // Its own palpated on DDS domain 1 (the suite's runs on 0), recording; a
+  // client that reports what it renders presses the probe, rendering four
+  // device steps per pose; after palpated stops, the session file holds
+  // every step, as the client rendered it.
+  const auto dir = dir_->path() / "rendered";
+  std::filesystem::create_directories(dir / "sessions");
+  std::ofstream(dir / "palpated.toml")
+      << "[daemon]\nid = \"rendered-daemon\"\n[dds]\ndomain = 1\n"
+         "[[model]]\nid = \"box\"\nfile = \""
+      << box_.string()
+      << "\"\n"
+         "[[tools]]\nid = \"probe\"\ntip = \"sphere\"\ntip_radius_mm = 2\njaw_length_mm = 0\n"
+         "force_limit_n = 100\nmax_force_rate_n_per_s = 1e6\n"
+         "[recording]\ndirectory = \"sessions\"\n";
+  testing::Daemon daemon({"--config", (dir / "palpated.toml").string()}, dir / "palpated.log");
+  std::map<std::int64_t, Vector3d> rendered;  // by the client's time
+  {
+    ToolClientOptions options;
+    options.domain_id = 1;
+    options.report_rendering = true;
+    ToolClient client(options);
+    ASSERT_TRUE(client.wait_for_model("box", kTimeout)) << daemon.log();
+    client.open_tool("probe");
+    ASSERT_TRUE(client.wait_for_daemon(kTimeout)) << daemon.log();
+    const Vector3d surface = rest(top_vertex(75, 25));
+    std::uint64_t sequence = 0;
+    for (int tick = 0; tick < 300; ++tick) {
+      const double depth = std::min(1.0, tick / 200.0) * 0.002;  // 2 mm in 0.2 s, held
+      const Vector3d hinge = surface + Vector3d(0, 0, 0.002 - depth);
+      const std::array<double, 3> at{hinge.x(), hinge.y(), hinge.z()};
+      client.send_pose("probe", "box", ++sequence, at, kPointingDown, 0);
+      for (int step = 0; step < 4; ++step) {
+        const std::int64_t now = ToolClient::now_ns();
+        rendered[now] = client.render("probe", at, kPointingDown, now).force_n;
+        std::this_thread::sleep_for(250us);
+      }
+    }
+    client.send_pose("probe", "box", ++sequence, {surface.x(), surface.y(), surface.z() + 0.01},
+                     kPointingDown, 0);  // carries the last steps
+    std::this_thread::sleep_for(100ms);
+    client.end_session("probe", "box", 1s);
+  }
+  ASSERT_EQ(daemon.stop(SIGTERM), 0) << daemon.log();
+  std::filesystem::path session;
+  for (const auto& entry : std::filesystem::directory_iterator(dir / "sessions"))
+    session = entry.path();
+  ASSERT_EQ(session.extension(), ".h5") << daemon.log();
+  const auto force = read_dataset<double>(session, "/tools/probe/rendered/force", 3);
+  const auto time_ns = read_dataset<std::int64_t>(session, "/tools/probe/rendered/time_ns");
+  // Best effort: a few samples may be lost on the way; 95 % of 1,200 steps.
+  ASSERT_GE(time_ns.size(), 1140u);
+  ASSERT_EQ(force.size(), 3 * time_ns.size());
+  EXPECT_TRUE(std::is_sorted(time_ns.begin(), time_ns.end()));
+  // Each step recorded is a step rendered, its force exactly.
+  int matched = 0;
+  double largest = 0;
+  for (std::size_t i = 0; i < time_ns.size(); ++i) {
+    const auto it = rendered.find(time_ns[i]);
+    ASSERT_NE(it, rendered.end()) << "step " << i << " was never rendered";
+    EXPECT_EQ(Vector3d(&force[3 * i]), it->second) << "step " << i;
+    matched += Vector3d(&force[3 * i]) == it->second;
+    largest = std::max(largest, it->second.norm());
+  }
+  EXPECT_EQ(matched, static_cast<int>(time_ns.size()));
+  EXPECT_GT(largest, 0.1) << "the probe was felt";
 }
 
 }  // namespace

@@ -48,7 +48,7 @@ class ToolsOverDdsTest : public ::testing::Test {
            "[contact]\nwatchdog_timeout_ms = 50\nwatchdog_ramp_ms = 100\n"
            "[recording]\ndirectory = \"sessions\"\n";
     daemon_ = new Daemon({"--config", (dir_->path() / "palpated.toml").string()},
-                                  dir_->path() / "palpated.log");
+                         dir_->path() / "palpated.log");
     Eigen::MatrixXd G;
     const ComplianceModel m = read_compliance_file(box_, &G);
     G_ = new Eigen::MatrixXd(std::move(G));
@@ -82,8 +82,8 @@ class ToolsOverDdsTest : public ::testing::Test {
   }
 
   static int top_vertex(double x_mm, double y_mm) {
-    return box_top_vertex(info_->surface.rest_positions_m,
-                                   info_->surface.compliance_vertex_count, x_mm, y_mm);
+    return box_top_vertex(info_->surface.rest_positions_m, info_->surface.compliance_vertex_count,
+                          x_mm, y_mm);
   }
   static Eigen::Vector3d rest(int j) {
     return Eigen::Map<const Eigen::Vector3d>(
@@ -142,7 +142,9 @@ class ToolsOverDdsTest : public ::testing::Test {
         if (other) other->receive();
       }
     }
-    Eigen::Vector3d force() const { return last ? Eigen::Vector3d(last->force_n.data()) : Eigen::Vector3d::Zero(); }
+    Eigen::Vector3d force() const {
+      return last ? Eigen::Vector3d(last->force_n.data()) : Eigen::Vector3d::Zero();
+    }
   };
 
   /// The surface sample of a tick of @p hand (held still) and that tick's
@@ -174,7 +176,8 @@ class ToolsOverDdsTest : public ::testing::Test {
     EXPECT_EQ(s.displacement_m.size(), 3 * ns);
     double largest_u = 0;
     for (std::size_t a = 0; a < ns; ++a)
-      largest_u = std::max(largest_u, Eigen::Map<const Eigen::Vector3d>(&s.displacement_m[3 * a]).norm());
+      largest_u =
+          std::max(largest_u, Eigen::Map<const Eigen::Vector3d>(&s.displacement_m[3 * a]).norm());
     // The engine's point and the stream's field are the same G f, summed
     // in another order: they agree to rounding, far below 1e-9 of the press.
     const double on_surface_m = 1e-9 * largest_u;
@@ -232,6 +235,5 @@ class ToolsOverDdsTest : public ::testing::Test {
   inline static std::uint64_t next_sequence_ = 0;
   inline static std::chrono::steady_clock::time_point next_tick_{};
 };
-
 
 }  // namespace palpate::testing

@@ -527,12 +527,15 @@ TEST(Faults, ClientsSeeTheDaemonGoAndComeBackAndResumeWithoutRestarting) {
     std::vector<std::string> cells;
     std::stringstream row(line);
     for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
-    ASSERT_EQ(cells.size(), 26u) << line;
+    // 26 columns, then what was rendered at the device's rate (docs/pliers.md).
+    ASSERT_EQ(cells.size(), 32u) << line;
     const int tick = std::stoi(cells[0]);
     if (cells[25] == "lost") {
       ++lost;
       last_lost_tick = tick;
       EXPECT_EQ(std::stod(cells[24]), 0.0) << "tick " << tick << ": force rendered while lost";
+      EXPECT_EQ(std::stod(cells[29]), 0.0)
+          << "tick " << tick << ": force rendered at a device step while lost";
     }
     outcomes.emplace_back(tick, cells[7]);
   }

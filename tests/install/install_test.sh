@@ -1,10 +1,12 @@
 #!/bin/sh
 # cmake --install into a fresh prefix, then two out-of-tree consumers of it:
 # a CMake project (find_package(palpate) + palpate::palpate, every public
-# header compiled alone, and a ToolClient on palpate::transport) and a
-# pkg-config build. Their programs run: the library and its dependencies are
-# found at run time. CTest runs it in a private network namespace (the
-# ToolClient joins DDS on loopback).
+# header compiled alone, a ToolClient on palpate::transport, and a C99
+# program on the C API, palpate::device) and pkg-config builds (the C++
+# library, and the C API from C with palpate-device.pc). Their programs
+# run: the library and its dependencies are found at run time. CTest runs
+# it in a private network namespace (the ToolClient and the C program join
+# DDS on loopback).
 # Usage: install_test.sh BUILD_DIR SOURCE_DIR WORK_DIR
 set -eu
 build=$1 source=$2 work=$3
@@ -19,8 +21,9 @@ prefix=$work/prefix
 
 cmake --install "$build" --prefix "$prefix" >"$work/install.log"
 for f in bin/palpated bin/palpate-precompute bin/palpate-client bin/palpate-pliers \
-         include/palpate/core/error.hpp include/palpate/idl/palpate.h \
-         lib/cmake/palpate/palpateConfig.cmake lib/pkgconfig/palpate.pc; do
+         include/palpate/core/error.hpp include/palpate/idl/palpate.h include/palpate/device.h \
+         lib/libpalpate_device.so lib/cmake/palpate/palpateConfig.cmake lib/pkgconfig/palpate.pc \
+         lib/pkgconfig/palpate-device.pc; do
   [ -e "$prefix/$f" ] || { echo "install_test: $f was not installed" >&2; exit 1; }
 done
 if find "$prefix/include" -path '*/detail/*' | grep -q .; then
@@ -47,6 +50,7 @@ cmake --build "$work/consumer-build" -j2 >"$work/consumer-build.log" 2>&1 || {
 }
 "$work/consumer-build/consumer"
 "$work/consumer-build/device_client"
+"$work/consumer-build/device_c"
 
 # pkg-config, for builds without CMake.
 PKG_CONFIG_PATH=$prefix/lib/pkgconfig
@@ -54,4 +58,9 @@ export PKG_CONFIG_PATH
 # shellcheck disable=SC2046
 c++ -std=c++20 -o "$work/consumer-pkgconfig" "$work/consumer/main.cpp" $(pkg-config --cflags --libs palpate)
 LD_LIBRARY_PATH=$prefix/lib "$work/consumer-pkgconfig"
+# The C API from plain C: its header alone, strict C99, then a program.
+# shellcheck disable=SC2046
+cc -std=c99 -Wall -Wextra -Wpedantic -Werror -o "$work/device-c-pkgconfig" \
+  "$work/consumer/device_c.c" $(pkg-config --cflags --libs palpate-device)
+LD_LIBRARY_PATH=$prefix/lib "$work/device-c-pkgconfig"
 echo "install_test: installed, found by CMake and pkg-config, programs run"

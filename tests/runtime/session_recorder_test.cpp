@@ -366,6 +366,67 @@ ToolTickRecord tick(double time_s, ToolState state, std::array<double, 3> force,
   return t;
 }
 
+TEST(SessionRecorder, WhatTheDevicesRenderedIsKeptPerToolInOrder) {
+  // 4 kHz steps of both tools through a small ring: every one is in its
+  // tool's /tools/<id>/rendered datasets, in order, with the summary.
+  TempDir dir;
+  const auto file = dir / "session.h5";
+  RecorderLimits limits;
+  limits.ring_rendered = 32;
+  limits.write_interval_s = 0.001;
+  std::vector<RenderedRecord> sent[2];
+  {
+    SessionRecorder recorder(file, two_tools(), limits);
+    std::mt19937_64 rng(20261126);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int k = 0; k < 2000; ++k) {
+      RenderedRecord r;
+      r.tool = k % 2;
+      r.time_ns = 250'000 * (k / 2) + 17;
+      r.answer_sequence = static_cast<std::uint64_t>(k / 8);
+      for (double& x : r.position_m) x = 0.1 * u(rng);
+      for (double& x : r.force_n) x = 4 * u(rng);
+      r.damping = k % 7 == 0 ? 3 * std::abs(u(rng)) : 0.0;
+      while (!recorder.record_rendered(r))
+        std::this_thread::sleep_for(std::chrono::microseconds(100));
+      sent[r.tool].push_back(r);
+    }
+    RenderedRecord bad;
+    bad.tool = 2;  // no such tool
+    EXPECT_FALSE(recorder.record_rendered(bad));
+    recorder.close();
+    EXPECT_GE(recorder.dropped_rendered(), 1u);
+  }
+  H5Reader h5(file);
+  for (int tool = 0; tool < 2; ++tool) {
+    const std::string group =
+        std::string("/tools/") + (tool == 0 ? "left" : "right") + "/rendered/";
+    const auto time_ns = h5.read<std::int64_t>(group + "time_ns");
+    const auto answer = h5.read<std::uint64_t>(group + "answer_sequence");
+    const auto position = h5.read<double>(group + "position", 3);
+    const auto force = h5.read<double>(group + "force", 3);
+    const auto damping = h5.read<double>(group + "damping");
+    const auto& expected = sent[tool];
+    ASSERT_EQ(time_ns.size(), expected.size());
+    double max_force = 0;
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+      EXPECT_EQ(time_ns[i], expected[i].time_ns);
+      EXPECT_EQ(answer[i], expected[i].answer_sequence);
+      EXPECT_EQ(damping[i], expected[i].damping);
+      for (int d = 0; d < 3; ++d) {
+        EXPECT_EQ(position[3 * i + d], expected[i].position_m[d]);
+        EXPECT_EQ(force[3 * i + d], expected[i].force_n[d]);
+      }
+      max_force = std::max(max_force, std::hypot(expected[i].force_n[0], expected[i].force_n[1],
+                                                 expected[i].force_n[2]));
+    }
+    const std::string object = std::string("/tools/") + (tool == 0 ? "left" : "right");
+    EXPECT_EQ(h5.attribute<std::uint64_t>(object, "rendered_steps"), expected.size());
+    EXPECT_NEAR(h5.attribute<double>(object, "max_rendered_force_n"), max_force, 1e-12);
+  }
+  EXPECT_GE(h5.attribute<std::uint64_t>("/", "dropped_rendered"), 1u);
+}
+
 TEST(SessionRecorder, SummaryAttributesMatchHandComputedValues) {
   TempDir dir;
   const auto file = dir / "summary.h5";

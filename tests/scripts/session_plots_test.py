@@ -287,6 +287,19 @@ class SessionPlots(unittest.TestCase):
         self.assertIn("(s)", fig.axes[-1].get_xlabel())
         self.assertNotIn("INCOMPLETE", fig._suptitle.get_text())
 
+    def test_the_force_figure_draws_what_the_device_rendered_on_the_session_clock(self):
+        # left's device rendered 4 steps per tick over ticks 200-299, each
+        # tick's first at its pose's send time: on the session clock (the
+        # ticks' time_s − send_time_ns is −1 s exactly) k ms + j·0.25 ms.
+        fig = plots.figures(self.session)["force"]
+        label = "|f| rendered by the device"
+        k, j = np.meshgrid(np.arange(200, 300), np.arange(4), indexing="ij")
+        left = lines_by_label(fig.axes[0])[label]
+        np.testing.assert_allclose(left.get_xdata(), (k * 1e-3 + j * 2.5e-4).ravel(), rtol=0,
+                                   atol=1e-12)
+        np.testing.assert_allclose(left.get_ydata(), (2 + 0.1 * j).ravel(), rtol=REL, atol=0)
+        self.assertNotIn(label, lines_by_label(fig.axes[1]), "right's device reported nothing")
+
     def test_the_contacts_figure_draws_the_contact_counts(self):
         fig = plots.figures(self.session)["contacts"]
         self.assertEqual(len(fig.axes), 2)

@@ -16,6 +16,8 @@
 //   [100,200) with 1 N, free otherwise; one contact while touching; compute
 //   40 µs + 20 ns·k (p50 45 µs, p99 49.88 µs).
 // Events: left touch, grasp, release, grasp, release, leave; right touch, leave.
+// What left's device rendered: 4 steps per tick over ticks [200, 300), at
+//   send_time_ns + j·0.25 ms, force z 2 + 0.1 j N (j = 0..3); right: none.
 
 #include <signal.h>
 
@@ -96,6 +98,15 @@ void write(const char* out, bool crash) {
     t.compute_ns = k < 985 ? 20'000 + 10 * static_cast<std::uint64_t>(k)
                            : 150'000 + 1'000 * static_cast<std::uint64_t>(k - 985);
     record(recorder, t, t.state == ToolState::kFree ? 0 : grasping ? 4 : 1 + k % 3);
+    for (int j = 0; j < 4 && k >= 200 && k < 300; ++j) {
+      palpate::RenderedRecord r;
+      r.tool = 0;
+      r.time_ns = t.send_time_ns + j * 250'000;
+      r.answer_sequence = t.sequence;
+      r.position_m[0] = t.position_m[0];
+      r.force_n[2] = 2 + 0.1 * j;
+      if (!recorder.record_rendered(r)) throw std::runtime_error("a rendered step was refused");
+    }
   }
   for (int k = 0; k < 500; ++k) {
     palpate::ToolTickRecord t;

@@ -1,7 +1,8 @@
 #pragma once
 // A GoogleTest fixture whose test suite shares one served model of the
-// clamped box (box_job: 100 × 50 × 40 mm, clamped on x = 0, soft tissue),
-// computed once per suite through the real precompute pipeline.
+// clamped box (box_job: 100 × 50 × 40 mm, clamped on x = 0, soft tissue
+// unless told otherwise), computed once per suite through the real
+// precompute pipeline.
 
 #include <gtest/gtest.h>
 
@@ -14,13 +15,14 @@
 namespace palpate::testing {
 
 /// @tparam Cells cubes along x (12.5 mm cubes at 8).
-template <int Cells = 8>
+/// @tparam YoungModulusKpa the material's Young modulus, kPa (85: liver).
+template <int Cells = 8, int YoungModulusKpa = 85>
 class BoxModelSuite : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new TempDir;
-    model_ = new SurfaceModel(
-        load_surface_model("box", write_box_compliance(dir_->path(), "box", Cells)));
+    model_ = new SurfaceModel(load_surface_model(
+        "box", write_box_compliance(dir_->path(), "box", Cells, YoungModulusKpa * 1e3)));
   }
   static void TearDownTestSuite() {
     delete model_;

@@ -73,7 +73,8 @@ Service::Impl::Impl(const DaemonConfig& c) : config(c) {
       .event = topic(&palpate_ToolEvent_desc, dds::kToolEventTopic),
       .command = topic(&palpate_ToolCommand_desc, dds::kToolCommandTopic),
       .notice = topic(&palpate_ToolNotice_desc, dds::kToolNoticeTopic),
-      .response = topic(&palpate_ToolResponse_desc, dds::kToolResponseTopic)};
+      .response = topic(&palpate_ToolResponse_desc, dds::kToolResponseTopic),
+      .rendered = topic(&palpate_ToolRendered_desc, dds::kToolRenderedTopic)};
 
   model_writer = dds::Entity(
       dds::check(dds_create_writer(participant.get(), model_topic, dds::model_qos().get(), nullptr),

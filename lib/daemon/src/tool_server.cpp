@@ -77,6 +77,12 @@ void ToolServer::listen(dds_entity_t participant, const Topics& topics,
   };
   command_reader_ = reader(topics.command, dds::tool_command_qos(), &ToolServer::on_commands,
                            "creating the tool command reader");
+  // What devices rendered: kept from several of a tool's samples at once
+  // (they come with each pose; a slow take must not lose them).
+  const dds::Qos rendered_qos = dds::tool_stream_qos();
+  dds_qset_history(rendered_qos.get(), DDS_HISTORY_KEEP_LAST, 16);
+  rendered_reader_ = reader(topics.rendered, rendered_qos, &ToolServer::on_rendered,
+                            "creating the rendered-steps reader");
   reader_ = reader(topics.pose, dds::tool_stream_qos(), &ToolServer::on_poses,
                    "creating the tool pose reader");
 }
@@ -84,6 +90,7 @@ void ToolServer::listen(dds_entity_t participant, const Topics& topics,
 void ToolServer::stop() {
   reader_.reset();
   command_reader_.reset();
+  rendered_reader_.reset();
 }
 
 // Takes from the reader Cyclone names (RequestServer::on_requests says why).
@@ -104,6 +111,42 @@ void ToolServer::on_commands(dds_entity_t reader, void* arg) {
     server.serve_commands(reader);
   } catch (const std::exception& e) {
     spdlog::error("event=tool_commands_failed error=\"{}\"", e.what());
+  }
+}
+
+void ToolServer::on_rendered(dds_entity_t reader, void* arg) {
+  try {
+    ToolServer& server = *static_cast<ToolServer*>(arg);
+    (void)server.listening_.load(std::memory_order_acquire);
+    server.serve_rendered(reader);
+  } catch (const std::exception& e) {
+    spdlog::error("event=rendered_steps_failed error=\"{}\"", e.what());
+  }
+}
+
+void ToolServer::serve_rendered(dds_entity_t reader) {
+  for (;;) {
+    void* sample = nullptr;
+    dds_sample_info_t info;
+    const dds_return_t n = dds_take(reader, &sample, &info, 1, 1);
+    if (n < 0) throw SystemError(std::string("taking rendered steps: ") + dds_strretcode(n));
+    if (n == 0) return;
+    if (info.valid_data) {
+      const auto& rendered = *static_cast<const palpate_ToolRendered*>(sample);
+      const std::string_view model_id = wire::bounded(rendered.model_id);
+      for (const auto& served : models_) {
+        if (served->model.id != model_id) continue;
+        const int tool = served->tools.engine->tool_index(wire::bounded(rendered.tool_id));
+        if (tool < 0) break;
+        const std::lock_guard lock(served->tools.mutex);
+        if (!served->tools.recorder) break;
+        const std::size_t count = wire::from_idl(rendered, tool, rendered_records_);
+        for (std::size_t i = 0; i < count; ++i)
+          served->tools.recorder->record_rendered(rendered_records_[i]);
+        break;
+      }
+    }
+    dds_return_loan(reader, &sample, n);
   }
 }
 

@@ -40,7 +40,7 @@ class ToolServer {
 
   /// The tool topics, created by the caller.
   struct Topics {
-    dds_entity_t pose, feedback, event, command, notice, response;
+    dds_entity_t pose, feedback, event, command, notice, response, rendered;
   };
   /// Creates the feedback, event and notice writers, each tool's response
   /// and event writers in its partition (dds::tool_partition), then the pose
@@ -65,6 +65,10 @@ class ToolServer {
   static constexpr int kBatch = 8;  // poses taken per dds_take
   static void on_poses(dds_entity_t reader, void* arg);
   static void on_commands(dds_entity_t reader, void* arg);
+  static void on_rendered(dds_entity_t reader, void* arg);
+  /// What devices rendered (palpate_tool_rendered) into their tools' session
+  /// recordings.
+  void serve_rendered(dds_entity_t reader);
   void serve(dds_entity_t reader);
   void take(const palpate_ToolPose& pose);
   void serve_commands(dds_entity_t reader);
@@ -87,7 +91,9 @@ class ToolServer {
   const std::vector<std::unique_ptr<ServedModel>>& models_;
   std::string served_ids_;
   const DaemonClock& clock_;
-  dds::Entity reader_, command_reader_, feedback_writer_, event_writer_, notice_writer_;
+  dds::Entity reader_, command_reader_, rendered_reader_, feedback_writer_, event_writer_,
+      notice_writer_;
+  std::array<RenderedRecord, 32> rendered_records_{};
   /// Per tool (the engines' tool index: every model has the same tools), in
   /// the tool's partition.
   struct ToolWriters {

@@ -30,6 +30,8 @@ LocalModel::LocalModel(int max_rows, int compliance_vertices) {
   shift_disp_.resize(3 * k);
   force_change_.resize(3 * k);
   loaded_.resize(3 * k);
+  moved_.resize(3 * k);
+  moved_vertex_.resize(3 * k);
   in_.resize(3 * k * kMotions);
   out_.resize(3 * k * kMotions);
   moved_point_.resize(k);
@@ -48,6 +50,7 @@ int LocalModel::slot(int v) {
     shift_disp_[ss].setZero();
     force_change_[ss].setZero();
     loaded_[ss] = 0;
+    moved_[ss] = 0;
   }
   return s;
 }
@@ -210,11 +213,17 @@ LocalModel::Matrix6d LocalModel::stiffness(std::span<const ActiveRow> rows,
     for (int i = 0; i < row.count; ++i) {
       const int a = row.index[static_cast<std::size_t>(i)];
       if (a < 0) continue;
-      Block at_a = shift_disp_[static_cast<std::size_t>(slot(a))];
-      for (int v = 0; v < slots_; ++v)
-        at_a.noalias() += set.G_block(a, vertex_[static_cast<std::size_t>(v)]) *
-                          force_change_[static_cast<std::size_t>(v)];
-      du += row.weights[static_cast<std::size_t>(i)] * at_a;
+      // A vertex's δu is the same for every row on it: computed once.
+      const auto sa = static_cast<std::size_t>(slot(a));
+      if (!moved_[sa]) {
+        Block& at_a = moved_vertex_[sa];
+        at_a = shift_disp_[sa];
+        for (int v = 0; v < slots_; ++v)
+          at_a.noalias() += set.G_block(a, vertex_[static_cast<std::size_t>(v)]) *
+                            force_change_[static_cast<std::size_t>(v)];
+        moved_[sa] = 1;
+      }
+      du += row.weights[static_cast<std::size_t>(i)] * moved_vertex_[sa];
     }
     const Matrix3d across = Matrix3d::Identity() - l.normal * l.normal.transpose();
     const Vector3d slip = across * (l.position - l.target);

@@ -93,6 +93,8 @@ class LocalModel {
   std::vector<Block> shift_disp_;    // per slot: σ, the displacement those shifts cause
   std::vector<Block> force_change_;  // per slot: Σ w δf̂ of every point on it
   std::vector<char> loaded_;         // per slot: a tip point of the tool has weight on it
+  std::vector<char> moved_;          // per slot: moved_vertex_ computed
+  std::vector<Block> moved_vertex_;  // per slot: δu, G Hᵀ δf̂ + σ, for the sliding points on it
   std::vector<double> in_, out_;     // 3 per row × 6 motions
   // Per row of the tool: how each motion moves its point found on the
   // surface (δp), its normal (δn) and its target (world).

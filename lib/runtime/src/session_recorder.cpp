@@ -21,11 +21,13 @@
 #include "palpate/core/version.hpp"
 #include "palpate/file/atomic_file.hpp"
 #include "palpate/file/detail/hdf5_support.hpp"
+#include "session_columns.hpp"
 
 namespace palpate {
 
 namespace {
 
+using detail::Column;
 using hdf5::check;
 using hdf5::Handle;
 using hdf5::write_double_attribute;
@@ -41,6 +43,7 @@ constexpr int kFormatVersion = 1;
 constexpr hsize_t kTickChunk = 1024;
 constexpr hsize_t kContactChunk = 4096;
 constexpr hsize_t kEventChunk = 256;
+constexpr hsize_t kRenderedChunk = 4096;
 
 // "2026-11-21T18:00:00.123Z" from nanoseconds since 1970 (UTC).
 std::string iso_utc(std::int64_t unix_ns) {
@@ -63,100 +66,6 @@ std::int64_t unix_now_ns() {
              std::chrono::system_clock::now().time_since_epoch())
       .count();
 }
-
-// The HDF5 types (memory, file: little-endian) of the C++ types recorded.
-template <typename T>
-struct H5Type;
-template <>
-struct H5Type<double> {
-  static hid_t mem() { return H5T_NATIVE_DOUBLE; }
-  static hid_t file() { return H5T_IEEE_F64LE; }
-};
-template <>
-struct H5Type<std::uint64_t> {
-  static hid_t mem() { return H5T_NATIVE_UINT64; }
-  static hid_t file() { return H5T_STD_U64LE; }
-};
-template <>
-struct H5Type<std::int64_t> {
-  static hid_t mem() { return H5T_NATIVE_INT64; }
-  static hid_t file() { return H5T_STD_I64LE; }
-};
-template <>
-struct H5Type<std::uint32_t> {
-  static hid_t mem() { return H5T_NATIVE_UINT32; }
-  static hid_t file() { return H5T_STD_U32LE; }
-};
-template <>
-struct H5Type<std::int32_t> {
-  static hid_t mem() { return H5T_NATIVE_INT32; }
-  static hid_t file() { return H5T_STD_I32LE; }
-};
-template <>
-struct H5Type<std::int8_t> {
-  static hid_t mem() { return H5T_NATIVE_INT8; }
-  static hid_t file() { return H5T_STD_I8LE; }
-};
-template <>
-struct H5Type<std::uint8_t> {
-  static hid_t mem() { return H5T_NATIVE_UINT8; }
-  static hid_t file() { return H5T_STD_U8LE; }
-};
-
-// An extendable, chunked dataset of n × width values of T (1-D when width
-// is 1), with the rows staged since its last write() held in memory.
-template <typename T>
-class Column {
- public:
-  Column(hid_t parent, const char* name, hsize_t width, hsize_t chunk_rows,
-         const char* units = nullptr)
-      : width_(width), set_(create(parent, name, width, chunk_rows)), name_(name) {
-    if (units) write_string_attribute(set_, "units", units);
-  }
-
-  void stage(T value) { staged_.push_back(value); }
-  void stage(const T* row) { staged_.insert(staged_.end(), row, row + width_); }
-
-  // Appends the staged rows to the dataset.
-  void write() {
-    const hsize_t rows = staged_.size() / width_;
-    if (rows == 0) return;
-    const hsize_t dims[2] = {rows_ + rows, width_};
-    check(H5Dset_extent(set_, dims), fmt::format("extend dataset {}", name_));
-    Handle file_space(H5Dget_space(set_), H5Sclose, "get a dataspace");
-    const hsize_t start[2] = {rows_, 0}, count[2] = {rows, width_};
-    check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr),
-          fmt::format("select rows of {}", name_));
-    Handle mem_space(H5Screate_simple(rank(width_), count, nullptr), H5Sclose,
-                     "create a dataspace");
-    check(H5Dwrite(set_, H5Type<T>::mem(), mem_space, file_space, H5P_DEFAULT, staged_.data()),
-          fmt::format("write dataset {}", name_));
-    rows_ += rows;
-    staged_.clear();
-  }
-
-  hid_t id() const { return set_; }
-
- private:
-  static int rank(hsize_t width) { return width == 1 ? 1 : 2; }
-
-  static Handle create(hid_t parent, const char* name, hsize_t width, hsize_t chunk_rows) {
-    const hsize_t dims[2] = {0, width}, max_dims[2] = {H5S_UNLIMITED, width};
-    const hsize_t chunk[2] = {chunk_rows, width};
-    Handle space(H5Screate_simple(rank(width), dims, max_dims), H5Sclose, "create a dataspace");
-    Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "create dataset properties");
-    check(H5Pset_chunk(properties, rank(width), chunk), fmt::format("chunk dataset {}", name));
-    return Handle(
-        H5Dcreate2(parent, name, H5Type<T>::file(), space, H5P_DEFAULT, properties, H5P_DEFAULT),
-        H5Dclose, fmt::format("create dataset {}", name));
-  }
-
-  hsize_t width_;
-  Handle set_;
-  const char* name_;
-  hsize_t rows_ = 0;
-  std::vector<T> staged_;
-};
 
 // The assessment of one tool's gesture, accumulated tick by tick. The
 // definitions are those of docs/session-recording.md (scripts/session_report.py
@@ -242,7 +151,13 @@ struct ToolStream {
         contact_count(group, "contact_count", 1, kTickChunk),
         contacts(hdf5::group(group, "contacts")),
         contact_vertex(contacts, "vertex", 1, kContactChunk),
-        contact_force(contacts, "force", 3, kContactChunk, "N") {
+        contact_force(contacts, "force", 3, kContactChunk, "N"),
+        rendered(hdf5::group(group, "rendered")),
+        rendered_time_ns(rendered, "time_ns", 1, kRenderedChunk, "ns"),
+        rendered_answer(rendered, "answer_sequence", 1, kRenderedChunk),
+        rendered_position(rendered, "position", 3, kRenderedChunk, "m"),
+        rendered_force(rendered, "force", 3, kRenderedChunk, "N"),
+        rendered_damping(rendered, "damping", 1, kRenderedChunk, "N·s/m") {
     write_int_attribute(group, "index", index);
     write_string_attribute(group, "tip", tip_name(g.tip));
     write_double_attribute(group, "tip_radius_m", g.tip_radius_m);
@@ -310,6 +225,24 @@ struct ToolStream {
     contact_count.write();
     contact_vertex.write();
     contact_force.write();
+    rendered_time_ns.write();
+    rendered_answer.write();
+    rendered_position.write();
+    rendered_force.write();
+    rendered_damping.write();
+  }
+
+  void stage(const RenderedRecord& r) {
+    rendered_time_ns.stage(r.time_ns);
+    rendered_answer.stage(r.answer_sequence);
+    rendered_position.stage(r.position_m);
+    rendered_force.stage(r.force_n);
+    rendered_damping.stage(r.damping);
+    ++rendered_steps;
+    const double magnitude = std::sqrt(r.force_n[0] * r.force_n[0] + r.force_n[1] * r.force_n[1] +
+                                       r.force_n[2] * r.force_n[2]);
+    max_rendered_force = std::max(max_rendered_force, magnitude);
+    max_damping = std::max(max_damping, r.damping);
   }
 
   Handle group;
@@ -325,8 +258,14 @@ struct ToolStream {
   Handle contacts;
   Column<std::uint32_t> contact_vertex;
   Column<double> contact_force;
+  Handle rendered;
+  Column<std::int64_t> rendered_time_ns;
+  Column<std::uint64_t> rendered_answer;
+  Column<double> rendered_position, rendered_force, rendered_damping;
   std::uint64_t contacts_total = 0;
   ToolSummary summary;
+  std::uint64_t rendered_steps = 0;
+  double max_rendered_force = 0, max_damping = 0;
 };
 
 // /events: the tools' state changes, one row each.
@@ -398,11 +337,12 @@ void validate(const std::filesystem::path& file, const std::filesystem::path& pa
     if (!ids.insert(tool.id).second)
       throw InputError(fmt::format("{}: tool id '{}' appears twice", where, tool.id));
   }
-  if (limits.ring_ticks < 1 || limits.ring_events < 1 ||
+  if (limits.ring_ticks < 1 || limits.ring_events < 1 || limits.ring_rendered < 1 ||
       limits.ring_contacts < limits.max_contacts_per_tick || !(limits.flush_interval_s > 0) ||
       !(limits.write_interval_s > 0))
     throw InputError(
-        fmt::format("{}: recorder limits need ring_ticks ≥ 1, ring_events ≥ 1, ring_contacts ≥ "
+        fmt::format("{}: recorder limits need ring_ticks ≥ 1, ring_events ≥ 1, ring_rendered ≥ 1, "
+                    "ring_contacts ≥ "
                     "max_contacts_per_tick, flush_interval_s > 0 and write_interval_s > 0",
                     where));
 }
@@ -423,6 +363,8 @@ struct SessionRecorder::Impl {
     std::uint64_t pose_sequence;
   };
 
+  using RenderedSlot = RenderedRecord;
+
   Impl(std::filesystem::path final_path, const RecorderLimits& l, std::size_t tools)
       : path(std::move(final_path)),
         partial(path.string() + ".partial"),
@@ -433,6 +375,7 @@ struct SessionRecorder::Impl {
         contact_vertices(std::make_unique<std::uint32_t[]>(l.ring_contacts)),
         contact_forces(std::make_unique<double[]>(3 * l.ring_contacts)),
         events(std::make_unique<EventSlot[]>(l.ring_events)),
+        rendered(std::make_unique<RenderedSlot[]>(l.ring_rendered)),
         dropped_per_tool(std::make_unique<std::atomic<std::uint64_t>[]>(tools)) {}
 
   void create(const SessionInfo& info);
@@ -454,15 +397,18 @@ struct SessionRecorder::Impl {
   std::unique_ptr<std::uint32_t[]> contact_vertices;
   std::unique_ptr<double[]> contact_forces;  // 3 per contact
   std::unique_ptr<EventSlot[]> events;
+  std::unique_ptr<RenderedSlot[]> rendered;
   std::unique_ptr<std::atomic<std::uint64_t>[]> dropped_per_tool;
   alignas(64) std::atomic<std::uint64_t> tick_head{0};
   std::uint64_t contact_head = 0;  // the producer's alone
   std::atomic<std::uint64_t> event_head{0};
-  std::atomic<std::uint64_t> recorded{0}, dropped{0}, dropped_events{0};
+  std::atomic<std::uint64_t> rendered_head{0};
+  std::atomic<std::uint64_t> recorded{0}, dropped{0}, dropped_events{0}, dropped_rendered{0};
   std::atomic<bool> accepting{true};
   alignas(64) std::atomic<std::uint64_t> tick_tail{0};
   std::atomic<std::uint64_t> contact_tail{0};
   std::atomic<std::uint64_t> event_tail{0};
+  std::atomic<std::uint64_t> rendered_tail{0};
   std::atomic<std::uint64_t> flushed{0};
   std::atomic<bool> failed{false};
 
@@ -545,6 +491,13 @@ void SessionRecorder::Impl::drain() {
   }
   event_tail.store(event_end, std::memory_order_release);
 
+  const std::uint64_t rendered_end = rendered_head.load(std::memory_order_acquire);
+  for (std::uint64_t k = rendered_tail.load(std::memory_order_relaxed); k != rendered_end; ++k) {
+    const RenderedSlot& slot = rendered[k % limits.ring_rendered];
+    f.tools[static_cast<std::size_t>(slot.tool)]->stage(slot);
+  }
+  rendered_tail.store(rendered_end, std::memory_order_release);
+
   // The rings are free again before the (slow) writes.
   for (auto& t : f.tools) t->write();
   f.events->write();
@@ -589,6 +542,9 @@ void SessionRecorder::Impl::finish() {
   for (std::size_t i = 0; i < f.tools.size(); ++i) {
     const ToolStream& t = *f.tools[i];
     t.summary.write(t.group, dropped_per_tool[i].load(std::memory_order_relaxed));
+    write_uint64_attribute(t.group, "rendered_steps", t.rendered_steps);
+    write_double_attribute(t.group, "max_rendered_force_n", t.max_rendered_force);
+    write_double_attribute(t.group, "max_rendered_damping", t.max_damping);
     if (t.summary.ticks > 0) duration_s = std::max(duration_s, t.summary.last_time_s);
   }
   const hid_t root = f.file;
@@ -598,6 +554,8 @@ void SessionRecorder::Impl::finish() {
   write_uint64_attribute(root, "events", f.events->count);
   write_uint64_attribute(root, "dropped_ticks", dropped.load(std::memory_order_relaxed));
   write_uint64_attribute(root, "dropped_events", dropped_events.load(std::memory_order_relaxed));
+  write_uint64_attribute(root, "dropped_rendered",
+                         dropped_rendered.load(std::memory_order_relaxed));
   check(H5Fflush(root, H5F_SCOPE_LOCAL), fmt::format("flush {}", partial.string()));
   f.tools.clear();
   f.events.reset();
@@ -685,6 +643,20 @@ bool SessionRecorder::record_event(double time_s, std::int32_t tool, ToolEventKi
   return true;
 }
 
+bool SessionRecorder::record_rendered(const RenderedRecord& step) {
+  Impl& r = *impl_;
+  const std::uint64_t head = r.rendered_head.load(std::memory_order_relaxed);
+  if (!r.accepting.load(std::memory_order_relaxed) || step.tool < 0 ||
+      static_cast<std::size_t>(step.tool) >= r.tool_count ||
+      head - r.rendered_tail.load(std::memory_order_acquire) >= r.limits.ring_rendered) {
+    r.dropped_rendered.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  r.rendered[head % r.limits.ring_rendered] = step;
+  r.rendered_head.store(head + 1, std::memory_order_release);
+  return true;
+}
+
 void SessionRecorder::close() {
   Impl& r = *impl_;
   if (r.closed) return;
@@ -721,6 +693,9 @@ std::uint64_t SessionRecorder::dropped() const {
 }
 std::uint64_t SessionRecorder::dropped_events() const {
   return impl_->dropped_events.load(std::memory_order_relaxed);
+}
+std::uint64_t SessionRecorder::dropped_rendered() const {
+  return impl_->dropped_rendered.load(std::memory_order_relaxed);
 }
 std::uint64_t SessionRecorder::flushed() const {
   return impl_->flushed.load(std::memory_order_relaxed);

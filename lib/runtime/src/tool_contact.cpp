@@ -3,18 +3,21 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <optional>
+#include <span>
 
 #include "active_set.hpp"
 #include "contact_geometry.hpp"
+#include "deformed_surface.hpp"
 #include "jaw_grasp.hpp"
 #include "local_model.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/rotation_field.hpp"
-#include "warped_rotations.hpp"
+#include "tip_contacts.hpp"
 
 namespace palpate {
 
@@ -23,29 +26,8 @@ namespace {
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
 
-/// Closest point to @p x on the segment [a, a + length·axis] (axis unit).
-Vector3d closest_on_segment(const Vector3d& a, const Vector3d& axis, double length,
-                            const Vector3d& x) {
-  const double t = std::clamp((x - a).dot(axis), 0.0, length);
-  return a + t * axis;
-}
-
-/// A tip contact found this tick: the deepest point of a surface triangle
-/// inside the tip, on the triangle's vertices that carry a weight.
-struct TipCandidate {
-  int triangle;                 // drawn triangle it was found on
-  int count;                    // vertices with a non-zero weight, 1 to 3
-  std::array<int, 3> vertices;  // drawn vertices
-  std::array<double, 3> weights;
-  double depth;     // r − distance to the tip's axis, m (negative: within the hysteresis shell)
-  Vector3d normal;  // unit: the direction the tip pushes the tissue (from the axis to the point)
-  Vector3d target;  // the point put back on the tip's surface, m
-  Vector3d rest;    // the point at rest, Σ w_i rest_i, m
-  bool active;      // penetrating (or within the hysteresis shell); else a near
-                    // triangle the solve may push into the tip
-};
-
 using detail::HeldPoint;
+using detail::TipCandidate;
 
 }  // namespace
 
@@ -87,29 +69,15 @@ struct ToolContactEngine::Impl {
   };
   std::vector<Tool> tools;
 
-  // The drawn surface: compliance vertices first, then the fixed ones.
+  // The drawn surface as the last solve's loads deform it.
   int compliance_count = 0;
-  std::vector<Vector3d> rest;           // per drawn vertex
-  std::vector<Vector3d> vertex_normal;  // per compliance vertex, outward, area weighted
-  std::vector<int> triangle_vertices;   // 3 per triangle
-  std::vector<int> vertex_triangles_begin, vertex_triangles;  // triangles around each vertex
+  detail::DeformedSurface surface;
   std::vector<int> owner;  // per compliance vertex: tool holding it this tick, or -1
   std::vector<int> previous_triangle_owner;  // per triangle: tool whose tip touched it last tick
-  std::vector<std::uint32_t> triangle_seen;  // per triangle: the last find_tips that met it
-  std::uint32_t triangle_epoch = 0;
-  std::vector<std::uint32_t> position_seen;  // per drawn vertex: the epoch of `position`
-  std::uint32_t epoch = 0;
-  std::vector<Vector3d> position;  // per drawn vertex: deformed, valid when position_seen == epoch
-  // Warped: û and ω of the compliance vertices met this tick.
-  std::optional<detail::WarpedRotations> rotations;
-  Vector3d box_min, box_max;
 
   // Scratch, sized once.
-  std::vector<int> candidates;  // compliance vertices near a tool
-  std::vector<Vector3d> candidate_position;
-  std::vector<TipCandidate> found;
+  detail::TipContacts tip_search;
   detail::JawGrasp grasp;
-  std::vector<int> near_triangles;      // around the candidates, distinct
   std::vector<int> grasp_triangles;     // near the closing jaws
   std::vector<Vector3d> grasp_corners;  // 3 per grasp triangle, deformed
   std::vector<HeldPoint> touched;       // the tip's points at the last tick
@@ -124,6 +92,9 @@ struct ToolContactEngine::Impl {
   std::vector<double> load_force;  // 3 per load, N
   std::vector<int> load_slot;      // per compliance vertex: its load this tool, or -1
   double max_displacement = 0;     // over the points, m
+  // fᵀ G f of the loads, J (f_Cᵀ u_C over the points, material): with
+  // ‖G^{vv}‖, it bounds every vertex's displacement (DeformedSurface::far_from).
+  double load_energy = 0;
   char message[256] = {};
   mutable char problem[256] = {};  // why check() refused the last pose it refused
 
@@ -157,13 +128,13 @@ struct ToolContactEngine::Impl {
         settings(s),
         limits(l),
         active_set(m, l),
+        compliance_count(m.compliance_vertex_count()),
+        surface(m, w),
+        tip_search(m.surface.triangle_count()),
         grasp(std::max(1, l.max_constraints), m.compliance_vertex_count()),
         linearization(std::max(1, l.max_constraints), m.compliance_vertex_count()) {
-    const DrawnSurface& surface = m.surface;
-    compliance_count = m.compliance_vertex_count();
     const int n = compliance_count;
-    const int drawn = surface.vertex_count();
-    const int triangles = surface.triangle_count();
+    const int triangles = m.surface.triangle_count();
     const int t = static_cast<int>(geometries.size());
     PALPATE_DEMAND(t >= 1 && t <= 64);
     per_tool_cap = std::min(settings.max_contacts_per_tool, limits.max_constraints / t);
@@ -175,46 +146,9 @@ struct ToolContactEngine::Impl {
       tool.tips.resize(static_cast<std::size_t>(per_tool_cap));
       tools.push_back(std::move(tool));
     }
-    rest.resize(static_cast<std::size_t>(drawn));
-    position.resize(static_cast<std::size_t>(drawn));
-    position_seen.assign(static_cast<std::size_t>(drawn), 0);
-    box_min = Vector3d::Constant(std::numeric_limits<double>::infinity());
-    box_max = -box_min;
-    for (int v = 0; v < drawn; ++v) {
-      rest[static_cast<std::size_t>(v)] = surface.rest_position(v);
-      box_min = box_min.cwiseMin(rest[static_cast<std::size_t>(v)]);
-      box_max = box_max.cwiseMax(rest[static_cast<std::size_t>(v)]);
-    }
-    // A vertex without a normal (in no triangle of non-zero area) pushes along z.
-    vertex_normal.resize(static_cast<std::size_t>(n));
-    const Eigen::MatrixX3d surface_normals = vertex_normals(surface);
-    for (int v = 0; v < n; ++v)
-      vertex_normal[static_cast<std::size_t>(v)] =
-          surface_normals.row(v).squaredNorm() > 0 ? Vector3d(surface_normals.row(v).transpose())
-                                                   : Vector3d::UnitZ();
-    // Triangles around each drawn vertex (compressed rows).
-    triangle_vertices.assign(surface.triangles.begin(), surface.triangles.end());
-    vertex_triangles_begin.assign(static_cast<std::size_t>(drawn) + 1, 0);
-    for (const int v : triangle_vertices) ++vertex_triangles_begin[static_cast<std::size_t>(v) + 1];
-    for (int v = 0; v < drawn; ++v)
-      vertex_triangles_begin[static_cast<std::size_t>(v) + 1] +=
-          vertex_triangles_begin[static_cast<std::size_t>(v)];
-    vertex_triangles.resize(triangle_vertices.size());
-    std::vector<int> fill(vertex_triangles_begin.begin(), vertex_triangles_begin.end() - 1);
-    for (int tri = 0; tri < triangles; ++tri)
-      for (int c = 0; c < 3; ++c)
-        vertex_triangles[static_cast<std::size_t>(
-            fill[static_cast<std::size_t>(triangle_vertices[3 * static_cast<std::size_t>(tri) +
-                                                            static_cast<std::size_t>(c)])]++)] =
-            tri;
-    triangle_seen.assign(static_cast<std::size_t>(triangles), 0);
     previous_triangle_owner.assign(static_cast<std::size_t>(triangles), -1);
     owner.assign(static_cast<std::size_t>(n), -1);
-    candidates.resize(static_cast<std::size_t>(drawn));
-    candidate_position.resize(static_cast<std::size_t>(drawn));
-    found.resize(static_cast<std::size_t>(triangles));
     grasp_triangles.resize(static_cast<std::size_t>(triangles));
-    near_triangles.resize(static_cast<std::size_t>(triangles));
     grasp_corners.resize(3 * static_cast<std::size_t>(triangles));
     const auto k = static_cast<std::size_t>(limits.max_constraints);
     touched.reserve(k);
@@ -232,118 +166,25 @@ struct ToolContactEngine::Impl {
     row_world_normal.assign(k, Vector3d::Zero());
     material_force.assign(k, Vector3d::Zero());
     local_rows.resize(k);
-    if (warping != nullptr) {
-      PALPATE_DEMAND(warping->vertex_count() == n);
-      rotations.emplace(*warping, n);
-    }
+    surface.set_loads(0, load_index.data(), load_force.data(), 0);
   }
 
-  /// Forgets the deformed positions (the loads changed).
-  void next_epoch() {
-    if (++epoch == 0) {
-      std::fill(position_seen.begin(), position_seen.end(), 0);
-      epoch = 1;
-    }
-    if (rotations) rotations->next_epoch();
-  }
-
-  /// u_v = Σ_l G^{v l} f_l under the last solve's loads: the displacement of
-  /// compliance vertex @p v (the material one, û, when warped).
-  Vector3d load_displacement(int v) const {
-    Vector3d u = Vector3d::Zero();
-    for (int l = 0; l < load_count; ++l)
-      u.noalias() += model.G_block(v, load_index[static_cast<std::size_t>(l)]) *
-                     Eigen::Map<const Vector3d>(&load_force[3 * static_cast<std::size_t>(l)]);
-    return u;
-  }
-
-  /// Warped: ω of compliance vertex @p v under the last solve's loads.
-  const Vector3d& rotation_vector(int v) {
-    return rotations->rotation(v, [this](int j) { return load_displacement(j); });
-  }
-  /// Warped: R̃ of a point on @p count drawn vertices with @p weights, from the
-  /// weighted mean of their ω (a fixed vertex does not rotate).
-  template <typename Point>
-  Matrix3d point_rotation(const Point& point) {
-    Vector3d w = Vector3d::Zero();
-    for (int i = 0; i < point.count; ++i) {
-      const int v = point.vertices[static_cast<std::size_t>(i)];
-      if (v < compliance_count)
-        w += point.weights[static_cast<std::size_t>(i)] * rotation_vector(v);
-    }
-    return integrated_rotation(w);
-  }
-
-  /// Deformed position of drawn vertex @p v under the last solve's loads
-  /// (a fixed vertex stays at rest): p + u, or p + R̃(ω) û when warped;
-  /// computed once per epoch.
-  const Vector3d& deformed(int v) {
-    const auto vv = static_cast<std::size_t>(v);
-    if (position_seen[vv] == epoch) return position[vv];
-    position_seen[vv] = epoch;
-    if (v >= compliance_count)
-      position[vv] = rest[vv];
-    else if (warping == nullptr)
-      position[vv] = rest[vv] + load_displacement(v);
-    else
-      position[vv] =
-          rest[vv] + integrated_rotation(rotation_vector(v)) *
-                         rotations->material(v, [this](int j) { return load_displacement(j); });
-    return position[vv];
-  }
-
-  /// Longest reach of a tool from its hinge along z, and its radius of interest.
-  static double reach_length(const ToolGeometry& g) {
-    return std::max(g.tip == TipShape::kCapsule ? g.tip_length_m : 0.0, g.jaw_length_m);
-  }
-  double tip_length(const ToolGeometry& g) const {
-    return g.tip == TipShape::kCapsule ? g.tip_length_m : 0.0;
-  }
-
-  /// Drawn vertices whose rest position is near tool @p t; returns their count.
-  int gather_candidates(const Tool& tool) {
-    const ToolGeometry& g = tool.geometry;
-    const Vector3d axis = tool.rotation.col(2);
-    const double length = reach_length(g);
+  /// How far from a tool's segment its candidate vertices lie at rest, m.
+  double search_radius(const ToolGeometry& g) const {
     const double wedge = g.jaw_length_m * std::tan(0.5 * g.max_jaw_angle_rad);
-    const double radius = std::max(g.tip_radius_m, wedge + g.tip_radius_m) +
-                          settings.search_margin_m + max_displacement;
-    const double radius2 = radius * radius;
-    int n = 0;
-    const int vertices = static_cast<int>(rest.size());
-    for (int j = 0; j < vertices; ++j) {
-      const Vector3d& x = rest[static_cast<std::size_t>(j)];
-      if ((x - closest_on_segment(tool.pose.position_m, axis, length, x)).squaredNorm() <= radius2)
-        candidates[static_cast<std::size_t>(n++)] = j;
-    }
-    return n;
+    return std::max(g.tip_radius_m, wedge + g.tip_radius_m) + settings.search_margin_m +
+           max_displacement;
   }
 
-  /// The distinct surface triangles around the first @p n candidates, into
-  /// near_triangles, in the order met; returns their count.
-  int gather_triangles(int n) {
-    if (++triangle_epoch == 0) {
-      std::fill(triangle_seen.begin(), triangle_seen.end(), 0);
-      triangle_epoch = 1;
-    }
-    int count = 0;
-    for (int c = 0; c < n; ++c) {
-      const int v = candidates[static_cast<std::size_t>(c)];
-      for (int e = vertex_triangles_begin[static_cast<std::size_t>(v)];
-           e < vertex_triangles_begin[static_cast<std::size_t>(v) + 1]; ++e) {
-        const int tri = vertex_triangles[static_cast<std::size_t>(e)];
-        if (triangle_seen[static_cast<std::size_t>(tri)] == triangle_epoch) continue;
-        triangle_seen[static_cast<std::size_t>(tri)] = triangle_epoch;
-        near_triangles[static_cast<std::size_t>(count++)] = tri;
-      }
-    }
-    return count;
+  /// The distinct surface triangles around tool @p tool's candidate
+  /// vertices (those within search_radius of its segment at rest), in the
+  /// order met: a view the caller may rewrite.
+  std::span<int> triangles_near(const Tool& tool) {
+    const ToolGeometry& g = tool.geometry;
+    return surface.triangles_around(surface.vertices_near(
+        tool.pose.position_m, tool.rotation.col(2), detail::reach_length(g), search_radius(g)));
   }
 
-  /// Is the deformed point @p x between the jaws of @p tool opened at @p angle?
-  static bool between_jaws(const Tool& tool, const Vector3d& x, double angle) {
-    return detail::JawGrasp::between(jaws_of(tool, angle), x, angle);
-  }
   static detail::JawsAtClosing jaws_of(const Tool& tool, double opening) {
     return {tool.pose.position_m, tool.rotation, &tool.geometry, opening};
   }
@@ -363,15 +204,12 @@ struct ToolContactEngine::Impl {
     const bool closing = tool.has_previous_jaw && tool.previous_jaw > g.grasp_angle_rad &&
                          jaw <= g.grasp_angle_rad && g.jaw_length_m > 0;
     if (!closing) return;
-    next_epoch();
-    const int n = gather_candidates(tool);
+    surface.next_epoch();
     // The triangles near the jaws that this tool may hold: not wholly fixed,
     // no vertex of a point another tool holds.
     std::size_t near = 0;
-    const int m = gather_triangles(n);
-    for (int k = 0; k < m; ++k) {
-      const int tri = near_triangles[static_cast<std::size_t>(k)];
-      const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
+    for (const int tri : triangles_near(tool)) {
+      const int* corner = surface.corners(tri);
       int fixed = 0;
       bool elsewhere = false;
       for (int i = 0; i < 3; ++i) {
@@ -381,11 +219,13 @@ struct ToolContactEngine::Impl {
           elsewhere |= owner_held_elsewhere(corner[i], t);
       }
       if (fixed == 3 || elsewhere) continue;
-      grasp_triangles[near] = tri;
-      for (int i = 0; i < 3; ++i)
-        grasp_corners[3 * near + static_cast<std::size_t>(i)] = deformed(corner[i]);
-      ++near;
+      grasp_triangles[near++] = tri;
     }
+    surface.deform_corners({grasp_triangles.data(), near});
+    for (std::size_t k = 0; k < near; ++k)
+      for (int i = 0; i < 3; ++i)
+        grasp_corners[3 * k + static_cast<std::size_t>(i)] =
+            surface.deformed(surface.corners(grasp_triangles[k])[i]);
     // What the tip pressed at the last tick.
     touched.clear();
     for (int c = 0; c < count; ++c) {
@@ -398,12 +238,12 @@ struct ToolContactEngine::Impl {
       h.weights = point.weights;
       for (int i = 0; i < h.count; ++i)
         h.rest += h.weights[static_cast<std::size_t>(i)] *
-                  rest[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])];
+                  surface.rest(h.vertices[static_cast<std::size_t>(i)]);
       touched.push_back(h);
     }
     grasp.choose(jaws_of(tool, std::max(tool.widest_jaw, tool.previous_jaw)),
                  {grasp_triangles.data(), near}, {grasp_corners.data(), 3 * near},
-                 triangle_vertices, rest, touched, tool.held, per_tool_cap);
+                 surface.triangle_vertices(), surface.rest(), touched, tool.held, per_tool_cap);
     if (!tool.held.empty()) push_event(out, ToolEventKind::kGrasp);
   }
 
@@ -422,103 +262,19 @@ struct ToolContactEngine::Impl {
       out.events[static_cast<std::size_t>(out.event_count++)] = kind;
   }
 
-  /// Tool @p t's tip contacts: the deepest point of each deformed surface
-  /// triangle near it that the tip penetrates (docs/tools.md, "Tip contacts").
+  /// Tool @p t's tip contacts (docs/tools.md, "Tip contacts").
   void find_tips(int t) {
     Tool& tool = tools[static_cast<std::size_t>(t)];
-    const ToolGeometry& g = tool.geometry;
-    const Vector3d axis = tool.rotation.col(2);
-    const double r = g.tip_radius_m;
-    const double shell = 0.05 * r;  // a contact stays while within 5 % of r outside the tip
-    const double near = 0.25 * r;   // triangles this close are watched during the solve
-    const bool jaws_open = g.jaw_length_m > 0 && tool.pose.jaw_angle_rad > g.grasp_angle_rad;
-    const int n = gather_candidates(tool);
-    int total = 0;
-    const int m = gather_triangles(n);
-    for (int k = 0; k < m; ++k) {
-      const int tri = near_triangles[static_cast<std::size_t>(k)];
-      const int* corner = &triangle_vertices[3 * static_cast<std::size_t>(tri)];
-      bool blocked = false;  // a vertex of a held point, or the whole triangle fixed
-      int fixed = 0;
-      for (int i = 0; i < 3; ++i) {
-        if (corner[i] >= compliance_count)
-          ++fixed;
-        else if (owner[static_cast<std::size_t>(corner[i])] >= 0)
-          blocked = true;
-      }
-      if (blocked || fixed == 3) continue;
-      const Vector3d& a = deformed(corner[0]);
-      const Vector3d& b = deformed(corner[1]);
-      const Vector3d& cc = deformed(corner[2]);
-      const detail::SegmentTrianglePair pair =
-          detail::closest_segment_triangle(tool.pose.position_m, axis, tip_length(g), a, b, cc);
-      const bool was = previous_triangle_owner[static_cast<std::size_t>(tri)] == t;
-      const bool active = pair.distance < r || (was && pair.distance < r + shell);
-      if (!active && pair.distance >= r + near) continue;
-      const Vector3d& p = pair.on_triangle.point;
-      // Tissue between open jaws is not pushed: it may be grasped.
-      if (jaws_open && tool.held.empty() && !was && between_jaws(tool, p, tool.pose.jaw_angle_rad))
-        continue;
-      // Pushed from the axis to the point, onto the tip's surface. That
-      // normal's tangent plane bounds the tip (it is convex), so a sliding
-      // contact never pulls while the tissue would spring into the tip.
-      // An axis on the triangle, or beyond it (the tip pushed through in
-      // one tick), pushes along the triangle's inward normal.
-      const Vector3d outward = (b - a).cross(cc - a);
-      Vector3d normal = outward.squaredNorm() > 0 ? Vector3d(-outward.normalized())
-                                                  : Vector3d(-vertex_normal_of(corner));
-      if (pair.distance > 1e-9 * r && (p - pair.on_segment).dot(outward) <= 0)
-        normal = (p - pair.on_segment) / pair.distance;
-      TipCandidate candidate{tri,
-                             0,
-                             {},
-                             {},
-                             r - pair.distance,
-                             normal,
-                             pair.on_segment + r * normal,
-                             Vector3d::Zero(),
-                             active};
-      bool movable = false;
-      for (int i = 0; i < 3; ++i) {
-        const double w = pair.on_triangle.weights[static_cast<std::size_t>(i)];
-        if (w == 0) continue;  // on the opposite edge: not part of the point
-        candidate.vertices[static_cast<std::size_t>(candidate.count)] = corner[i];
-        candidate.weights[static_cast<std::size_t>(candidate.count)] = w;
-        ++candidate.count;
-        candidate.rest += w * rest[static_cast<std::size_t>(corner[i])];
-        movable |= corner[i] < compliance_count;
-      }
-      if (!movable) continue;  // a point of the attachment's edge
-      found[static_cast<std::size_t>(total++)] = candidate;
-    }
-    // Deepest first; a point on an edge or a vertex is found from every
-    // triangle around it: keep it once. Points closer than 0.05 r to a
-    // deeper one would add a nearly equal row (and the surface between them
-    // stays within ~(0.05 r)²/2r = 0.1 % of r of the tip). A sticking point
-    // fixes three components, so with friction points keep 0.3 r apart
-    // (within ~4.5 % of r): closer ones make a nearly singular system.
-    std::sort(found.begin(), found.begin() + total,
-              [](const TipCandidate& x, const TipCandidate& y) { return x.depth > y.depth; });
     const int room = std::max(0, per_tool_cap - static_cast<int>(tool.held.size()));
-    const double spacing2 = (g.friction > 0 ? 0.09 : 0.0025) * r * r;
-    int kept = 0;
-    for (int c = 0; c < total && kept < room; ++c) {
-      const TipCandidate& x = found[static_cast<std::size_t>(c)];
-      const Vector3d point = x.target - x.depth * x.normal;  // on the deformed triangle
-      bool near = false;
-      for (int k = 0; k < kept && !near; ++k) {
-        const TipCandidate& y = tool.tips[static_cast<std::size_t>(k)];
-        near = (y.target - y.depth * y.normal - point).squaredNorm() < spacing2;
-      }
-      if (!near) tool.tips[static_cast<std::size_t>(kept++)] = x;
-    }
-    tool.tip_count = kept;
-  }
-
-  Vector3d vertex_normal_of(const int* corner) const {
-    for (int i = 0; i < 3; ++i)
-      if (corner[i] < compliance_count) return vertex_normal[static_cast<std::size_t>(corner[i])];
-    return Vector3d::UnitZ();
+    const detail::TipQuery query{t,
+                                 &tool.geometry,
+                                 tool.pose.position_m,
+                                 tool.rotation,
+                                 tool.pose.jaw_angle_rad,
+                                 !tool.held.empty(),
+                                 search_radius(tool.geometry)};
+    tool.tip_count = tip_search.find(query, surface, owner, previous_triangle_owner,
+                                     {tool.tips.data(), static_cast<std::size_t>(room)});
   }
 
   /// Every living tool's contacts at its latest pose, one solve for all.
@@ -531,7 +287,7 @@ struct ToolContactEngine::Impl {
           for (int i = 0; i < h.count; ++i)
             if (h.vertices[static_cast<std::size_t>(i)] < compliance_count)
               owner[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = t;
-    next_epoch();
+    surface.next_epoch();
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
       Tool& tool = tools[static_cast<std::size_t>(t)];
       // Ramping out: the last contacts, scaled down, not found again (the
@@ -558,7 +314,7 @@ struct ToolContactEngine::Impl {
       l.rotation = Matrix3d::Identity();
       for (int i = 0; i < point.count && l.tip; ++i)
         l.corners[static_cast<std::size_t>(i)] =
-            deformed(point.vertices[static_cast<std::size_t>(i)]);
+            surface.deformed(point.vertices[static_cast<std::size_t>(i)]);
       b_tool[b] = t;
       b_tip[b] = tip;
       b_held[b] = held;
@@ -577,7 +333,7 @@ struct ToolContactEngine::Impl {
       if (warping != nullptr) {
         // Into the point's material frame (docs/model.md, "Large rotations:
         // warped compliance"): d̂ = R̃⁻¹ d; a normal n̂ = R̃ᵀ n / s, δ̂ = δ / s.
-        const Matrix3d Rt = point_rotation(point);
+        const Matrix3d Rt = surface.point_rotation(point);
         row_rotation[b] = Rt;
         l.rotation = Rt;
         if (kind == ConstraintKind::kDisplacement) row.value = Rt.inverse() * value;
@@ -655,6 +411,7 @@ struct ToolContactEngine::Impl {
     }
     count = 0;
     max_displacement = 0;
+    load_energy = 0;
     for (auto& tool : tools) {
       tool.raw_force.setZero();
       tool.raw_torque.setZero();
@@ -694,6 +451,7 @@ struct ToolContactEngine::Impl {
       point.normal =
           row.kind == ConstraintKind::kNormalDisplacement ? row_world_normal[bb] : Vector3d::Zero();
       max_displacement = std::max(max_displacement, displacement.norm());
+      load_energy += material_force[c].dot(active_set.displacement(b));
       local_rows[bb].position = point.position_m;
       local_rows[bb].force = point.force_n;
       local_rows[bb].material_force = material_force[c];
@@ -737,6 +495,7 @@ struct ToolContactEngine::Impl {
     }
     for (int l = 0; l < load_count; ++l)
       load_slot[static_cast<std::size_t>(load_index[static_cast<std::size_t>(l)])] = -1;
+    surface.set_loads(load_count, load_index.data(), load_force.data(), load_energy);
   }
 
   /// Tool @p t's contact wrench linearized about its pose (LocalContactModel,
@@ -857,13 +616,15 @@ PoseProblem ToolContactEngine::check(int t, ToolPoseInput& pose) const {
   }
   const double margin_m = s.settings.workspace_margin_m;
   const Eigen::Vector3d margin = Eigen::Vector3d::Constant(margin_m);
-  if ((pose.position_m.array() < (s.box_min - margin).array()).any() ||
-      (pose.position_m.array() > (s.box_max + margin).array()).any()) {
+  const Eigen::Vector3d& box_min = s.surface.box_min();
+  const Eigen::Vector3d& box_max = s.surface.box_max();
+  if ((pose.position_m.array() < (box_min - margin).array()).any() ||
+      (pose.position_m.array() > (box_max + margin).array()).any()) {
     s.explain(
         "tool '{}' at ({:.4g}, {:.4g}, {:.4g}) m is more than {:.4g} m outside the "
         "organ's box ({:.4g}, {:.4g}, {:.4g})-({:.4g}, {:.4g}, {:.4g}) m",
-        id, pose.position_m.x(), pose.position_m.y(), pose.position_m.z(), margin_m, s.box_min.x(),
-        s.box_min.y(), s.box_min.z(), s.box_max.x(), s.box_max.y(), s.box_max.z());
+        id, pose.position_m.x(), pose.position_m.y(), pose.position_m.z(), margin_m, box_min.x(),
+        box_min.y(), box_min.z(), box_max.x(), box_max.y(), box_max.z());
     return PoseProblem::kOutOfWorkspace;
   }
   // A pose not newer than the last one is stale, unless the watchdog fired
@@ -880,7 +641,7 @@ const char* ToolContactEngine::problem_message() const { return impl_->problem; 
 
 RequestStatus ToolContactEngine::update(int t, const ToolPoseInput& pose, double now_s) {
   Impl& s = *impl_;
-  if (s.rotations) s.rotations->next_tick();
+  s.surface.next_tick();
   auto& tool = s.tools.at(static_cast<std::size_t>(t));
   ToolOutput out;
   if (tool.in_watchdog || !tool.alive) {

@@ -63,6 +63,11 @@ struct ToolSlot {
   std::int64_t newest_receive_ns = 0;
   std::array<double, 3> newest_force_n{};
   HapticRenderer renderer;
+  // What render() rendered since the last pose (report_rendering), the
+  // newest kRendered kept.
+  static constexpr std::size_t kRendered = 32;
+  std::array<RenderedRecord, kRendered> rendered{};
+  std::size_t rendered_count = 0;
 
   void saw(const ToolFeedbackSample& s) {
     if (has_feedback && s.sequence < newest_sequence) return;
@@ -102,7 +107,9 @@ struct ToolClient::Impl {
   ToolClientOptions options;
   dds::Participant participant;
   detail::ModelDescriptions models;
-  dds_entity_t pose_writer = 0, command_writer = 0;
+  dds_entity_t pose_writer = 0, command_writer = 0, rendered_writer = 0;
+  palpate_ToolRendered rendered_sample{};
+  std::array<palpate_RenderedStep, ToolSlot::kRendered> rendered_steps{};
   dds_entity_t response_topic = 0, event_topic = 0;
   WaitableReader notices;
   detail::DaemonWatch watch;
@@ -195,6 +202,11 @@ ToolClient::ToolClient(const ToolClientOptions& options) : impl_(std::make_uniqu
                  "creating the tool command writer");
   c.watch = detail::DaemonWatch(p, topic(&palpate_DaemonStatus_desc, dds::kStatusTopic),
                                 options.daemon_timeout);
+  if (options.report_rendering)
+    c.rendered_writer =
+        dds::check(dds_create_writer(p, topic(&palpate_ToolRendered_desc, dds::kToolRenderedTopic),
+                                     dds::tool_stream_qos().get(), nullptr),
+                   "creating the rendered-steps writer");
   realtime::lock_memory(options.realtime);
 }
 
@@ -257,6 +269,12 @@ std::int64_t ToolClient::send_pose(std::string_view tool_id, std::string_view mo
   // Stamped last, as close to the write as possible.
   pose.send_time_ns = now_ns();
   dds::check(dds_write(c.pose_writer, &pose), "sending a tool pose");
+  if (c.rendered_writer != 0 && slot.rendered_count > 0) {
+    wire::to_idl(tool_id, model_id, sequence, {slot.rendered.data(), slot.rendered_count},
+                 c.rendered_steps, c.rendered_sample);
+    dds::check(dds_write(c.rendered_writer, &c.rendered_sample), "sending the rendered steps");
+    slot.rendered_count = 0;
+  }
   return pose.send_time_ns;
 }
 
@@ -376,11 +394,26 @@ RenderedWrench ToolClient::render(std::string_view tool_id, const std::array<dou
         return false;
       });
   if (c.watch.poll(Clock::now()).state == DaemonState::kLost) slot->renderer.reset();
-  return slot->renderer.render(static_cast<double>(now_ns) * 1e-9,
-                               Eigen::Vector3d(position_m[0], position_m[1], position_m[2]),
-                               Eigen::Quaterniond(orientation_wxyz[0], orientation_wxyz[1],
-                                                  orientation_wxyz[2], orientation_wxyz[3])
-                                   .normalized());
+  const RenderedWrench w =
+      slot->renderer.render(static_cast<double>(now_ns) * 1e-9,
+                            Eigen::Vector3d(position_m[0], position_m[1], position_m[2]),
+                            Eigen::Quaterniond(orientation_wxyz[0], orientation_wxyz[1],
+                                               orientation_wxyz[2], orientation_wxyz[3])
+                                .normalized());
+  if (c.rendered_writer != 0) {
+    // The newest kRendered steps since the last pose (older ones shift out).
+    if (slot->rendered_count == ToolSlot::kRendered) {
+      std::move(slot->rendered.begin() + 1, slot->rendered.end(), slot->rendered.begin());
+      --slot->rendered_count;
+    }
+    RenderedRecord& r = slot->rendered[slot->rendered_count++];
+    r.time_ns = now_ns;
+    r.answer_sequence = slot->renderer.has_answer() ? slot->renderer.answer().sequence : 0;
+    std::copy_n(position_m.data(), 3, r.position_m);
+    for (int d = 0; d < 3; ++d) r.force_n[d] = w.force_n[d];
+    r.damping = w.damping;
+  }
+  return w;
 }
 
 }  // namespace palpate

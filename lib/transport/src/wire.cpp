@@ -271,25 +271,31 @@ ToolPoseInput from_idl(const palpate_ToolPose& pose) {
   return input;
 }
 
-void to_idl(const ToolOutput& out, std::string_view tool_id, std::string_view model_id,
-            std::uint64_t compute_ns, palpate_ToolFeedback& feedback) {
-  copy_bounded(feedback.tool_id, tool_id);
-  copy_bounded(feedback.model_id, model_id);
-  feedback.pose_sequence = out.sequence;
-  feedback.send_time_ns = out.send_time_ns;
+namespace {
+
+/// The fields ToolFeedback and ToolResponse share, written from a tick's output.
+template <typename Sample>
+void write_feedback(const ToolOutput& out, std::string_view tool_id, std::string_view model_id,
+                    std::uint64_t compute_ns, Sample& sample) {
+  copy_bounded(sample.tool_id, tool_id);
+  copy_bounded(sample.model_id, model_id);
+  sample.pose_sequence = out.sequence;
+  sample.send_time_ns = out.send_time_ns;
   for (int d = 0; d < 3; ++d) {
-    feedback.force[d] = out.force_n[d];
-    feedback.torque[d] = out.torque_nm[d];
+    sample.force[d] = out.force_n[d];
+    sample.torque[d] = out.torque_nm[d];
   }
-  feedback.grip_force = out.grip_n;
-  feedback.contacts = static_cast<std::uint32_t>(out.contacts);
-  feedback.state = static_cast<palpate_ToolState>(out.state);
-  feedback.force_limited = out.force_limited;
-  feedback.watchdog = out.watchdog;
-  feedback.compute_ns = compute_ns;
+  sample.grip_force = out.grip_n;
+  sample.contacts = static_cast<std::uint32_t>(out.contacts);
+  sample.state = static_cast<palpate_ToolState>(out.state);
+  sample.force_limited = out.force_limited;
+  sample.watchdog = out.watchdog;
+  sample.compute_ns = compute_ns;
 }
 
-ToolFeedbackSample from_idl(const palpate_ToolFeedback& f, std::int64_t receive_time_ns) {
+/// The same fields as a client's sample, taken at @p receive_time_ns.
+template <typename Sample>
+ToolFeedbackSample read_feedback(const Sample& f, std::int64_t receive_time_ns) {
   ToolFeedbackSample s;
   s.sequence = f.pose_sequence;
   s.send_time_ns = f.send_time_ns;
@@ -305,17 +311,23 @@ ToolFeedbackSample from_idl(const palpate_ToolFeedback& f, std::int64_t receive_
   return s;
 }
 
+}  // namespace
+
+void to_idl(const ToolOutput& out, std::string_view tool_id, std::string_view model_id,
+            std::uint64_t compute_ns, palpate_ToolFeedback& feedback) {
+  write_feedback(out, tool_id, model_id, compute_ns, feedback);
+}
+
+ToolFeedbackSample from_idl(const palpate_ToolFeedback& f, std::int64_t receive_time_ns) {
+  return read_feedback(f, receive_time_ns);
+}
+
 void to_idl(const ToolOutput& out, const ToolPoseInput& pose, const ToolGeometry& tool,
             std::string_view model_id, std::uint64_t compute_ns, palpate_ToolResponse& response) {
-  copy_bounded(response.tool_id, tool.id);
-  copy_bounded(response.model_id, model_id);
-  response.pose_sequence = out.sequence;
-  response.send_time_ns = out.send_time_ns;
+  write_feedback(out, tool.id, model_id, compute_ns, response);
   const LocalContactModel& local = out.local;
   for (int d = 0; d < 3; ++d) {
     response.position[d] = pose.position_m[d];
-    response.force[d] = out.force_n[d];
-    response.torque[d] = out.torque_nm[d];
     response.contact_force[d] = local.force_n[d];
     response.contact_torque[d] = local.torque_nm[d];
   }
@@ -324,12 +336,6 @@ void to_idl(const ToolOutput& out, const ToolPoseInput& pose, const ToolGeometry
   response.orientation[2] = pose.orientation.y();
   response.orientation[3] = pose.orientation.z();
   response.jaw_angle = pose.jaw_angle_rad;
-  response.grip_force = out.grip_n;
-  response.contacts = static_cast<std::uint32_t>(out.contacts);
-  response.state = static_cast<palpate_ToolState>(out.state);
-  response.force_limited = out.force_limited;
-  response.watchdog = out.watchdog;
-  response.compute_ns = compute_ns;
   // The model answers the pose it was made at; a failed tick's is the last
   // one's, whose pose is not this one: no model then.
   response.model_valid = local.valid && local.position_m == pose.position_m &&
@@ -341,18 +347,7 @@ void to_idl(const ToolOutput& out, const ToolPoseInput& pose, const ToolGeometry
 }
 
 ToolFeedbackSample from_idl(const palpate_ToolResponse& r, std::int64_t receive_time_ns) {
-  ToolFeedbackSample s;
-  s.sequence = r.pose_sequence;
-  s.send_time_ns = r.send_time_ns;
-  s.receive_time_ns = receive_time_ns;
-  s.force_n = to_array(r.force);
-  s.torque_nm = to_array(r.torque);
-  s.grip_n = r.grip_force;
-  s.contacts = r.contacts;
-  s.state = static_cast<ToolState>(received(r.state));
-  s.force_limited = r.force_limited;
-  s.watchdog = r.watchdog;
-  s.compute_ns = r.compute_ns;
+  ToolFeedbackSample s = read_feedback(r, receive_time_ns);
   LocalContactModel& local = s.local;
   local.position_m = Eigen::Vector3d(r.position[0], r.position[1], r.position[2]);
   local.orientation =
@@ -371,6 +366,42 @@ ToolFeedbackSample from_idl(const palpate_ToolResponse& r, std::int64_t receive_
   s.force_limit_n = r.force_limit;
   s.max_force_rate_n_per_s = r.max_force_rate;
   return s;
+}
+
+void to_idl(std::string_view tool_id, std::string_view model_id, std::uint64_t pose_sequence,
+            std::span<const RenderedRecord> steps, std::span<palpate_RenderedStep> storage,
+            palpate_ToolRendered& out) {
+  copy_bounded(out.tool_id, tool_id);
+  copy_bounded(out.model_id, model_id);
+  out.pose_sequence = pose_sequence;
+  const std::size_t n = std::min({steps.size(), storage.size(), std::size_t{32}});
+  const std::size_t first = steps.size() - n;  // the newest n
+  for (std::size_t i = 0; i < n; ++i) {
+    const RenderedRecord& r = steps[first + i];
+    palpate_RenderedStep& s = storage[i];
+    s.time_ns = r.time_ns;
+    s.answer_sequence = r.answer_sequence;
+    std::copy_n(r.position_m, 3, s.position);
+    std::copy_n(r.force_n, 3, s.force);
+    s.damping = r.damping;
+  }
+  view(out.steps, storage.first(n));
+}
+
+std::size_t from_idl(const palpate_ToolRendered& rendered, std::int32_t tool,
+                     std::span<RenderedRecord> out) {
+  const std::size_t n = std::min<std::size_t>(rendered.steps._length, out.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    const palpate_RenderedStep& s = rendered.steps._buffer[i];
+    RenderedRecord& r = out[i];
+    r.tool = tool;
+    r.time_ns = s.time_ns;
+    r.answer_sequence = s.answer_sequence;
+    std::copy_n(s.position, 3, r.position_m);
+    std::copy_n(s.force, 3, r.force_n);
+    r.damping = s.damping;
+  }
+  return n;
 }
 
 void to_idl(ToolEventKind kind, const ToolOutput& output, std::string_view tool_id,

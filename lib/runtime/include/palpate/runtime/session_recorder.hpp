@@ -53,14 +53,28 @@ struct ToolTickRecord {
   std::uint64_t compute_ns = 0;  ///< time the daemon spent on this tick, ns
 };
 
+/// What a device rendered at one step of its own loop, at its own rate
+/// (ToolClient::render(), reported with its poses; docs/session-recording.md,
+/// "What the device rendered").
+struct RenderedRecord {
+  std::int32_t tool = 0;              ///< index into SessionInfo::tools
+  std::int64_t time_ns = 0;           ///< the client's clock, as send_time_ns, ns
+  std::uint64_t answer_sequence = 0;  ///< the pose the rendered answer answers (0: none yet)
+  double position_m[3]{};             ///< the device's hinge, model frame, m
+  double force_n[3]{};                ///< rendered on the hand, model frame, N
+  double damping = 0;                 ///< added by the passivity controller, N·s/m
+};
+
 /// Sizes and cadence of a recorder. Memory: ring_ticks × ~200 B +
-/// ring_contacts × 28 B + ring_events × 24 B (defaults: 6.6 + 7.3 MB).
+/// ring_contacts × 28 B + ring_events × 24 B + ring_rendered × 80 B
+/// (defaults: 6.6 + 7.3 + 5.2 MB).
 struct RecorderLimits {
   std::size_t ring_ticks = 1 << 15;  ///< ticks waiting for the writer (16 s of 2 tools at 1 kHz)
   std::size_t max_contacts_per_tick = 64;  ///< contacts kept per tick; more are cut (counted)
   double flush_interval_s = 1.0;           ///< H5Fflush at most this often: what a crash can lose
   std::size_t ring_contacts = 1 << 18;     ///< contacts waiting for the writer
   std::size_t ring_events = 1 << 12;       ///< events waiting for the writer
+  std::size_t ring_rendered = 1 << 16;     ///< rendered steps waiting (8 s of 2 tools at 4 kHz)
   double write_interval_s = 0.1;           ///< the writer appends the rings to the file this often
 };
 
@@ -99,6 +113,8 @@ class SessionRecorder {
   /// (the session clock), answering pose @p pose_sequence.
   bool record_event(double time_s, std::int32_t tool, ToolEventKind kind,
                     std::uint64_t pose_sequence);
+  /// Real-time side, like record(): one step of what a device rendered.
+  bool record_rendered(const RenderedRecord& step);
 
   /// Writes what the rings hold, the per-tool summaries and the closing
   /// attributes, closes the file and renames "<file>.partial" to "<file>".
@@ -113,6 +129,8 @@ class SessionRecorder {
   std::uint64_t dropped() const;
   /// Events record_event() refused.
   std::uint64_t dropped_events() const;
+  /// Rendered steps record_rendered() refused.
+  std::uint64_t dropped_rendered() const;
   /// Ticks in the file as of its last flush: what a crash now would keep.
   std::uint64_t flushed() const;
   /// The writer thread stopped on an I/O error (close() will throw it);

@@ -126,6 +126,7 @@ inline constexpr const char* kToolEventTopic = "palpate_tool_event";
 inline constexpr const char* kToolCommandTopic = "palpate_tool_command";
 inline constexpr const char* kToolNoticeTopic = "palpate_tool_notice";
 inline constexpr const char* kToolResponseTopic = "palpate_tool_response";
+inline constexpr const char* kToolRenderedTopic = "palpate_tool_rendered";
 
 /// Partition of the replies to client @p client_id.
 std::string reply_partition(std::string_view client_id);

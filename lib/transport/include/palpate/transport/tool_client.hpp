@@ -58,6 +58,10 @@ struct ToolClientOptions {
   /// render(): how each tool's renderer renders (its hold_s and ramp_s are
   /// taken from feedback_timeout and feedback_ramp).
   RenderSettings render;
+  /// Send palpated, with each pose, what render() rendered since the
+  /// previous pose (palpate_tool_rendered), for its session recording
+  /// (docs/session-recording.md, "What the device rendered").
+  bool report_rendering = false;
   /// Real-time operation (docs/realtime.md): Cyclone's receive thread, which
   /// takes the answers, gets `priority` (SCHED_FIFO) and `cpus`; with
   /// `lock_memory` the process's memory is locked once the client is made.

@@ -21,6 +21,7 @@
 
 #include "palpate.h"
 #include "palpate/runtime/request_status.hpp"
+#include "palpate/runtime/session_recorder.hpp"
 #include "palpate/runtime/tool_geometry.hpp"
 #include "palpate/runtime/tool_state.hpp"
 #include "palpate/transport/messages.hpp"
@@ -124,6 +125,17 @@ ToolFeedbackSample from_idl(const palpate_ToolFeedback& feedback, std::int64_t r
 void to_idl(const ToolOutput& output, const ToolPoseInput& pose, const ToolGeometry& tool,
             std::string_view model_id, std::uint64_t compute_ns, palpate_ToolResponse& out);
 ToolFeedbackSample from_idl(const palpate_ToolResponse& response, std::int64_t receive_time_ns);
+
+/// Steps @p steps of what tool @p tool_id's device rendered, sent with pose
+/// @p pose_sequence; @p out's sequence views @p storage (at least 32
+/// steps; the oldest beyond it are left out). Allocates nothing.
+void to_idl(std::string_view tool_id, std::string_view model_id, std::uint64_t pose_sequence,
+            std::span<const RenderedRecord> steps, std::span<palpate_RenderedStep> storage,
+            palpate_ToolRendered& out);
+/// The steps of @p rendered as records of tool index @p tool, into @p out;
+/// @returns how many (at most out.size()). Allocates nothing.
+std::size_t from_idl(const palpate_ToolRendered& rendered, std::int32_t tool,
+                     std::span<RenderedRecord> out);
 
 /// Event @p kind of a tick whose output is @p output.
 void to_idl(ToolEventKind kind, const ToolOutput& output, std::string_view tool_id,

@@ -1,0 +1,61 @@
+#include "vertex_grid.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace palpate::detail {
+
+VertexGrid::VertexGrid(std::span<const Eigen::Vector3d> points, double cell_m) {
+  if (points.empty()) return;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  for (const auto& x : points) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  origin_ = lo;
+  const Eigen::Vector3d extent = hi - lo;
+  double cell = cell_m > 0 && std::isfinite(cell_m) ? cell_m : extent.maxCoeff();
+  if (!(cell > 0)) cell = 1;  // every vertex at one place: one cell
+  constexpr double kMaxCells = 1 << 18;
+  const auto cells_for = [&](double side) {
+    double count = 1;
+    for (int k = 0; k < 3; ++k) count *= std::floor(extent[k] / side) + 1;
+    return count;
+  };
+  while (cells_for(cell) > kMaxCells) cell *= 1.25;
+  inverse_cell_ = 1 / cell;
+  for (int k = 0; k < 3; ++k)
+    dims_[static_cast<std::size_t>(k)] =
+        static_cast<int>(std::floor(extent[k] * inverse_cell_)) + 1;
+  // Counting sort of the vertices by cell: each cell's ascending.
+  begin_.assign(static_cast<std::size_t>(cell_count()) + 1, 0);
+  for (const auto& x : points) ++begin_[flat(cell_of(x)) + 1];
+  for (std::size_t c = 1; c < begin_.size(); ++c) begin_[c] += begin_[c - 1];
+  vertices_.resize(points.size());
+  std::vector<int> fill(begin_.begin(), begin_.end() - 1);
+  for (std::size_t j = 0; j < points.size(); ++j)
+    vertices_[static_cast<std::size_t>(fill[flat(cell_of(points[j]))]++)] = static_cast<int>(j);
+}
+
+std::array<int, 3> VertexGrid::cell_of(const Eigen::Vector3d& x) const {
+  std::array<int, 3> cell{};
+  for (int k = 0; k < 3; ++k) {
+    const double at = std::floor((x[k] - origin_[k]) * inverse_cell_);
+    const int last = dims_[static_cast<std::size_t>(k)] - 1;
+    // NaN and out-of-grid coordinates clamp (a NaN to the first cell: the
+    // scan's test refuses it anyway).
+    cell[static_cast<std::size_t>(k)] = at >= static_cast<double>(last) ? last
+                                        : at > 0                        ? static_cast<int>(at)
+                                                                        : 0;
+  }
+  return cell;
+}
+
+std::span<const int> VertexGrid::vertices_in(const std::array<int, 3>& cell) const {
+  const std::size_t c = flat(cell);
+  return {vertices_.data() + begin_[c], static_cast<std::size_t>(begin_[c + 1] - begin_[c])};
+}
+
+}  // namespace palpate::detail
