@@ -31,9 +31,9 @@ DeformedSurface::DeformedSurface(const SurfaceModel& model, const RotationField*
   vertex_normal_.resize(static_cast<std::size_t>(n));
   const Eigen::MatrixX3d surface_normals = vertex_normals(surface);
   for (int v = 0; v < n; ++v)
-    vertex_normal_[static_cast<std::size_t>(v)] =
-        surface_normals.row(v).squaredNorm() > 0 ? Vector3d(surface_normals.row(v).transpose())
-                                                 : Vector3d::UnitZ();
+    vertex_normal_[static_cast<std::size_t>(v)] = surface_normals.row(v).squaredNorm() > 0
+                                                      ? Vector3d(surface_normals.row(v).transpose())
+                                                      : Vector3d::UnitZ();
   // Triangles around each drawn vertex (compressed rows).
   triangle_vertices_.assign(surface.triangles.begin(), surface.triangles.end());
   vertex_triangles_begin_.assign(static_cast<std::size_t>(drawn) + 1, 0);
@@ -63,8 +63,8 @@ DeformedSurface::DeformedSurface(const SurfaceModel& model, const RotationField*
     for (int i = 0; i < 3; ++i) {
       radius2 = std::max(radius2, (rest(corner[i]) - centre).squaredNorm());
       if (corner[i] < n)
-        triangle_softness_[tt] = std::max(triangle_softness_[tt],
-                                          std::sqrt(model.G_block(corner[i], corner[i]).norm()));
+        triangle_softness_[tt] =
+            std::max(triangle_softness_[tt], std::sqrt(model.G_block(corner[i], corner[i]).norm()));
       edges_m += (rest(corner[i]) - rest(corner[(i + 1) % 3])).norm();
     }
     triangle_centre_[tt] = centre;
@@ -197,8 +197,8 @@ double DeformedSurface::spread() const {
 // the reach) are far above round-off and G's asymmetry (1e-15): nothing the
 // closest points would find near is dropped. Linear model only (the warped
 // one meets its vertices' rotations in the order deformed() asks for them).
-bool DeformedSurface::far_from(int tri, const Vector3d& hinge, const Vector3d& axis,
-                               double length, double reach, double spread) const {
+bool DeformedSurface::far_from(int tri, const Vector3d& hinge, const Vector3d& axis, double length,
+                               double reach, double spread) const {
   if (warping_ != nullptr) return false;
   const auto tt = static_cast<std::size_t>(tri);
   const Vector3d& c = triangle_centre_[tt];

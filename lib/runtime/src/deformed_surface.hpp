@@ -117,13 +117,13 @@ class DeformedSurface {
   const SurfaceModel& model_;
   const RotationField* warping_;
   int compliance_count_ = 0;
-  std::vector<Eigen::Vector3d> rest_;           // per drawn vertex
-  std::vector<Eigen::Vector3d> vertex_normal_;  // per compliance vertex, outward
-  std::vector<int> triangle_vertices_;          // 3 per triangle
+  std::vector<Eigen::Vector3d> rest_;                           // per drawn vertex
+  std::vector<Eigen::Vector3d> vertex_normal_;                  // per compliance vertex, outward
+  std::vector<int> triangle_vertices_;                          // 3 per triangle
   std::vector<int> vertex_triangles_begin_, vertex_triangles_;  // triangles around each vertex
   std::vector<Eigen::Vector3d> triangle_centre_;  // per triangle, its corners' centre at rest
   std::vector<double> triangle_radius_;           // per triangle: farthest corner from it, m
-  std::vector<double> triangle_softness_;         // per triangle: max √‖G^{vv}‖ of its corners
+  std::vector<double> triangle_softness_;  // per triangle: max √‖G^{vv}‖ of its corners
   double max_softness_ = 0;
   Eigen::Vector3d box_min_, box_max_;
   VertexGrid grid_;

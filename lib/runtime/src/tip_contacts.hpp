@@ -26,8 +26,9 @@ struct TipCandidate {
   int count;                    // vertices with a non-zero weight, 1 to 3
   std::array<int, 3> vertices;  // drawn vertices
   std::array<double, 3> weights;
-  double depth;            // r − distance to the tip's axis, m (negative: within the hysteresis shell)
-  Eigen::Vector3d normal;  // unit: the direction the tip pushes the tissue (from the axis to the point)
+  double depth;  // r − distance to the tip's axis, m (negative: within the hysteresis shell)
+  Eigen::Vector3d
+      normal;  // unit: the direction the tip pushes the tissue (from the axis to the point)
   Eigen::Vector3d target;  // the point put back on the tip's surface, m
   Eigen::Vector3d rest;    // the point at rest, Σ w_i rest_i, m
   bool active;             // penetrating (or within the hysteresis shell); else a near
@@ -45,7 +46,7 @@ inline double reach_length(const ToolGeometry& g) {
 
 /// One tool at its pose, as the search needs it.
 struct TipQuery {
-  int tool = 0;                         ///< its index (the hysteresis: its triangles of last tick)
+  int tool = 0;  ///< its index (the hysteresis: its triangles of last tick)
   const ToolGeometry* geometry = nullptr;
   Eigen::Vector3d hinge = Eigen::Vector3d::Zero();
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< tool → model
