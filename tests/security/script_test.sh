@@ -52,10 +52,11 @@ check "governance: no unauthenticated participants" \
   grep -q '<allow_unauthenticated_participants>false<' "$out/governance.xml"
 check "governance: data encrypted by default" grep -q '<data_protection_kind>ENCRYPT<' "$out/governance.xml"
 check "a viewer publishes nothing" bash -c "! grep -q '<publish>' '$out/viewer/permissions.xml'"
-check "pliers publish poses and the end of their sessions only" \
-  bash -c "[ \"\$(sed -n '/<publish>/,/<\/publish>/p' '$out/pliers/permissions.xml' | grep -c '<topic>')\" = 2 ] &&
+check "pliers publish poses, the end of their sessions and what they rendered only" \
+  bash -c "[ \"\$(sed -n '/<publish>/,/<\/publish>/p' '$out/pliers/permissions.xml' | grep -c '<topic>')\" = 3 ] &&
            grep -q '<topic>palpate_tool_pose</topic>' '$out/pliers/permissions.xml' &&
-           grep -q '<topic>palpate_tool_command</topic>' '$out/pliers/permissions.xml'"
+           grep -q '<topic>palpate_tool_command</topic>' '$out/pliers/permissions.xml' &&
+           grep -q '<topic>palpate_tool_rendered</topic>' '$out/pliers/permissions.xml'"
 check "no temporary file left" bash -c "[ -z \"\$(find '$out' -name '.staging*' -o -name '*.tmp' -o -name '*.??????')\" ]"
 
 # A rerun keeps every file as it is.
