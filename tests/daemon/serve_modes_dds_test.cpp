@@ -21,6 +21,7 @@
 #include "../../lib/daemon/src/serving_thread.hpp"
 #include "palpate.h"
 #include "palpate/core/error.hpp"
+#include "palpate/core/sanitizers.hpp"
 #include "palpate/transport/client.hpp"
 #include "palpate/transport/dds.hpp"
 #include "palpate/transport/realtime.hpp"
@@ -31,15 +32,6 @@
 #include "support/box_job.hpp"
 #include "support/daemon_process.hpp"
 #include "support/test_meshes.hpp"
-
-// A sanitizer's shadow memory cannot be locked (realtime::lock_memory).
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define PALPATE_SHADOW_MEMORY 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define PALPATE_SHADOW_MEMORY 1
-#endif
-#endif
 
 namespace palpate {
 namespace {

@@ -18,19 +18,10 @@
 #include <thread>
 
 #include "palpate/core/error.hpp"
+#include "palpate/core/sanitizers.hpp"
 #include "palpate/transport/dds.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/expect_error.hpp"
-
-// A sanitizer's shadow memory cannot be locked (realtime::lock_memory):
-// GCC and clang say so differently.
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define PALPATE_SHADOW_MEMORY 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define PALPATE_SHADOW_MEMORY 1
-#endif
-#endif
 
 namespace palpate {
 namespace {

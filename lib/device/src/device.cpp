@@ -25,35 +25,13 @@
 
 #include "palpate/core/error.hpp"
 #include "palpate/core/ids.hpp"
+#include "palpate/core/ring.hpp"
 #include "palpate/transport/tool_client.hpp"
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-/// A fixed-capacity FIFO that drops its oldest element when full.
-template <typename T, std::size_t N>
-class Ring {
- public:
-  /// @returns false when the oldest element had to be dropped.
-  bool push(const T& value) {
-    const bool room = count_ < N;
-    if (!room) pop();
-    items_[(head_ + count_) % N] = value;
-    ++count_;
-    return room;
-  }
-  bool empty() const { return count_ == 0; }
-  const T& front() const { return items_[head_]; }
-  void pop() {
-    head_ = (head_ + 1) % N;
-    --count_;
-  }
-
- private:
-  std::array<T, N> items_{};
-  std::size_t head_ = 0, count_ = 0;
-};
+using palpate::Ring;
 
 /// Writes one line into the caller's buffer (when there is one) and
 /// returns @p status. Allocates nothing.

@@ -15,16 +15,7 @@
 #include <thread>
 
 #include "palpate/core/error.hpp"
-
-// AddressSanitizer and ThreadSanitizer reserve terabytes of shadow memory,
-// which mlockall(MCL_CURRENT) would try to make resident.
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define PALPATE_SHADOW_MEMORY 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define PALPATE_SHADOW_MEMORY 1
-#endif
-#endif
+#include "palpate/core/sanitizers.hpp"
 
 namespace palpate::realtime {
 
