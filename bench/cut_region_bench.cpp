@@ -7,7 +7,9 @@
 //   build/bench/palpate_cut_region_bench [mesh_size_m] [repetitions]
 //
 // A small timed program: each compliance is computed `repetitions` times
-// (default 3) and the median is printed.
+// (default 3), the cases in turn, and the median is printed.
+
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -16,7 +18,6 @@
 #include <filesystem>
 #include <functional>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 #include "palpate/core/system_info.hpp"
@@ -29,15 +30,10 @@ namespace {
 
 using namespace palpate;
 
-double median_seconds(int repetitions, const std::function<void()>& run) {
-  std::vector<double> t;
-  for (int r = 0; r < repetitions; ++r) {
-    const auto start = std::chrono::steady_clock::now();
-    run();
-    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2];
+double once(const std::function<void()>& run) {
+  const auto start = std::chrono::steady_clock::now();
+  run();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 }  // namespace
@@ -62,41 +58,64 @@ int main(int argc, char** argv) {
       fixed.push_back(static_cast<int>(v));
   const Eigen::VectorXi material = (mesh.tet_group.array() == 2).cast<int>();
   const std::vector<Lame> materials = {lame_parameters(85e3, 0.45), lame_parameters(340e3, 0.45)};
-  std::printf("# blas: %s\n# sample organ, mesh size %.4g m: %ld vertices, %ld tetrahedra; "
-              "median of %d\n",
-              blas_description().c_str(), size_m, static_cast<long>(mesh.vertices.rows()),
-              static_cast<long>(mesh.tetrahedra.rows()), repetitions);
+  std::printf(
+      "# blas: %s\n# sample organ, mesh size %.4g m: %ld vertices, %ld tetrahedra; "
+      "median of %d\n",
+      blas_description().c_str(), size_m, static_cast<long>(mesh.vertices.rows()),
+      static_cast<long>(mesh.tetrahedra.rows()), repetitions);
 
-  const DofMap whole_dofs = make_dof_map(extract_boundary(mesh).on_surface, fixed);
-  const SparseMatrixd K =
-      assemble_stiffness(mesh.vertices, mesh.tetrahedra, material, materials, whole_dofs);
-  const int m = whole_dofs.surface_dofs();
+  // Each case times its K's assembly and its compliance by one method; the
+  // repetitions run the cases in turn (whole, then each ball), so that a
+  // change of the shared machine's load falls on all of them alike.
   ComplianceOptions quiet;
   quiet.check_columns = 2;
-  const double whole_solves = median_seconds(
-      repetitions, [&] { compliance_by_solves(K, m, quiet, nullptr); });
-  const double whole_condensation = median_seconds(
-      repetitions, [&] { compliance_by_condensation(K, m, quiet, nullptr); });
-  std::printf("| model | region tets | free Γ | outside S | G's vertices | solves | condensation |\n");
-  std::printf("|---|---|---|---|---|---|---|\n");
-  std::printf("| whole organ (baseline) | 0 | 0 | %d | %d | %.3f s | %.3f s |\n", m / 3, m / 3,
-              whole_solves, whole_condensation);
-
+  const DofMap whole_dofs = make_dof_map(extract_boundary(mesh).on_surface, fixed);
+  auto whole = [&](OutsideMethod method) {
+    const SparseMatrixd K =
+        assemble_stiffness(mesh.vertices, mesh.tetrahedra, material, materials, whole_dofs);
+    const int m = whole_dofs.surface_dofs();
+    if (method == OutsideMethod::solves)
+      compliance_by_solves(K, m, quiet, nullptr);
+    else
+      compliance_by_condensation(K, m, quiet, nullptr);
+  };
   // Balls about a point under the surface at the far end from the attachment.
   const Eigen::Vector3d centre_m(0.065, 0, 0.015);
-  for (const double radius_m : {0.010, 0.015, 0.020}) {
-    const RegionSplit split = split_region(mesh, RegionSpec::sphere(centre_m, radius_m), fixed);
-    for (const auto& w : split.warnings) std::printf("# warning: %s\n", w.c_str());
-    OutsideCompliance out;
-    const double solves = median_seconds(repetitions, [&] {
-      out = outside_compliance(split, material, materials, OutsideMethod::solves, quiet);
-    });
-    const double condensation = median_seconds(repetitions, [&] {
-      out = outside_compliance(split, material, materials, OutsideMethod::condensation, quiet);
-    });
-    std::printf("| outside of a ball of %.0f mm | %zu | %zu | %zu | %zu | %.3f s | %.3f s |\n",
-                radius_m * 1e3, split.region_tets.size(), out.interface.size(),
-                out.surface.size(), out.vertices.size(), solves, condensation);
+  const std::vector<double> radii_m = {0.010, 0.015, 0.020};
+  std::vector<RegionSplit> splits;
+  for (const double r : radii_m) {
+    splits.push_back(split_region(mesh, RegionSpec::sphere(centre_m, r), fixed));
+    for (const auto& w : splits.back().warnings) std::printf("# warning: %s\n", w.c_str());
   }
+  std::vector<OutsideCompliance> outside(splits.size());
+  const size_t cases = 1 + splits.size();
+  std::vector<std::vector<double>> seconds(2 * cases);
+  for (int rep = 0; rep < repetitions; ++rep)
+    for (const OutsideMethod method : {OutsideMethod::solves, OutsideMethod::condensation})
+      for (size_t c = 0; c < cases; ++c) {
+        const size_t slot = 2 * c + (method == OutsideMethod::solves ? 0 : 1);
+        seconds[slot].push_back(once([&] {
+          if (c == 0)
+            whole(method);
+          else
+            outside[c - 1] = outside_compliance(splits[c - 1], material, materials, method, quiet);
+        }));
+      }
+  auto median = [&](size_t slot) {
+    std::vector<double> t = seconds[slot];
+    std::sort(t.begin(), t.end());
+    return t[t.size() / 2];
+  };
+  std::printf(
+      "| model | region tets | free Γ | outside S | G's vertices | solves | condensation |\n");
+  std::printf("|---|---|---|---|---|---|---|\n");
+  const int n_whole = static_cast<int>(whole_dofs.compliance_vertices.size());
+  std::printf("| whole organ (baseline) | 0 | 0 | %d | %d | %.3f s | %.3f s |\n", n_whole, n_whole,
+              median(0), median(1));
+  for (size_t b = 0; b < splits.size(); ++b)
+    std::printf("| outside of a ball of %.0f mm | %zu | %zu | %zu | %zu | %.3f s | %.3f s |\n",
+                radii_m[b] * 1e3, splits[b].region_tets.size(), outside[b].interface.size(),
+                outside[b].surface.size(), outside[b].vertices.size(), median(2 * (b + 1)),
+                median(2 * (b + 1) + 1));
   return 0;
 }
