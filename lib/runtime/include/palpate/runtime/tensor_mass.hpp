@@ -156,6 +156,7 @@ class TensorMassModel {
   };
   void add_stiffness_product(CRef<Eigen::VectorXd> u, Eigen::Ref<Eigen::VectorXd> out,
                              double sign) const;
+  void build_topology();  // tensor_mass_cut.cpp, with what a cut changes
   void resum_vertex(int v);
   void resum_edge(int edge);
   int find_edge(int i, int j) const;
