@@ -175,6 +175,7 @@ void BM_CriticalStep(benchmark::State& state) {
   for (auto _ : state) bound = model.stable_time_step();
   state.counters["dt_crit_us"] = bound.critical_time_step_s * 1e6;
   state.counters["dt_gershgorin_us"] = bound.gershgorin_time_step_s * 1e6;
+  state.counters["dt_element_us"] = bound.element_time_step_s * 1e6;
   state.counters["iterations"] = bound.iterations;
   state.counters["substeps_per_ms"] = std::ceil(1e-3 / (0.9 * bound.critical_time_step_s));
 }

@@ -152,9 +152,10 @@ TEST(TensorMass, StableStepIsTight) {
   // A Rayleigh quotient with residual ε has error ~ε², far below 1e-8.
   EXPECT_NEAR(bound.omega_max_rad_s, omega_max, 1e-8 * omega_max);
   EXPECT_GE(bound.gershgorin_omega_rad_s, omega_max * (1 - 1e-12));
-  std::printf("ω_max %.6g rad/s (%d iterations), Gershgorin %.6g: Δt_crit %.4g s\n",
+  EXPECT_GE(bound.element_omega_rad_s, omega_max * (1 - 1e-12));
+  std::printf("ω_max %.6g rad/s (%d iterations), Gershgorin %.6g, elements %.6g: Δt_crit %.4g s\n",
               bound.omega_max_rad_s, bound.iterations, bound.gershgorin_omega_rad_s,
-              bound.critical_time_step_s);
+              bound.element_omega_rad_s, bound.critical_time_step_s);
 
   VectorXd mass(dofs.size());
   for (std::size_t q = 0; q < dofs.size(); ++q) mass[q] = r.model.mass_kg(dofs[q] / 3);
@@ -202,6 +203,7 @@ TEST(TensorMass, StableStepIsTight) {
 TEST(TensorMass, StableStepAfterCuts) {
   const TetMesh mesh = cube(false);
   Region r(mesh, mesh.tetrahedra, face_x0(0));
+  const StableTimeStep before = r.model.stable_time_step(1e-8);
   const int corner = vertex(kCells, kCells, kCells);
   std::vector<int> keep;
   for (int t = 0; t < mesh.tetrahedra.rows(); ++t) {
@@ -218,8 +220,13 @@ TEST(TensorMass, StableStepAfterCuts) {
   ASSERT_TRUE(bound.converged);
   EXPECT_NEAR(bound.omega_max_rad_s, omega_max, 1e-8 * omega_max);
   EXPECT_GE(bound.gershgorin_omega_rad_s, omega_max * (1 - 1e-12));
-  std::printf("after %zu cuts: ω_max %.6g rad/s (%d iterations)\n",
-              mesh.tetrahedra.rows() - keep.size(), bound.omega_max_rad_s, bound.iterations);
+  // The element bound, computed before the cuts, still holds after them.
+  EXPECT_EQ(bound.element_omega_rad_s, before.element_omega_rad_s);
+  EXPECT_GE(before.element_omega_rad_s, omega_max * (1 - 1e-12));
+  EXPECT_GE(before.element_omega_rad_s, before.omega_max_rad_s * (1 - 1e-12));
+  std::printf("ω_max %.6g rad/s, after %zu cuts %.6g (%d iterations); element bound %.6g\n",
+              before.omega_max_rad_s, mesh.tetrahedra.rows() - keep.size(), bound.omega_max_rad_s,
+              bound.iterations, bound.element_omega_rad_s);
 }
 
 // No allocation in what runs every step, nor in a cut.

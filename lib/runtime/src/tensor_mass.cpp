@@ -92,6 +92,16 @@ TensorMassModel::TensorMassModel(CRef<Eigen::MatrixX3d> rest_positions_m,
                       "symmetric to 1e-10 relative is accepted",
                       kWhat, t, asymmetry / k.cwiseAbs().maxCoeff(), k.cwiseAbs().maxCoeff()));
   }
+  // Each element's highest ω² with its own lumped masses, M_t = (ρ V_t / 4) I:
+  // uᵀ K u = Σ_t u_tᵀ K^t u_t ≤ max_t ω_t² Σ_t u_tᵀ M_t u_t = max_t ω_t² uᵀ M u,
+  // for the mesh as built and for whatever tetrahedra a cut leaves.
+  for (int t = 0; t < nt; ++t)
+    element_omega2_max_ =
+        std::max(element_omega2_max_,
+                 Eigen::SelfAdjointEigenSolver<Matrix12d>(element_k_[t], Eigen::EigenvaluesOnly)
+                         .eigenvalues()
+                         .maxCoeff() /
+                     (density_kg_m3_ * tet_volume_m3_[t] / 4));
   fixed_.assign(nv, 0);
   for (int v : fixed_vertices) {
     if (v < 0 || v >= nv)
@@ -176,6 +186,7 @@ void TensorMassModel::set_interface_coupling(const std::vector<int>& interface_v
         fmt::format("{}: the interface stiffness S has a non-finite entry; finite "
                     "values in N/m are accepted",
                     kWhat));
+  double largest_eigenvalue = 0;
   if (n > 0) {
     const double largest = stiffness_n_per_m.cwiseAbs().maxCoeff();
     const double asymmetry =
@@ -188,10 +199,11 @@ void TensorMassModel::set_interface_coupling(const std::vector<int>& interface_v
                       kWhat, asymmetry / largest));
     // An indefinite S would feed energy in: the explicit step would diverge
     // whatever Δt. The tolerance is the eigensolver's round-off.
-    const double least =
+    const Eigen::VectorXd eigenvalues =
         Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(stiffness_n_per_m, Eigen::EigenvaluesOnly)
-            .eigenvalues()
-            .minCoeff();
+            .eigenvalues();
+    const double least = eigenvalues.minCoeff();
+    largest_eigenvalue = eigenvalues.maxCoeff();
     if (least < -1e-10 * largest * static_cast<double>(n))
       throw InputError(
           fmt::format("{}: the interface stiffness S has the eigenvalue {:.6g} N/m; "
@@ -200,6 +212,7 @@ void TensorMassModel::set_interface_coupling(const std::vector<int>& interface_v
   }
   interface_ = interface_vertices;
   coupling_ = stiffness_n_per_m;
+  coupling_eigen_max_ = largest_eigenvalue;
   offset_m_ = Eigen::VectorXd::Zero(n);
   gap_m_ = offset_m_;
   coupling_force_n_ = offset_m_;
@@ -330,6 +343,16 @@ StableTimeStep TensorMassModel::stable_time_step(double tolerance, int max_itera
   const double inf = std::numeric_limits<double>::infinity();
   out.critical_time_step_s = out.omega_max_rad_s > 0 ? 2 / out.omega_max_rad_s : inf;
   out.gershgorin_time_step_s = bound > 0 ? 2 / out.gershgorin_omega_rad_s : inf;
+
+  // uᵀ S u ≤ λ_max(S) |u_Γ|² ≤ λ_max(S) / min_Γ m · uᵀ M u.
+  double least_interface_mass_kg = inf;
+  for (int v : interface_)
+    if (moving(v)) least_interface_mass_kg = std::min(least_interface_mass_kg, mass_kg_[v]);
+  const double element_bound =
+      element_omega2_max_ +
+      (least_interface_mass_kg < inf ? coupling_eigen_max_ / least_interface_mass_kg : 0.0);
+  out.element_omega_rad_s = std::sqrt(element_bound);
+  out.element_time_step_s = element_bound > 0 ? 2 / out.element_omega_rad_s : inf;
   return out;
 }
 

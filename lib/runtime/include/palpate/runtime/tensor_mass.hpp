@@ -36,9 +36,15 @@ struct StableTimeStep {
   /// never below the true ω_max, so its step is safe without a margin.
   double gershgorin_omega_rad_s = 0;
   double gershgorin_time_step_s = 0;  ///< 2 / gershgorin_omega_rad_s
-  int iterations = 0;                 ///< power iterations done
-  double relative_residual = 0;       ///< ‖A y − ρ y‖ / ρ at the end
-  bool converged = false;             ///< relative_residual ≤ the tolerance asked
+  /// The element bound: the largest λ_max(K^t) / (ρ V_t / 4) over the
+  /// tetrahedra as built (each element alone with its lumped masses), plus
+  /// λ_max(S) over the least interface mass now. Never below the true ω_max;
+  /// without a coupling it stays a bound after any cut.
+  double element_omega_rad_s = 0;
+  double element_time_step_s = 0;  ///< 2 / element_omega_rad_s
+  int iterations = 0;              ///< power iterations done
+  double relative_residual = 0;    ///< ‖A y − ρ y‖ / ρ at the end
+  bool converged = false;          ///< relative_residual ≤ the tolerance asked
 };
 
 /// A tetrahedral region as vertex and edge tensors, lumped masses and an
@@ -170,6 +176,8 @@ class TensorMassModel {
   std::vector<char> tet_alive_;
   int remaining_tets_ = 0;
   double density_kg_m3_ = 0, damping_per_s_ = 0;
+  double element_omega2_max_ = 0;  // max over the tetrahedra as built (1/s²)
+  double coupling_eigen_max_ = 0;  // λ_max(S), N/m
 
   std::vector<char> fixed_;
   std::vector<Eigen::Matrix3d> vertex_tensor_;
