@@ -43,11 +43,13 @@ struct RegionSpec {
   std::string describe() const;
 };
 
-/// Regions with more tetrahedra than this are unlikely to step at 1 kHz as a
-/// tensor-mass model on one core (an estimate: about 1 µs per 10 tetrahedra
-/// for the explicit step's edge loop; to be replaced by the run-time model's
-/// benchmark): split_region() warns, it does not refuse.
-inline constexpr int kRegionTetrahedraAt1kHz = 10'000;
+/// Regions with more tetrahedra than this take over half of a 1 ms haptic
+/// tick as a tensor-mass model on one core (BENCHMARKS.md, "The tensor-mass
+/// region": a coupled step costs about 11 ns per tetrahedron, and a 4 mm
+/// liver mesh needs about 10 steps per millisecond, so 4,000 tetrahedra are
+/// about 0.45 ms; 8,000 took the whole tick): split_region() warns, it does
+/// not refuse.
+inline constexpr int kRegionTetrahedraAt1kHz = 4'000;
 /// Free interface vertices beyond which the coupling force S (u_Γ − u_Γ⁰), a
 /// dense 3n_Γ × 3n_Γ product (9 n_Γ² multiply-adds), takes a large part of a
 /// 1 ms step: split_region() warns.
