@@ -23,6 +23,7 @@
 
 #include "palpate/offline/fem.hpp"
 #include "palpate/runtime/tensor_mass.hpp"
+#include "support/test_meshes.hpp"
 
 namespace {
 
@@ -38,7 +39,7 @@ struct Box {
   int nx, ny, nz;
   Eigen::MatrixX3d x;
   Eigen::MatrixX4i tets;
-  int vertex(int i, int j, int k) const { return i + (nx + 1) * (j + (ny + 1) * k); }
+  int vertex(int i, int j, int k) const { return palpate::testing::box_vertex(i, j, k, nx, ny); }
   std::vector<int> face_x(int i) const {
     std::vector<int> out;
     for (int k = 0; k <= nz; ++k)
@@ -47,33 +48,12 @@ struct Box {
   }
 };
 
-/// nx × ny × nz cubes of kCell_m, six positive tetrahedra each (Kuhn).
+/// nx × ny × nz cubes of kCell_m, six positive tetrahedra each (Kuhn: the
+/// tests' box mesh, tests/support/test_meshes.hpp).
 Box box(int nx, int ny, int nz) {
-  Box b{nx, ny, nz, Eigen::MatrixX3d((nx + 1) * (ny + 1) * (nz + 1), 3), Eigen::MatrixX4i()};
-  for (int k = 0; k <= nz; ++k)
-    for (int j = 0; j <= ny; ++j)
-      for (int i = 0; i <= nx; ++i) b.x.row(b.vertex(i, j, k)) << i, j, k;
-  b.x *= kCell_m;
-  constexpr std::array<std::array<int, 3>, 6> kPaths = {
-      {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}}};
-  b.tets.resize(6 * nx * ny * nz, 4);
-  int t = 0;
-  for (int k = 0; k < nz; ++k)
-    for (int j = 0; j < ny; ++j)
-      for (int i = 0; i < nx; ++i)
-        for (const auto& path : kPaths) {
-          std::array<int, 3> c = {i, j, k};
-          std::array<int, 4> v{b.vertex(i, j, k), 0, 0, 0};
-          for (int s = 0; s < 3; ++s) {
-            ++c[path[s]];
-            v[s + 1] = b.vertex(c[0], c[1], c[2]);
-          }
-          Matrix43d p;
-          for (int q = 0; q < 4; ++q) p.row(q) = b.x.row(v[q]);
-          if (palpate::signed_volume(p) < 0) std::swap(v[2], v[3]);
-          b.tets.row(t++) << v[0], v[1], v[2], v[3];
-        }
-  return b;
+  const palpate::TetMesh mesh =
+      palpate::testing::box_mesh(nx * kCell_m, ny * kCell_m, nz * kCell_m, nx, ny, nz);
+  return Box{nx, ny, nz, mesh.vertices, mesh.tetrahedra};
 }
 
 std::vector<Matrix12d> element_stiffnesses(const Box& b) {

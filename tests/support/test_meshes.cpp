@@ -57,8 +57,12 @@ void write_msh22(const TetMesh& mesh, const std::filesystem::path& file) {
   out << "$PhysicalNames\n" << groups.size() << "\n";
   for (int g : groups) {
     auto it = mesh.group_names.find(g);
-    out << "3 " << (g == 0 ? 99 : g) << " \""
-        << (it != mesh.group_names.end() ? it->second : "g" + std::to_string(g)) << "\"\n";
+    out << "3 " << (g == 0 ? 99 : g) << " \"";
+    if (it != mesh.group_names.end())
+      out << it->second;
+    else
+      out << 'g' << g;  // not "g" + to_string(g): GCC 12's -Wrestrict misfires on it
+    out << "\"\n";
   }
   out << "$EndPhysicalNames\n$Nodes\n" << mesh.vertices.rows() << "\n";
   for (Eigen::Index v = 0; v < mesh.vertices.rows(); ++v)
