@@ -85,14 +85,13 @@ double slowest_frequency(TensorMassModel& model) {
     model.add_coupling_force(e, f);  // −S e on Γ
     for (std::size_t r = 0; r < 3 * moving.size(); ++r) {
       const int row = 3 * moving[r / 3] + static_cast<int>(r % 3);
-      a(r, c) = (ku[row] - f[row]) / std::sqrt(model.mass_kg(moving[r / 3]) *
-                                              model.mass_kg(moving[c / 3]));
+      a(r, c) = (ku[row] - f[row]) /
+                std::sqrt(model.mass_kg(moving[r / 3]) * model.mass_kg(moving[c / 3]));
     }
     e[dof] = 0;
   }
-  return std::sqrt(Eigen::SelfAdjointEigenSolver<MatrixXd>(a, Eigen::EigenvaluesOnly)
-                       .eigenvalues()
-                       .minCoeff());
+  return std::sqrt(
+      Eigen::SelfAdjointEigenSolver<MatrixXd>(a, Eigen::EigenvaluesOnly).eigenvalues().minCoeff());
 }
 
 /// Steps the region, damped at γ = 2 ω_min, from rest until every mode has
@@ -166,9 +165,9 @@ TEST(HybridRegion, SettlesOnTheWholeOrgansPrecomputedAnswer) {
   std::vector<int> region_surface_mesh;
   for (int r : region_surface) region_surface_mesh.push_back(o.region.to_mesh[r]);
   const int loaded = nearest(o.mesh, region_surface_mesh, {0.08, 0, 0.01});
-  const int loaded_r = static_cast<int>(
-      std::find(o.region.to_mesh.begin(), o.region.to_mesh.end(), loaded) -
-      o.region.to_mesh.begin());
+  const int loaded_r =
+      static_cast<int>(std::find(o.region.to_mesh.begin(), o.region.to_mesh.end(), loaded) -
+                       o.region.to_mesh.begin());
   VectorXd region_load = VectorXd::Zero(3 * o.region.vertices_m.rows());
   region_load.segment<3>(3 * loaded_r) = f_n;
   const VectorXd no_offset = VectorXd::Zero(3 * o.region.interface.size());
@@ -190,8 +189,7 @@ TEST(HybridRegion, SettlesOnTheWholeOrgansPrecomputedAnswer) {
       vertex_block(o.outside.G, o.outside.interface, o.outside.surface) * outside_load;
   const TensorMassModel on_rest =
       settled(o, VectorXd::Zero(3 * o.region.vertices_m.rows()), offset);
-  const double e_rest =
-      relative_error_on_surface(o, on_rest, offset, outside_load, loaded_s, f_n);
+  const double e_rest = relative_error_on_surface(o, on_rest, offset, outside_load, loaded_s, f_n);
   std::printf("load on the rest: relative error %.3g against G_SS\n", e_rest);
   EXPECT_LE(e_rest, 1e-6);
 }
