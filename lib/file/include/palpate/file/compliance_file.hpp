@@ -6,16 +6,18 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "palpate/core/eigen.hpp"
+#include "palpate/file/cut_region_data.hpp"
 
 namespace palpate {
 
 inline constexpr const char* kComplianceFormatName = "palpate-compliance";
 inline constexpr int kComplianceFormatMajor = 1;
-inline constexpr int kComplianceFormatMinor = 2;
+inline constexpr int kComplianceFormatMinor = 3;
 /// The `format` of a shard (partial file): some columns of G and the
 /// checkpoint of the run computing them (partial_file.hpp).
 inline constexpr const char* kPartialFormatName = "palpate-compliance-partial";
@@ -45,6 +47,11 @@ struct ComplianceModel {
   /// other vertex. Required for writing; empty when read from a 1.0 file.
   Eigen::VectorXd softness_m_per_n;
   Precision precision = Precision::kFloat64;
+  /// The cuttable region of the hybrid model (/cut_region, since 1.3): when
+  /// present, the mesh above is the rest of the organ (the outside) and G is
+  /// its compliance on its boundary, Γ included (docs/compliance-file.md,
+  /// "The cut region"). Absent from files precomputed without a region.
+  std::optional<CutRegionData> cut_region;
   // Root attributes.
   int format_version_minor = kComplianceFormatMinor;  ///< read from the file; written as ours
   std::string method;                                 ///< "solves", "condensation" or "both"
