@@ -44,9 +44,9 @@ template <typename Ids>
 void check_increasing(const Ids& ids, const std::string& where, const char* dataset) {
   for (Eigen::Index i = 1; i < ids.size(); ++i)
     if (ids[i] <= ids[i - 1])
-      fail(where, dataset,
-           fmt::format("entry {} is not above entry {}: must be distinct and increasing", i,
-                       i - 1));
+      fail(
+          where, dataset,
+          fmt::format("entry {} is not above entry {}: must be distinct and increasing", i, i - 1));
 }
 
 }  // namespace
@@ -83,7 +83,8 @@ void check_cut_region(const CutRegionData& c, Eigen::Index compliance_vertices,
     fail(where, "/cut_region/element_stiffness", "holds a non-finite value");
   check_rows(c.vertex_stiffness_n_per_m.rows(), nr, where, "/cut_region/vertex_stiffness",
              "one per region vertex");
-  if (c.vertex_stiffness_n_per_m.cols() != kTensorValues || c.edge_stiffness_n_per_m.cols() != kTensorValues)
+  if (c.vertex_stiffness_n_per_m.cols() != kTensorValues ||
+      c.edge_stiffness_n_per_m.cols() != kTensorValues)
     fail(where, "/cut_region",
          "vertex_stiffness and edge_stiffness must have 9 columns (3 × 3, row-major)");
   if (!c.vertex_stiffness_n_per_m.allFinite())
@@ -108,10 +109,8 @@ void check_cut_region(const CutRegionData& c, Eigen::Index compliance_vertices,
              "one per edge");
   if (!c.edge_stiffness_n_per_m.allFinite())
     fail(where, "/cut_region/edge_stiffness", "holds a non-finite value");
-  check_range(c.boundary_triangles, nr, where, "/cut_region/boundary_triangles",
-              "region vertices");
-  check_range(c.interface_vertices, nr, where, "/cut_region/interface_vertices",
-              "region vertices");
+  check_range(c.boundary_triangles, nr, where, "/cut_region/boundary_triangles", "region vertices");
+  check_range(c.interface_vertices, nr, where, "/cut_region/interface_vertices", "region vertices");
   check_rows(c.interface_compliance_index.size(), c.interface_vertices.size(), where,
              "/cut_region/interface_compliance_index", "one per interface vertex");
   check_range(c.interface_compliance_index, compliance_vertices, where,
@@ -137,8 +136,7 @@ void write_cut_region(hid_t file, const CutRegionData& c, Sha256& digest) {
                digest);
   write_vector(file, "/cut_region/source_vertex_ids", c.source_vertex_ids, H5T_NATIVE_INT,
                H5T_STD_I32LE, digest);
-  write_matrix(file, "/cut_region/tetrahedra", c.tetrahedra, H5T_NATIVE_INT, H5T_STD_I32LE,
-               digest);
+  write_matrix(file, "/cut_region/tetrahedra", c.tetrahedra, H5T_NATIVE_INT, H5T_STD_I32LE, digest);
   write_vector(file, "/cut_region/tetrahedron_material", c.tet_material, H5T_NATIVE_INT,
                H5T_STD_I32LE, digest);
   write_matrix(file, "/cut_region/element_stiffness", c.element_stiffness_n_per_m,
@@ -157,10 +155,12 @@ void write_cut_region(hid_t file, const CutRegionData& c, Sha256& digest) {
   write_vector(file, "/cut_region/fixed_vertices", c.fixed_vertices, H5T_NATIVE_INT, H5T_STD_I32LE,
                digest);
   // Datasets, not attributes: the content digest covers datasets only.
-  write_vector(file, "/cut_region/density_kg_m3", Eigen::VectorXd(Eigen::VectorXd::Constant(1, c.density_kg_m3)),
-               H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, digest);
-  write_vector(file, "/cut_region/damping_per_s", Eigen::VectorXd(Eigen::VectorXd::Constant(1, c.damping_per_s)),
-               H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, digest);
+  write_vector(file, "/cut_region/density_kg_m3",
+               Eigen::VectorXd(Eigen::VectorXd::Constant(1, c.density_kg_m3)), H5T_NATIVE_DOUBLE,
+               H5T_IEEE_F64LE, digest);
+  write_vector(file, "/cut_region/damping_per_s",
+               Eigen::VectorXd(Eigen::VectorXd::Constant(1, c.damping_per_s)), H5T_NATIVE_DOUBLE,
+               H5T_IEEE_F64LE, digest);
   write_strings(file, "/cut_region/spec", {c.spec}, digest);
 }
 
@@ -170,8 +170,8 @@ CutRegionData read_cut_region(Reader& r) {
   c.source_vertex_ids = r.ints("/cut_region/source_vertex_ids");
   c.tetrahedra = r.matrix<int, 4>("/cut_region/tetrahedra", H5T_NATIVE_INT);
   c.tet_material = r.ints("/cut_region/tetrahedron_material");
-  c.element_stiffness_n_per_m = r.matrix<double, kElementStiffnessValues>(
-      "/cut_region/element_stiffness", H5T_NATIVE_DOUBLE);
+  c.element_stiffness_n_per_m =
+      r.matrix<double, kElementStiffnessValues>("/cut_region/element_stiffness", H5T_NATIVE_DOUBLE);
   c.vertex_stiffness_n_per_m =
       r.matrix<double, kTensorValues>("/cut_region/vertex_stiffness", H5T_NATIVE_DOUBLE);
   c.edges = r.matrix<int, 2>("/cut_region/edges", H5T_NATIVE_INT);

@@ -72,7 +72,7 @@ void write_vector(hid_t file, const char* path, const Vector& v, hid_t mem_type,
 }
 
 inline void write_strings(hid_t file, const char* path, const std::vector<std::string>& values,
-                   Sha256& digest) {
+                          Sha256& digest) {
   Handle type = string_type();
   hsize_t dims[1] = {values.size()};
   Handle space(H5Screate_simple(1, dims, nullptr), H5Sclose, "create a dataspace");
