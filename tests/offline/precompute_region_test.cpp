@@ -327,6 +327,35 @@ TEST(PrecomputeRegion, ARegionTheSplitRefusesIsReportedBeforeAnyWork) {
   EXPECT_FALSE(std::filesystem::exists(job.output));
 }
 
+TEST(PrecomputeRegion, TheSampleCutJobRunsOnTheSampleOrgan) {
+  // config/sample-organ-cut.toml as shipped, on a freshly made sample organ.
+  TempDir dir;
+  PrecomputeJob job =
+      read_job_file(std::filesystem::path(PALPATE_SOURCE_DIR) / "config/sample-organ-cut.toml");
+  write_sample_organ(dir / "organ.msh", 0.012);
+  job.mesh_file = dir / "organ.msh";
+  job.output = dir / "organ-cut.h5";
+  std::vector<std::string> warnings;
+  PrecomputeHooks hooks;
+  hooks.warn = [&](const std::string& w) { warnings.push_back(w); };
+  run_precompute(job, hooks);
+  EXPECT_TRUE(warnings.empty()) << warnings.front();
+  Eigen::MatrixXd G;
+  const ComplianceModel m = read_compliance_file(job.output, &G);
+  ASSERT_TRUE(m.cut_region);
+  const CutRegionData& c = *m.cut_region;
+  EXPECT_GT(c.tetrahedra.rows(), 0);
+  EXPECT_EQ(c.fixed_vertices.size(), 0) << "the ball is far from the attachment";
+  // Every region tetrahedron's centroid is in the 12 mm ball (1e-12 m: round-off).
+  const Eigen::RowVector3d center(0.040, 0, -0.03464);
+  for (Eigen::Index t = 0; t < c.tetrahedra.rows(); ++t) {
+    Eigen::RowVector3d centroid = Eigen::RowVector3d::Zero();
+    for (int k = 0; k < 4; ++k) centroid += c.vertices_m.row(c.tetrahedra(t, k)) / 4;
+    EXPECT_LE((centroid - center).norm(), 0.012 + 1e-12) << t;
+  }
+  EXPECT_EQ(G.rows(), 3 * m.compliance_vertices.size());
+}
+
 TEST(TensorMass, OneTetrahedronsTensorsAreItsBlocks) {
   Matrix43d P;
   P << 0, 0, 0, 0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.01;
