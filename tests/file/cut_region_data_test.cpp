@@ -1,8 +1,8 @@
 // The compliance file's /cut_region (format 1.3) on a small hand-made
-// model: it round-trips bit for bit, the content digest covers it, each
-// malformed part is refused naming its dataset, a file without it is
-// written as before (1.2's datasets, the same digest), and a 1.2 file still
-// loads.
+// model: it round-trips bit for bit, its own digest covers it while
+// content_sha256 stays what a 1.2 reader verifies, each malformed part is
+// refused naming its dataset, a file without it is written as before (1.2's
+// datasets, the same digest), and a 1.2 file still loads.
 
 #include "palpate/file/cut_region_data.hpp"
 
@@ -133,13 +133,18 @@ TEST(CutRegionFile, RoundTripsBitForBitAndTheDigestCoversIt) {
   EXPECT_EQ(a.spec, b.spec);
   EXPECT_EQ(G_read, G);
 
-  // The same model without the region: another digest (the region is in
-  // it); and a file whose region is changed after writing is refused.
+  // The same model without the region has the same content_sha256: it
+  // covers the datasets a 1.2 reader knows (which then verifies a file
+  // with a region), and the region has its own digest, which a file whose
+  // region is changed after writing fails.
   ComplianceModel without = two_tetrahedra();
   write_compliance_file(dir / "plain.h5", without, G);
   const ComplianceModel plain = read_compliance_file(dir / "plain.h5", &G_read);
   EXPECT_FALSE(plain.cut_region);
-  EXPECT_NE(plain.content_sha256, read.content_sha256);
+  EXPECT_TRUE(plain.cut_region_sha256.empty());
+  EXPECT_EQ(plain.content_sha256, read.content_sha256);
+  EXPECT_EQ(read.cut_region_sha256.rfind("sha256:", 0), 0u);
+  EXPECT_EQ(read.cut_region_sha256.size(), 7u + 64u);
   const hid_t file = H5Fopen((dir / "cut.h5").c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
   ASSERT_GE(file, 0);
   const hid_t set = H5Dopen2(file, "/cut_region/density_kg_m3", H5P_DEFAULT);
@@ -148,7 +153,9 @@ TEST(CutRegionFile, RoundTripsBitForBitAndTheDigestCoversIt) {
   H5Dclose(set);
   H5Fclose(file);
   expect_error<InputError>([&] { read_compliance_file(dir / "cut.h5", &G_read); },
-                           {"cut.h5", "content_sha256", "corrupt"});
+                           {"cut.h5", "cut_region_sha256", "/cut_region datasets", "corrupt"});
+  // Without G (no digest verified), it reads.
+  EXPECT_EQ(read_compliance_file(dir / "cut.h5", nullptr).cut_region->density_kg_m3, 1000);
 }
 
 TEST(CutRegionFile, AFileWithoutARegionKeepsItsDigestAndA1_2FileLoads) {

@@ -215,9 +215,14 @@ void write_compliance_file(const std::filesystem::path& path, const ComplianceMo
     for (const int v : model.fixed_vertices) fixed[v] = 1;
     write_vector(file, "/visualization/fixed", fixed, H5T_NATIVE_INT8, H5T_STD_I8LE, digest);
     // 1.3: only when there is a region, so that a file without one has the
-    // datasets, and so the content digest, it had before.
-    if (model.cut_region) detail::write_cut_region(file, *model.cut_region, digest);
-    // 1.2: written last, over everything above.
+    // datasets it had before; with a digest of its own, so that content_sha256
+    // stays the digest of the datasets a 1.2 reader knows and verifies.
+    if (model.cut_region) {
+      Sha256 region_digest;
+      detail::write_cut_region(file, *model.cut_region, region_digest);
+      write_string_attribute(file, "cut_region_sha256", region_digest.hex_digest());
+    }
+    // 1.2: written last, over everything above but /cut_region.
     write_string_attribute(file, "content_sha256", digest.hex_digest());
     check(H5Fflush(file, H5F_SCOPE_GLOBAL), "flush the file");
   }
@@ -411,10 +416,27 @@ ComplianceModel read_once(const std::filesystem::path& path, GTarget target,
       H5Lexists(file, "/visualization", H5P_DEFAULT) > 0 &&
       H5Lexists(file, "/visualization/fixed", H5P_DEFAULT) > 0)
     r.vector<std::int8_t>("/visualization/fixed", H5T_NATIVE_INT8);
-  // Since 1.3, after /visualization in file (and digest) order; a 1.2
-  // reader skips the group, and older files have none.
-  if (!partial && H5Lexists(file, "/cut_region", H5P_DEFAULT) > 0)
+  // Every dataset content_sha256 covers is read: its digest ends here.
+  const std::string computed_digest = r.hashing ? r.digest.hex_digest() : std::string();
+
+  // Since 1.3, after /visualization, into its own digest; a 1.2 reader
+  // skips the group, and older files have none.
+  std::string computed_region_digest;
+  if (!partial && H5Lexists(file, "/cut_region", H5P_DEFAULT) > 0) {
+    m.cut_region_sha256 = r.string_attribute("cut_region_sha256", false);
+    Sha256 region_digest;
+    r.sink = &region_digest;
+    r.hashing = G != nullptr;
     m.cut_region = detail::read_cut_region(r);
+    r.sink = &r.digest;
+    r.hashing = false;
+    if (G != nullptr) {
+      if (m.cut_region_sha256.empty())
+        r.fail("attribute cut_region_sha256",
+               "missing; a compliance file with /cut_region has it (docs/compliance-file.md)");
+      computed_region_digest = region_digest.hex_digest();
+    }
+  }
 
   if (!m.vertices_m.allFinite()) r.fail("/mesh/vertices", "holds a non-finite coordinate");
   auto in_range = [&](const auto& ids, const char* name, Eigen::Index limit) {
@@ -445,7 +467,7 @@ ComplianceModel read_once(const std::filesystem::path& path, GTarget target,
   // still differs from what was written is a corrupt file, or one read while
   // it was being overwritten in place.
   if (!stored_digest.empty() && G != nullptr) {
-    const std::string computed = r.digest.hex_digest();
+    const std::string& computed = computed_digest;
     if (computed != stored_digest)
       r.fail("attribute content_sha256",
              fmt::format("the datasets do not match the digest they were written with ({} read, "
@@ -453,6 +475,12 @@ ComplianceModel read_once(const std::filesystem::path& path, GTarget target,
                          "modified since); copy it again or regenerate it with palpate-precompute",
                          computed.substr(0, 19), stored_digest.substr(0, 19)));
   }
+  if (!computed_region_digest.empty() && computed_region_digest != m.cut_region_sha256)
+    r.fail("attribute cut_region_sha256",
+           fmt::format("the /cut_region datasets do not match the digest they were written with "
+                       "({} read, {} stored): the file is corrupt (damaged on disk or in a copy, "
+                       "or modified since); copy it again or regenerate it with palpate-precompute",
+                       computed_region_digest.substr(0, 19), m.cut_region_sha256.substr(0, 19)));
   return m;
 }
 

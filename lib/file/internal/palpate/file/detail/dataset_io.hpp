@@ -92,12 +92,15 @@ struct Reader {
   hid_t root;
   Sha256 digest;         // of the datasets read, in file order (hash_header)
   bool hashing = false;  // only for files that carry a digest (1.2 on)
+  // Where the datasets read go: `digest`, or another digest of a part of the
+  // file that has its own (the 1.3 /cut_region, cut_region_sha256).
+  Sha256* sink = &digest;
 
   void hash(const void* data, std::size_t bytes) {
-    if (hashing) digest.update(data, bytes);
+    if (hashing) sink->update(data, bytes);
   }
   void hash_dataset(const char* path, const std::vector<hsize_t>& dims) {
-    if (hashing) hash_header(digest, path, dims);
+    if (hashing) hash_header(*sink, path, dims);
   }
 
   [[noreturn]] void fail(const std::string& where, const std::string& what) const {
