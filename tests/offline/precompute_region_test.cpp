@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iomanip>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -248,6 +249,12 @@ TEST(PrecomputeRegion, WritesTheOutsidesComplianceAndTheRegionsModel) {
   EXPECT_EQ(c.density_kg_m3, 1060);
   EXPECT_EQ(c.damping_per_s, 20);
   EXPECT_EQ(c.spec, far_top_box().describe());
+  // The report stored in the file says what was cut.
+  const nlohmann::json report = nlohmann::json::parse(r.model.report_json);
+  EXPECT_EQ(report["cut_region"]["tetrahedra"], rm.mesh_tets.size());
+  EXPECT_EQ(report["cut_region"]["organ_tetrahedra"], r.mesh.tetrahedra.rows());
+  EXPECT_EQ(report["cut_region"]["interface_vertices"], rm.interface.size());
+  EXPECT_EQ(report["mesh"]["compliance_vertices"], oc.vertices.size());
 
   // The tensors are the sums of the element blocks: K_R assembled here from
   // the file's element rows, dense, and its blocks compared (1e-12 of the

@@ -4,12 +4,9 @@
 // in-memory pipeline computes and cross-checks as it does a whole organ's;
 // the region's own data go into the file's /cut_region.
 
-#include <fmt/format.h>
-
 #include <algorithm>
 
 #include "palpate/core/error.hpp"
-#include "palpate/offline/plausibility.hpp"
 #include "palpate/offline/tensor_mass.hpp"
 #include "precompute_steps.hpp"
 
@@ -23,8 +20,8 @@ Eigen::VectorXi to_vector(const std::vector<int>& v) {
 
 }  // namespace
 
-void restrict_to_outside(const CutRegionJob& job, Problem& p, Boundary& boundary, const Say& say) {
-  if (auto w = density_warning(job.density_kg_m3)) say.warn(*w);
+void restrict_to_outside(const CutRegionJob& job, Problem& p, Boundary& boundary,
+                         PrecomputeReport& report, const Say& say) {
   const TetMesh& mesh = p.mesh;
   RegionSplit split = split_region(mesh, job.spec, p.fixed);
   for (const auto& w : split.warnings) say.warn(w);
@@ -65,10 +62,15 @@ void restrict_to_outside(const CutRegionJob& job, Problem& p, Boundary& boundary
   for (int r : region.interface)
     p.interface_outside.push_back(split.mesh_to_outside[region.to_mesh[static_cast<size_t>(r)]]);
 
-  say.info(fmt::format(
-      "cut region {}: {} of {} tetrahedra, {} vertices, {} free interface vertices; G is computed "
-      "on the rest of the organ's boundary",
-      c.spec, nt, mesh.tetrahedra.rows(), nr, region.interface.size()));
+  CutRegionReport& r = report.cut_region.emplace();
+  r.spec = c.spec;
+  r.tetrahedra = static_cast<long>(nt);
+  r.organ_tetrahedra = static_cast<long>(mesh.tetrahedra.rows());
+  r.vertices = static_cast<long>(nr);
+  r.interface_vertices = static_cast<long>(region.interface.size());
+  r.fixed_vertices = static_cast<long>(region.fixed.size());
+  r.density_kg_m3 = c.density_kg_m3;
+  r.damping_per_s = c.damping_per_s;
 
   boundary = outside_boundary(split);
   Eigen::VectorXi material(split.outside.tetrahedra.rows());

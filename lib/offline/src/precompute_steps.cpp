@@ -95,6 +95,10 @@ std::string input_hash(const TetMesh& mesh, const std::vector<MaterialRecord>& m
   if (region) {
     h.update(fmt::format("cut_region {} density {:.17g} damping {:.17g}\n", region->spec,
                          region->density_kg_m3, region->damping_per_s));
+    const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> RX = region->vertices_m;
+    const Eigen::Matrix<int, Eigen::Dynamic, 4, Eigen::RowMajor> RT = region->tetrahedra;
+    h.update(RX.data(), sizeof(double) * static_cast<size_t>(RX.size()));
+    h.update(RT.data(), sizeof(int) * static_cast<size_t>(RT.size()));
     h.update(region->element_stiffness_n_per_m.data(),
              sizeof(double) * static_cast<size_t>(region->element_stiffness_n_per_m.size()));
   }
@@ -144,6 +148,8 @@ Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTi
     if (auto w = young_modulus_warning(m.young_modulus_pa, what)) say.warn(*w);
     if (auto w = poisson_ratio_warning(m.poisson_ratio, what)) say.warn(*w);
   }
+  if (job.cut_region)
+    if (auto w = density_warning(job.cut_region->density_kg_m3)) say.warn(*w);
 
   say.phase("read mesh");
   phases.begin("read mesh");
@@ -166,7 +172,7 @@ Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTi
   p.tet_material = tetrahedron_materials(mesh, job.group_materials);
   p.fixed = select_fixed_vertices(mesh, job.attachment);
   check_attachment_stops_rigid_motion(mesh, p.fixed);
-  if (job.cut_region) restrict_to_outside(*job.cut_region, p, boundary, say);
+  if (job.cut_region) restrict_to_outside(*job.cut_region, p, boundary, report, say);
   p.dofs = make_dof_map(boundary.on_surface, p.fixed);
   if (job.cut_region) index_interface(p);
   p.m = p.dofs.surface_dofs();

@@ -103,10 +103,10 @@ Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTi
 /// region's data into p.model.cut_region (all but interface_compliance_index),
 /// then makes the outside the problem: p.mesh, p.tet_material, p.fixed and
 /// @p boundary become the outside's (outside_boundary()), so that G is its
-/// compliance on its boundary, Γ included.
+/// compliance on its boundary, Γ included; fills report.cut_region.
 /// @throws InputError from split_region().
 void restrict_to_outside(const CutRegionJob& region, Problem& p, Boundary& boundary,
-                         const Say& say);
+                         PrecomputeReport& report, const Say& say);
 /// Then, once p.dofs numbers the outside's compliance vertices: where each
 /// Γ vertex is among them (p.model.cut_region's interface_compliance_index).
 void index_interface(Problem& p);
