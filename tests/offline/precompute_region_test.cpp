@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <fstream>
 #include <iomanip>
 #include <map>
@@ -322,6 +323,18 @@ TEST(PrecomputeRegion, IsRefusedOnTheStreamedPathsWithOneMessage) {
   job.method = Method::kBoth;
   job.shard.count = 2;
   expect_error<InputError>([&] { run_precompute(job, {}); }, {"cut region", "--shard"});
+  EXPECT_FALSE(std::filesystem::exists(job.output));
+}
+
+TEST(PrecomputeRegion, ADensityOrDampingFromTheCommandLineIsCheckedToo) {
+  // The job file's reader checks them with their line; validate_job() for
+  // values that come from flags (--cut-density, --cut-damping).
+  TempDir dir;
+  PrecomputeJob job = testing::clamped_job(organ(), dir.path(), "organ", 85e3);
+  job.cut_region = CutRegionJob{far_top_box(), -1, 20};
+  expect_error<InputError>([&] { run_precompute(job, {}); }, {"cut region density -1", "> 0"});
+  job.cut_region = CutRegionJob{far_top_box(), 1060, NAN};
+  expect_error<InputError>([&] { run_precompute(job, {}); }, {"cut region damping nan", "≥ 0"});
   EXPECT_FALSE(std::filesystem::exists(job.output));
 }
 

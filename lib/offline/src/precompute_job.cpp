@@ -4,6 +4,7 @@
 #include <toml++/toml.h>
 
 #include <charconv>
+#include <cmath>
 #include <sstream>
 
 #include "cut_region_job.hpp"
@@ -330,6 +331,19 @@ void validate_job(const PrecomputeJob& job) {
   // The region's data joins the model on the in-memory path only: a
   // streamed run's checkpoint and shards do not carry it (docs/precompute.md,
   // "A cuttable region").
+  if (job.cut_region) {
+    // The job file's reader checks these with their line; flags land here.
+    const double rho = job.cut_region->density_kg_m3, gamma = job.cut_region->damping_per_s;
+    if (!(rho > 0) || !std::isfinite(rho))
+      throw InputError(fmt::format(
+          "cut region density {} kg/m³ is not accepted: use a finite number > 0 (soft tissue "
+          "about {})",
+          rho, kSoftTissueDensityKgM3));
+    if (!(gamma >= 0) || !std::isfinite(gamma))
+      throw InputError(fmt::format(
+          "cut region damping {} 1/s is not accepted: use a finite number ≥ 0 (default {})", gamma,
+          kDefaultRegionDampingPerS));
+  }
   if (job.cut_region && (job.method == Method::kSolves || job.shard.any()))
     throw InputError(
         "a cut region ([cut_region]) is computed in memory only: use --method both (the "
