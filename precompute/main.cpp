@@ -17,6 +17,7 @@
 #include "palpate/core/error.hpp"
 #include "palpate/core/suggest.hpp"
 #include "palpate/core/system_info.hpp"
+#include "palpate/core/units.hpp"
 #include "palpate/core/version.hpp"
 #include "palpate/file/atomic_file.hpp"
 #include "palpate/file/xdmf.hpp"
@@ -80,8 +81,10 @@ int run(int argc, char** argv) {
   std::string job_file, mesh, mesh_unit, fix_ids, method, precision, output, save_job, shard,
       columns;
   std::vector<std::string> fix_groups, materials;
-  std::vector<double> box, sphere, half_space;
-  double young = 0, poisson = 0, fill_size = 0, tolerance = 0, memory_gb = 0;
+  std::vector<double> box, sphere, half_space, cut_box, cut_sphere;
+  std::string cut_group;
+  double young = 0, poisson = 0, fill_size = 0, tolerance = 0, memory_gb = 0, cut_density = 0,
+         cut_damping = 0;
   int block_columns = 0;
   bool json_out = false, quiet = false, xdmf = true, phases = false, reuse = false;
 
@@ -108,6 +111,18 @@ int run(int argc, char** argv) {
   app.add_option("--fix-half-space", half_space,
                  "fix vertices with (x-p).n >= 0: PX PY PZ NX NY NZ (mesh unit)")
       ->expected(6);
+  app.add_option("--cut-box", cut_box,
+                 "cuttable region: the tetrahedra whose centroid is in a box: XMIN YMIN ZMIN XMAX "
+                 "YMAX ZMAX (mm)")
+      ->expected(6);
+  app.add_option("--cut-sphere", cut_sphere,
+                 "cuttable region: the tetrahedra whose centroid is in a ball: CX CY CZ R (mm)")
+      ->expected(4);
+  app.add_option("--cut-group", cut_group, "cuttable region: a 3-D physical group of the mesh");
+  app.add_option("--cut-density", cut_density,
+                 "density of the cuttable region, kg/m³ (default 1060, soft tissue)");
+  app.add_option("--cut-damping", cut_damping,
+                 "mass-proportional damping of the cuttable region, 1/s (default 20)");
   app.add_option("--method", method,
                  "solves, condensation or both (default both: computes both and cross-checks)");
   app.add_option("--precision", precision, "storage of G: float64 (default) or float32");
@@ -269,6 +284,33 @@ int run(int argc, char** argv) {
   if (!sphere.empty()) job.attachment.spheres.push_back({unit * vec3(sphere, 0), unit * sphere[3]});
   if (!half_space.empty())
     job.attachment.half_spaces.push_back({unit * vec3(half_space, 0), vec3(half_space, 3)});
+  // A shape flag replaces the job file's region shape; its density and
+  // damping stay unless flags give them too.
+  const int cut_shapes =
+      (cut_box.empty() ? 0 : 1) + (cut_sphere.empty() ? 0 : 1) + (app.count("--cut-group") ? 1 : 0);
+  if (cut_shapes > 1)
+    throw palpate::InputError(
+        "--cut-box, --cut-sphere and --cut-group each give the cut region: give one");
+  if (cut_shapes == 1) {
+    if (!job.cut_region) job.cut_region.emplace();
+    const auto mm = [](const Eigen::Vector3d& v) {
+      return Eigen::Vector3d(v.unaryExpr([](double x) { return palpate::millimetres(x); }));
+    };
+    palpate::RegionSpec& spec = job.cut_region->spec;
+    if (!cut_box.empty())
+      spec = palpate::RegionSpec::box(mm(vec3(cut_box, 0)), mm(vec3(cut_box, 3)));
+    else if (!cut_sphere.empty())
+      spec =
+          palpate::RegionSpec::sphere(mm(vec3(cut_sphere, 0)), palpate::millimetres(cut_sphere[3]));
+    else
+      spec = palpate::RegionSpec::physical_group(cut_group);
+  }
+  if ((app.count("--cut-density") || app.count("--cut-damping")) && !job.cut_region)
+    throw palpate::InputError(
+        "--cut-density and --cut-damping describe a cut region: give one with --cut-box, "
+        "--cut-sphere, --cut-group or [cut_region]");
+  if (app.count("--cut-density")) job.cut_region->density_kg_m3 = cut_density;
+  if (app.count("--cut-damping")) job.cut_region->damping_per_s = cut_damping;
   if (!method.empty()) job.method = palpate::parse_method(method);
   if (!precision.empty()) job.precision = palpate::parse_precision(precision);
   if (app.count("--block-columns")) job.block_columns = block_columns;

@@ -321,6 +321,21 @@ Eigen::MatrixXd vertex_block(CRef<Eigen::MatrixXd> G, const std::vector<int>& ro
   return B;
 }
 
+Boundary outside_boundary(const RegionSplit& split) {
+  const TetMesh& out = split.outside;
+  Boundary b;
+  b.on_surface.assign(static_cast<size_t>(out.vertices.rows()), false);
+  const auto faces = faces_of_one(out.tetrahedra, all_tets(out.tetrahedra.rows()));
+  b.triangles.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      b.triangles(static_cast<Eigen::Index>(f), k) = faces[f][k];
+      b.on_surface[faces[f][k]] = true;
+    }
+  for (int v : split.interface_vertices) b.on_surface[split.mesh_to_outside[v]] = true;
+  return b;
+}
+
 OutsideCompliance outside_compliance(const RegionSplit& split,
                                      CRef<Eigen::VectorXi> material_of_tet,
                                      const std::vector<Lame>& materials, OutsideMethod method,
@@ -329,16 +344,11 @@ OutsideCompliance outside_compliance(const RegionSplit& split,
   const auto no = static_cast<size_t>(out.vertices.rows());
   // The outside's boundary is Γ and its part of the organ's surface: every
   // face of one outside tetrahedron is either a face of the organ or one it
-  // shares with a region tetrahedron. Γ is added explicitly in case a Γ
-  // vertex touches the region only along an edge (no shared face).
-  std::vector<bool> on_boundary(no, false);
-  for (const auto& f : faces_of_one(out.tetrahedra, all_tets(out.tetrahedra.rows())))
-    for (int v : f) on_boundary[v] = true;
+  // shares with a region tetrahedron (outside_boundary()).
+  const std::vector<bool> on_boundary = outside_boundary(split).on_surface;
+  PALPATE_DEMAND(on_boundary.size() == no);
   std::vector<bool> is_interface(split.mesh_to_outside.size(), false);
-  for (int v : split.interface_vertices) {
-    is_interface[v] = true;
-    on_boundary[split.mesh_to_outside[v]] = true;
-  }
+  for (int v : split.interface_vertices) is_interface[v] = true;
   std::vector<int> fixed_local;
   for (int v : split.fixed_outside) fixed_local.push_back(split.mesh_to_outside[v]);
   const DofMap dofs = make_dof_map(on_boundary, fixed_local);

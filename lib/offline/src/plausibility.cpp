@@ -43,6 +43,18 @@ std::optional<std::string> poisson_ratio_warning(double nu, std::string_view wha
   return std::nullopt;
 }
 
+std::optional<std::string> density_warning(double rho) {
+  if (rho >= kPlausibleDensityMinKgM3 && rho <= kPlausibleDensityMaxKgM3) return std::nullopt;
+  return fmt::format(
+      "cut region: density {:g} kg/m³ is outside what soft tissues have ({:g} to {:g} kg/m³; "
+      "liver about 1,060){}: check the unit (kg/m³)",
+      rho, kPlausibleDensityMinKgM3, kPlausibleDensityMaxKgM3,
+      rho < kPlausibleDensityMinKgM3 && rho * 1e3 >= kPlausibleDensityMinKgM3 &&
+              rho * 1e3 <= kPlausibleDensityMaxKgM3
+          ? fmt::format("; if it is in g/cm³, give {:g}", rho * 1e3)
+          : std::string());
+}
+
 std::vector<UnitReading> unit_readings(double diagonal) {
   std::vector<UnitReading> readings;
   for (const char* name : {"m", "cm", "mm"}) {

@@ -4,8 +4,10 @@
 #include <toml++/toml.h>
 
 #include <charconv>
+#include <cmath>
 #include <sstream>
 
+#include "cut_region_job.hpp"
 #include "palpate/core/detail/toml_reader.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/core/version.hpp"
@@ -89,7 +91,7 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
   const detail::TomlReader r(file.string());
   const auto base = std::filesystem::absolute(file).parent_path();
   PrecomputeJob job;
-  r.only_keys(root, "", {"mesh", "material", "attachment", "compute", "output"});
+  r.only_keys(root, "", {"mesh", "material", "attachment", "cut_region", "compute", "output"});
 
   double unit = 1.0;
   if (const auto* mesh = root.get("mesh")) {
@@ -164,6 +166,9 @@ PrecomputeJob read_job_file(const std::filesystem::path& file) {
                                  r.vec3(*h.get("normal"), "attachment.half_spaces.normal")});
       });
   }
+  // Millimetres whatever the mesh's unit: the keys say their unit.
+  if (const auto* region = root.get("cut_region"))
+    job.cut_region = detail::read_cut_region_table(*region, r);
   if (const auto* compute = root.get("compute")) {
     const auto& t = r.table(*compute, "compute");
     r.only_keys(t, "compute",
@@ -283,6 +288,8 @@ std::string to_toml(const PrecomputeJob& job) {
     line("normal", toml_vector(h.normal, 1.0));
   }
 
+  if (job.cut_region) t += detail::cut_region_toml(*job.cut_region);
+
   t += "\n[compute]\n";
   line("method", toml_string(to_string(job.method)));
   line("precision", toml_string(to_string(job.precision)));
@@ -321,6 +328,26 @@ void validate_job(const PrecomputeJob& job) {
   if (!(job.memory_limit_bytes >= 0))
     throw InputError("memory limit must be ≥ 0 (0: available memory)");
   parse_length_unit(job.mesh_unit);
+  // The region's data joins the model on the in-memory path only: a
+  // streamed run's checkpoint and shards do not carry it (docs/precompute.md,
+  // "A cuttable region").
+  if (job.cut_region) {
+    // The job file's reader checks these with their line; flags land here.
+    const double rho = job.cut_region->density_kg_m3, gamma = job.cut_region->damping_per_s;
+    if (!(rho > 0) || !std::isfinite(rho))
+      throw InputError(fmt::format(
+          "cut region density {} kg/m³ is not accepted: use a finite number > 0 (soft tissue "
+          "about {})",
+          rho, kSoftTissueDensityKgM3));
+    if (!(gamma >= 0) || !std::isfinite(gamma))
+      throw InputError(fmt::format(
+          "cut region damping {} 1/s is not accepted: use a finite number ≥ 0 (default {})", gamma,
+          kDefaultRegionDampingPerS));
+  }
+  if (job.cut_region && (job.method == Method::kSolves || job.shard.any()))
+    throw InputError(
+        "a cut region ([cut_region]) is computed in memory only: use --method both (the "
+        "default) or condensation, without --shard or --columns");
 }
 
 }  // namespace palpate

@@ -98,6 +98,17 @@ json to_json_value(const PrecomputeReport& r) {
             {"phases", json::array()}};
   for (const auto& p : r.phases) j["phases"].push_back(to_json_value(p));
   if (r.mesh) j["mesh"] = to_json_value(*r.mesh);
+  if (r.cut_region) {
+    const CutRegionReport& c = *r.cut_region;
+    j["cut_region"] = {{"spec", c.spec},
+                       {"tetrahedra", c.tetrahedra},
+                       {"organ_tetrahedra", c.organ_tetrahedra},
+                       {"vertices", c.vertices},
+                       {"interface_vertices", c.interface_vertices},
+                       {"fixed_vertices", c.fixed_vertices},
+                       {"density_kg_m3", c.density_kg_m3},
+                       {"damping_per_s", c.damping_per_s}};
+  }
   if (r.dofs) j["dofs"] = {{"total", r.dofs->total}, {"surface", r.dofs->surface}};
   if (r.materials) {
     j["materials"] = json::array();
@@ -326,6 +337,14 @@ std::string format_report(const PrecomputeReport& r) {
   s += fmt::format("             {} surface vertices, {} fixed, {} in the compliance; {} DOFs\n",
                    mesh.surface_vertices, mesh.fixed_vertices, mesh.compliance_vertices,
                    r.dofs->total);
+  if (r.cut_region) {
+    const CutRegionReport& c = *r.cut_region;
+    s += fmt::format(
+        "  cut region {}: {} of the organ's {} tetrahedra, {} vertices, {} free on Γ, {} fixed; "
+        "{:.4g} kg/m³, γ = {:.4g} /s (the mesh above is the rest of the organ)\n",
+        c.spec, c.tetrahedra, c.organ_tetrahedra, c.vertices, c.interface_vertices,
+        c.fixed_vertices, c.density_kg_m3, c.damping_per_s);
+  }
   if (r.materials)
     for (const auto& m : *r.materials)
       s += fmt::format("  material   {}: E = {:.4g} Pa, nu = {}\n", m.name, m.young_modulus_pa,

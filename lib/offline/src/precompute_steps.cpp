@@ -4,6 +4,7 @@
 #include <malloc.h>
 
 #include <algorithm>
+#include <optional>
 
 #include "palpate/core/error.hpp"
 #include "palpate/core/system_info.hpp"
@@ -70,7 +71,8 @@ namespace {
 /// SHA-256 of what determines G: vertices, tetrahedra, materials, fixed
 /// vertices (docs/compliance-file.md, "input_hash").
 std::string input_hash(const TetMesh& mesh, const std::vector<MaterialRecord>& materials,
-                       const Eigen::VectorXi& tet_material, const std::vector<int>& fixed) {
+                       const Eigen::VectorXi& tet_material, const std::vector<int>& fixed,
+                       const std::optional<CutRegionData>& region) {
   Sha256 h;
   // The version in which this definition of the hash was fixed, not the
   // file's: minor versions add datasets but hash the same problem the same
@@ -87,6 +89,19 @@ std::string input_hash(const TetMesh& mesh, const std::vector<MaterialRecord>& m
     h.update(fmt::format("material {:.17g} {:.17g}\n", m.young_modulus_pa, m.poisson_ratio));
   h.update(fmt::format("fixed {}\n", fixed.size()));
   h.update(fixed.data(), sizeof(int) * fixed.size());
+  // With a region the mesh above is the outside; the region's own data (its
+  // elements, density, damping) determine the file too. Without one, the
+  // hash is what it was before regions existed.
+  if (region) {
+    h.update(fmt::format("cut_region {} density {:.17g} damping {:.17g}\n", region->spec,
+                         region->density_kg_m3, region->damping_per_s));
+    const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> RX = region->vertices_m;
+    const Eigen::Matrix<int, Eigen::Dynamic, 4, Eigen::RowMajor> RT = region->tetrahedra;
+    h.update(RX.data(), sizeof(double) * static_cast<size_t>(RX.size()));
+    h.update(RT.data(), sizeof(int) * static_cast<size_t>(RT.size()));
+    h.update(region->element_stiffness_n_per_m.data(),
+             sizeof(double) * static_cast<size_t>(region->element_stiffness_n_per_m.size()));
+  }
   return h.hex_digest();
 }
 
@@ -133,6 +148,8 @@ Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTi
     if (auto w = young_modulus_warning(m.young_modulus_pa, what)) say.warn(*w);
     if (auto w = poisson_ratio_warning(m.poisson_ratio, what)) say.warn(*w);
   }
+  if (job.cut_region)
+    if (auto w = density_warning(job.cut_region->density_kg_m3)) say.warn(*w);
 
   say.phase("read mesh");
   phases.begin("read mesh");
@@ -149,13 +166,15 @@ Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTi
   }
   const double diagonal = (check.bbox_max - check.bbox_min).norm();
   if (auto w = organ_size_warning(diagonal, job.mesh_unit, mesh.source)) say.warn(*w);
-  const Boundary boundary = extract_boundary(mesh);
+  Boundary boundary = extract_boundary(mesh);
   phases.end();
 
   p.tet_material = tetrahedron_materials(mesh, job.group_materials);
   p.fixed = select_fixed_vertices(mesh, job.attachment);
   check_attachment_stops_rigid_motion(mesh, p.fixed);
+  if (job.cut_region) restrict_to_outside(*job.cut_region, p, boundary, report, say);
   p.dofs = make_dof_map(boundary.on_surface, p.fixed);
+  if (job.cut_region) index_interface(p);
   p.m = p.dofs.surface_dofs();
   p.n = p.dofs.dofs();
   if (p.m == 0)
@@ -193,7 +212,7 @@ Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTi
   model.precision = job.precision;
   model.producer = report.producer;
   model.created_utc = report.created_utc;
-  model.input_hash = input_hash(mesh, materials, p.tet_material, p.fixed);
+  model.input_hash = input_hash(mesh, materials, p.tet_material, p.fixed, model.cut_region);
   report.input_hash = model.input_hash;
   for (const auto& mat : materials)
     model.material_summary +=

@@ -14,6 +14,7 @@
 #include "palpate/core/eigen.hpp"
 #include "palpate/file/compliance_file.hpp"
 #include "palpate/offline/compliance.hpp"
+#include "palpate/offline/cut_region.hpp"
 #include "palpate/offline/fem.hpp"
 #include "palpate/offline/mesh.hpp"
 #include "palpate/offline/partial_file.hpp"
@@ -76,6 +77,11 @@ struct Problem {
   /// any solve, so that a streamed run's checkpoint holds it from the start.
   ComplianceModel model;
   SparseMatrixd K;  ///< upper triangle, surface first (empty until assemble_stiffness)
+  /// With a cut region: mesh, tet_material, fixed and dofs above are the
+  /// outside's (its own mesh, RegionSplit::outside), and this is the free Γ
+  /// in the outside's numbering, in the order of model.cut_region's
+  /// interface_vertices (precompute_region.cpp).
+  std::vector<int> interface_outside;
 
   /// Runs @p method, turning a failed Cholesky into a message about the mesh.
   template <typename Method>
@@ -92,6 +98,19 @@ struct Problem {
 /// Phase "read mesh". @throws InputError naming what is wrong.
 Problem read_problem(const PrecomputeJob& job, PrecomputeReport& report, PhaseTimer& phases,
                      const Say& say);
+/// With a cut region (precompute_region.cpp): splits the whole mesh
+/// @p p.mesh by @p region (split_region(), its warnings said), puts the
+/// region's data into p.model.cut_region (all but interface_compliance_index),
+/// then makes the outside the problem: p.mesh, p.tet_material, p.fixed and
+/// @p boundary become the outside's (outside_boundary()), so that G is its
+/// compliance on its boundary, Γ included; fills report.cut_region.
+/// @throws InputError from split_region().
+void restrict_to_outside(const CutRegionJob& region, Problem& p, Boundary& boundary,
+                         PrecomputeReport& report, const Say& say);
+/// Then, once p.dofs numbers the outside's compliance vertices: where each
+/// Γ vertex is among them (p.model.cut_region's interface_compliance_index).
+void index_interface(Problem& p);
+
 /// Assembles K (phase "assemble K").
 void assemble_stiffness(Problem& problem, PhaseTimer& phases, const Say& say);
 

@@ -6,16 +6,18 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "palpate/core/eigen.hpp"
+#include "palpate/file/cut_region_data.hpp"
 
 namespace palpate {
 
 inline constexpr const char* kComplianceFormatName = "palpate-compliance";
 inline constexpr int kComplianceFormatMajor = 1;
-inline constexpr int kComplianceFormatMinor = 2;
+inline constexpr int kComplianceFormatMinor = 3;
 /// The `format` of a shard (partial file): some columns of G and the
 /// checkpoint of the run computing them (partial_file.hpp).
 inline constexpr const char* kPartialFormatName = "palpate-compliance-partial";
@@ -45,6 +47,11 @@ struct ComplianceModel {
   /// other vertex. Required for writing; empty when read from a 1.0 file.
   Eigen::VectorXd softness_m_per_n;
   Precision precision = Precision::kFloat64;
+  /// The cuttable region of the hybrid model (/cut_region, since 1.3): when
+  /// present, the mesh above is the rest of the organ (the outside) and G is
+  /// its compliance on its boundary, Γ included (docs/compliance-file.md,
+  /// "The cut region"). Absent from files precomputed without a region.
+  std::optional<CutRegionData> cut_region;
   // Root attributes.
   int format_version_minor = kComplianceFormatMinor;  ///< read from the file; written as ours
   std::string method;                                 ///< "solves", "condensation" or "both"
@@ -55,12 +62,18 @@ struct ComplianceModel {
   std::string job_toml;        ///< the effective job, enough to reproduce the file
   std::string report_json;     ///< the precompute report
   std::string content_sha256;  ///< read from the file (1.2); written as computed
+  /// Read from a file with a cut region (1.3): the digest of /cut_region's
+  /// datasets, apart from content_sha256 so that 1.2 readers, which verify
+  /// content_sha256 over the datasets they know, still read the file;
+  /// written as computed.
+  std::string cut_region_sha256;
 };
 
 /// Writes the file atomically (AtomicOutput): nothing appears at @p path
 /// unless the whole file was written. /visualization/fixed is derived from
 /// model.fixed_vertices; the root attribute content_sha256 (1.2) is the
-/// digest of every dataset as stored (docs/compliance-file.md).
+/// digest of every dataset as stored but /cut_region's, whose own digest is
+/// the root attribute cut_region_sha256 (1.3; docs/compliance-file.md).
 /// @param G 3n × 3n compliance, m/N, in compliance order
 /// @param progress optional: rows of G written out of 3n
 /// @pre model.softness_m_per_n has one entry per vertex
@@ -83,9 +96,10 @@ void write_compliance_file(const std::filesystem::path& path, const ComplianceMo
 /// index ranges, finite values. Any minor version of major 1 is read; the
 /// 1.1 /visualization/softness is read and checked when present; from 1.2
 /// on, when @p G is read, the datasets must match content_sha256 (a corrupt
-/// file is refused). A file that changes on disk while it is read (written
-/// in place, or renamed over) is read again, up to 5 times 0.2 s apart, so
-/// that the model comes from one file, whole.
+/// file is refused); the 1.3 /cut_region is read and checked when present,
+/// and, when @p G is read, must match cut_region_sha256. A file that changes on disk while it is
+/// read (written in place, or renamed over) is read again, up to 5 times 0.2 s apart, so that the
+/// model comes from one file, whole.
 /// @param G receives the 3n × 3n compliance (converted to double)
 /// @throws InputError naming the file and the dataset at fault, or saying
 ///   that the file kept changing.

@@ -95,6 +95,14 @@ struct RegionSplit {
 RegionSplit split_region(const TetMesh& mesh, const RegionSpec& spec,
                          const std::vector<int>& fixed_vertices);
 
+/// The outside's boundary, in the outside's numbering: the faces of exactly
+/// one outside tetrahedron (outward), and the vertices the outside's
+/// compliance is computed on, which are those faces' vertices and Γ (a Γ
+/// vertex can touch the region along an edge only, on no shared face).
+/// Unlike extract_boundary(), it accepts a boundary that touches itself
+/// along an edge, as a region chosen by centroids can leave.
+Boundary outside_boundary(const RegionSplit& split);
+
 /// The outside's compliance on its boundary, which is Γ and its part of the
 /// organ's surface.
 struct OutsideCompliance {

@@ -24,6 +24,16 @@ inline constexpr double kLockingPoissonRatio = 0.49;
 inline constexpr double kPlausibleOrganMinM = 0.01;
 inline constexpr double kPlausibleOrganMaxM = 1.0;
 
+/// Densities of soft tissues, kg/m³: fat about 950, liver and muscle about
+/// 1,060, cortical bone 1,900; outside this range a density was probably
+/// typed in another unit (g/cm³ gives 1.06).
+inline constexpr double kPlausibleDensityMinKgM3 = 500;
+inline constexpr double kPlausibleDensityMaxKgM3 = 2000;
+
+/// A warning when @p density_kg_m3 (the cut region's) is outside what
+/// tissues have.
+std::optional<std::string> density_warning(double density_kg_m3);
+
 /// A warning when @p young_modulus_pa is outside what tissues and phantoms
 /// have; @p what names the material ("organ", a group).
 std::optional<std::string> young_modulus_warning(double young_modulus_pa, std::string_view what);

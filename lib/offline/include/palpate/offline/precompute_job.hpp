@@ -11,6 +11,7 @@
 
 #include "palpate/file/compliance_file.hpp"
 #include "palpate/offline/attachment.hpp"
+#include "palpate/offline/cut_region.hpp"
 
 namespace palpate {
 
@@ -44,6 +45,26 @@ struct ColumnShard {
 /// "K/N" or "BEGIN:END" into @p shard. @throws InputError naming the text.
 void parse_shard(const std::string& text, ColumnShard* shard);
 
+/// Density of soft tissue, kg/m³: liver, muscle and kidney are about 1,040
+/// to 1,070 (ICRU Report 46's reference tissues); the default of the cut
+/// region's lumped masses.
+inline constexpr double kSoftTissueDensityKgM3 = 1060;
+/// Default γ of the cut region's mass-proportional damping (force −γ m v),
+/// 1/s: a velocity decays in 1/γ = 50 ms, about the time a hand takes to
+/// feel a tissue settle, so the region neither rings after a cut nor feels
+/// sluggish; γ Δt = 0.02 at a 1 kHz step, far from limiting an explicit
+/// step's stability. A starting point for the run-time model to tune.
+inline constexpr double kDefaultRegionDampingPerS = 20;
+
+/// The cuttable region of the hybrid model (the job's [cut_region] table,
+/// docs/configuration.md): where it is, and what its run-time tensor-mass
+/// model needs beyond the elastic material.
+struct CutRegionJob {
+  RegionSpec spec;  ///< metres (the job file gives millimetres)
+  double density_kg_m3 = kSoftTissueDensityKgM3;
+  double damping_per_s = kDefaultRegionDampingPerS;
+};
+
 /// Everything that determines a compliance file. Lengths of attachment
 /// regions are stored in metres; the job file gives them in the mesh's unit.
 struct PrecomputeJob {
@@ -68,6 +89,10 @@ struct PrecomputeJob {
   bool reuse = false;
   /// Only some columns, into a shard file (command line only: not in the TOML).
   ColumnShard shard;
+  /// A cuttable region: G is then the compliance of the rest of the organ
+  /// on its boundary, and the file holds the region (docs/precompute.md, "A
+  /// cuttable region").
+  std::optional<CutRegionJob> cut_region;
 };
 
 /// Reads a TOML job file (docs/configuration.md). Relative paths are taken
@@ -88,7 +113,8 @@ struct MergeJob {
 
 /// Checks what a job needs before any work: mesh, output, material and
 /// attachment given, the output directory exists, block size, tolerance,
-/// memory limit and unit accepted.
+/// memory limit and unit accepted, a cut region only with an in-memory
+/// method (condensation or both) and no shard.
 /// @throws InputError saying what is missing or wrong and how to give it.
 void validate_job(const PrecomputeJob& job);
 

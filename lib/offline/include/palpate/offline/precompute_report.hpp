@@ -42,6 +42,19 @@ struct MeshReport {
   double min_tet_volume_m3 = 0;
 };
 
+/// A job's cut region (docs/precompute.md, "A cuttable region"): the mesh
+/// report is then the outside's.
+struct CutRegionReport {
+  std::string spec;  ///< RegionSpec::describe()
+  long tetrahedra = 0;
+  long organ_tetrahedra = 0;    ///< the whole organ's
+  long vertices = 0;            ///< the region's
+  long interface_vertices = 0;  ///< free vertices of Γ
+  long fixed_vertices = 0;      ///< region vertices the attachment holds
+  double density_kg_m3 = 0;
+  double damping_per_s = 0;
+};
+
 struct DofReport {
   long total = 0;    ///< free DOFs
   long surface = 0;  ///< m = 3n
@@ -113,6 +126,7 @@ struct PrecomputeReport {
   std::string method;       ///< "solves", "condensation", "both"
   std::vector<PhaseReport> phases;
   std::optional<MeshReport> mesh;
+  std::optional<CutRegionReport> cut_region;
   std::optional<DofReport> dofs;
   std::optional<std::vector<MaterialRecord>> materials;
   std::optional<std::string> input_hash;
