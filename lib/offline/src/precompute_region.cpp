@@ -7,7 +7,7 @@
 #include <algorithm>
 
 #include "palpate/core/error.hpp"
-#include "palpate/offline/tensor_mass.hpp"
+#include "palpate/offline/region_tensors.hpp"
 #include "precompute_steps.hpp"
 
 namespace palpate::precompute {

@@ -1,4 +1,4 @@
-#include "palpate/offline/tensor_mass.hpp"
+#include "palpate/offline/region_tensors.hpp"
 
 #include <map>
 #include <utility>

@@ -4,8 +4,11 @@
 /// 3 × 3 tensor per vertex and one per edge, sums of the element blocks
 /// (S. Cotin, H. Delingette & N. Ayache, "A hybrid elastic model for
 /// real-time cutting, deformations and force feedback for surgery training
-/// and simulation", The Visual Computer 16(8), 2000, §4). Removing a cut
-/// tetrahedron subtracts its blocks from the tensors it touches.
+/// and simulation", The Visual Computer 16(8), 2000, §4): what
+/// palpate-precompute writes into the compliance file's /cut_region. The
+/// run-time model (runtime/tensor_mass) builds the same sums from the
+/// element blocks, and re-sums the tensors a cut touches from the
+/// tetrahedra that remain.
 
 #include <vector>
 
