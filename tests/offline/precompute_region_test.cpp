@@ -24,7 +24,8 @@
 #include "palpate/offline/fem.hpp"
 #include "palpate/offline/mesh_io.hpp"
 #include "palpate/offline/precompute.hpp"
-#include "palpate/offline/tensor_mass.hpp"
+#include "palpate/offline/region_tensors.hpp"
+#include "palpate/runtime/surface_model.hpp"
 #include "support/box_job.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
@@ -374,6 +375,15 @@ TEST(PrecomputeRegion, TheSampleCutJobRunsOnTheSampleOrgan) {
     EXPECT_LE((centroid - center).norm(), 0.012 + 1e-12) << t;
   }
   EXPECT_EQ(G.rows(), 3 * m.compliance_vertices.size());
+  // A served model of it knows it has a region it does not step (palpated
+  // warns: kCutRegionNotSimulated); one without a region does not.
+  const SurfaceModel served = load_surface_model("cut", job.output);
+  EXPECT_EQ(served.cut_region_spec, c.spec);
+  EXPECT_FALSE(served.cut_region_spec.empty());
+  job.cut_region.reset();
+  job.output = dir / "organ.h5";
+  run_precompute(job, hooks);
+  EXPECT_TRUE(load_surface_model("whole", job.output).cut_region_spec.empty());
 }
 
 TEST(TensorMass, OneTetrahedronsTensorsAreItsBlocks) {

@@ -161,6 +161,9 @@ void Service::Impl::load_models() {
         loaded.id, loaded.path.string(), loaded.compliance_vertex_count(),
         loaded.mesh_vertex_count(), loaded.surface.triangle_count(), loaded.G_bytes() / 1e6,
         loaded.float32() ? "float32" : "float64", seconds);
+    if (!loaded.cut_region_spec.empty())
+      spdlog::warn("event=cut_region_not_simulated model={} region=\"{}\" hint=\"{}\"", loaded.id,
+                   loaded.cut_region_spec, palpate::kCutRegionNotSimulated);
     served_ids += (served_ids.empty() ? "" : ", ") + loaded.id;
     models.push_back(
         std::make_unique<daemon::ServedModel>(std::move(loaded), options, entry.warped));

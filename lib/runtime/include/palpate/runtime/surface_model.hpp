@@ -31,6 +31,11 @@ struct SurfaceModel {
   Eigen::MatrixXf G32;
   std::string material_summary;  ///< from the file
   std::string input_hash;        ///< "sha256:<hex>", from the file
+  /// The file's cuttable region (/cut_region, format 1.3), as the job chose
+  /// it, or empty. Such a file's mesh and G are the organ without that
+  /// region: until the hybrid run time steps it, palpated serves the rest
+  /// and says so (docs/model.md, "The hybrid model").
+  std::string cut_region_spec;
 
   /// The surface to draw and touch: the N_S compliance vertices first
   /// (compliance order), then the fixed vertices of the surface.
@@ -59,6 +64,13 @@ struct SurfaceModel {
     return static_cast<std::uint32_t>(compliance_index_of_vertex.size());
   }
 };
+
+/// What palpated says of a file with a cut region, which it cannot step yet.
+inline constexpr const char* kCutRegionNotSimulated =
+    "this palpated serves the organ without its cuttable region, which it does not simulate "
+    "yet: where the region was, tools and requests meet the rest of the organ's surface, a "
+    "cavity (docs/model.md, \"The hybrid model\"); for the whole organ, serve a file made "
+    "without [cut_region]";
 
 /// Loads and checks a compliance file (read_compliance_file) and derives the
 /// drawing and addressing tables.
