@@ -468,10 +468,10 @@ int main(int argc, char** argv) {
       // the last 100 (with their spread: the contact set may alternate).
       double sum_f = 0, lo = INFINITY, hi = -INFINITY;
       for (int i = 1; i <= 500; ++i) {
-        const double depth = 1e-3 * (mm - 1 + std::min(1.0, i / 200.0));
+        const double depth_m = 1e-3 * (mm - 1 + std::min(1.0, i / 200.0));
         palpate::ToolPoseInput pose;
         pose.sequence = ++sequence;
-        pose.position_m = point + normal * (rs - std::max(depth, -0.002));
+        pose.position_m = point + normal * (rs - std::max(depth_m, -0.002));
         pose.orientation = q;
         engine.update(0, pose, t);
         t += 1e-3;

@@ -627,7 +627,7 @@ TEST_F(ToolContactTest, APressBetweenVerticesIsFeltEveryTick) {
   const DrawnSurface& s = model().surface;
   const int n = model().compliance_vertex_count();
   int chosen = -1;
-  Vector3d centroid;
+  Vector3d centroid = Vector3d::Zero();
   for (int t = 0; t < s.triangle_count() && chosen < 0; ++t) {
     const auto* v = &s.triangles[3 * static_cast<std::size_t>(t)];
     Vector3d c = Vector3d::Zero();

@@ -212,7 +212,7 @@ bool take_one(dds_entity_t reader, Clock::time_point deadline,
 /// haptic rate. With @p patient (authorised participants) it first waits for
 /// the model and the daemon; otherwise (an intruder) it sends anyway.
 [[noreturn]] void press(const std::string& config, bool patient, Report& report) {
-  ToolClient client({0, config, false});
+  ToolClient client({.domain_id = 0, .dds_config = config});
   const auto model = client.wait_for_model("box", patient ? 20s : 2s);
   report["model"] = model ? "1" : "0";
   if (patient) {
@@ -420,7 +420,7 @@ TEST_F(SecuredDaemonTest, ViewerCannotPublishPosesOrRequests) {
     r["request_topic"] = std::to_string(dds_create_topic(p.get(), &palpate_ConstraintRequest_desc,
                                                          dds::kRequestTopic, nullptr, nullptr));
     try {
-      ToolClient client({0, config("viewer"), false});
+      ToolClient client({.domain_id = 0, .dds_config = config("viewer")});
       r["tool_client"] = "created";
     } catch (const InputError& e) {
       r["tool_client"] = e.what();

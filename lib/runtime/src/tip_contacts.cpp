@@ -122,12 +122,12 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
     const TipCandidate& x =
         found_[static_cast<std::size_t>(ranked_[static_cast<std::size_t>(c)].index)];
     const Vector3d point = x.target - x.depth * x.normal;  // on the deformed triangle
-    bool near = false;
-    for (int k = 0; k < kept && !near; ++k) {
+    bool crowded = false;
+    for (int k = 0; k < kept && !crowded; ++k) {
       const TipCandidate& y = out[static_cast<std::size_t>(k)];
-      near = (y.target - y.depth * y.normal - point).squaredNorm() < spacing2;
+      crowded = (y.target - y.depth * y.normal - point).squaredNorm() < spacing2;
     }
-    if (!near) out[static_cast<std::size_t>(kept++)] = x;
+    if (!crowded) out[static_cast<std::size_t>(kept++)] = x;
   }
   return kept;
 }

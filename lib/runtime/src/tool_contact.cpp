@@ -231,7 +231,7 @@ struct ToolContactEngine::Impl {
     for (int c = 0; c < count; ++c) {
       const ContactPoint& point = points[static_cast<std::size_t>(c)];
       if (point.tool != t || point.held) continue;
-      HeldPoint h;
+      HeldPoint h{};
       h.triangle = point.triangle;
       h.count = point.vertex_count;
       h.vertices = point.vertices;

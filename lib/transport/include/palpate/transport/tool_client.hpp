@@ -57,7 +57,7 @@ struct ToolClientOptions {
   std::chrono::milliseconds feedback_ramp{250};
   /// render(): how each tool's renderer renders (its hold_s and ramp_s are
   /// taken from feedback_timeout and feedback_ramp).
-  RenderSettings render;
+  RenderSettings render{};
   /// Send palpated, with each pose, what render() rendered since the
   /// previous pose (palpate_tool_rendered), for its session recording
   /// (docs/session-recording.md, "What the device rendered").
