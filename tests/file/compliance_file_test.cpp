@@ -37,35 +37,14 @@ using testing::TempDir;
 
 using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-/// Two tetrahedra sharing face (1, 2, 3): vertices 0..4, vertex 0 fixed, the
-/// other four the compliance vertices (n = 4, G 12 × 12).
+/// The support's two tetrahedra sharing face (1, 2, 3): vertex 0 fixed, the
+/// other four the compliance vertices (n = 4, G 12 × 12); here with two
+/// materials, source ids that are not the identity and distinct softness.
 ComplianceModel small_model() {
-  ComplianceModel m;
-  m.vertices_m.resize(5, 3);
-  m.vertices_m << 0, 0, 0,  //
-      0.01, 0, 0,           //
-      0, 0.01, 0,           //
-      0, 0, 0.01,           //
-      0.01, 0.01, 0.01;
-  m.tetrahedra.resize(2, 4);
-  m.tetrahedra << 0, 1, 2, 3,  //
-      1, 4, 2, 3;
-  m.tet_material.resize(2);
+  ComplianceModel m = testing::two_tetrahedra_model();
   m.tet_material << 0, 1;
   m.materials = {{"organ", 85e3, 0.45}, {"tumeur dûre", 3.4e5, 0.49}};
-  m.surface_triangles.resize(6, 3);
-  m.surface_triangles << 0, 2, 1,  //
-      0, 1, 3,                     //
-      0, 3, 2,                     //
-      1, 2, 4,                     //
-      1, 4, 3,                     //
-      2, 3, 4;
-  m.fixed_vertices.resize(1);
-  m.fixed_vertices << 0;
-  m.source_vertex_ids.resize(5);
   m.source_vertex_ids << 7, 1, 2, 3, 9;
-  m.compliance_vertices.resize(4);
-  m.compliance_vertices << 1, 2, 3, 4;
   m.softness_m_per_n.resize(5);
   m.softness_m_per_n << 0, 1.25e-4, 2.5e-4, 3.75e-4, 5e-4;
   m.method = "solves";

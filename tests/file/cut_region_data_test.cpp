@@ -30,24 +30,10 @@ using testing::TempDir;
 constexpr const char* kDigestBeforeCutRegion =
     "sha256:6641d78d8576140d4019b456ded119da3909bac6b1a36d214bc214fa256fecfe";
 
-/// Two tetrahedra sharing face (1, 2, 3), vertex 0 fixed, the others the
-/// compliance vertices (compliance_file_test.cpp's model).
+/// The support's two tetrahedra (compliance_file_test.cpp's model), with
+/// the metadata the recorded digest was taken with.
 ComplianceModel two_tetrahedra() {
-  ComplianceModel m;
-  m.vertices_m.resize(5, 3);
-  m.vertices_m << 0, 0, 0, 0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.01, 0.01, 0.01, 0.01;
-  m.tetrahedra.resize(2, 4);
-  m.tetrahedra << 0, 1, 2, 3, 1, 4, 2, 3;
-  m.tet_material = Eigen::VectorXi::Zero(2);
-  m.materials = {{"organ", 85e3, 0.45}};
-  m.surface_triangles.resize(6, 3);
-  m.surface_triangles << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 4, 1, 4, 3, 2, 3, 4;
-  m.fixed_vertices = Eigen::VectorXi::Constant(1, 0);
-  m.source_vertex_ids.resize(5);
-  m.source_vertex_ids << 0, 1, 2, 3, 4;
-  m.compliance_vertices.resize(4);
-  m.compliance_vertices << 1, 2, 3, 4;
-  m.softness_m_per_n = Eigen::VectorXd::Zero(5);
+  ComplianceModel m = testing::two_tetrahedra_model();
   m.method = "both";
   m.producer = "palpate unit test";
   m.created_utc = "2026-11-26T00:00:00Z";

@@ -32,21 +32,10 @@ using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::Ro
 
 constexpr int kColumns = 12;  // m = 3n, n = 4 compliance vertices
 
-/// Two tetrahedra, vertex 0 fixed, vertices 1..4 the compliance vertices.
+/// The support's two tetrahedra, vertex 0 fixed, vertices 1..4 the
+/// compliance vertices.
 ComplianceModel small_model() {
-  ComplianceModel m;
-  m.vertices_m.resize(5, 3);
-  m.vertices_m << 0, 0, 0, 0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.01, 0.01, 0.01, 0.01;
-  m.tetrahedra.resize(2, 4);
-  m.tetrahedra << 0, 1, 2, 3, 1, 4, 2, 3;
-  m.tet_material = Eigen::VectorXi::Zero(2);
-  m.materials = {{"organ", 85e3, 0.45}};
-  m.surface_triangles.resize(6, 3);
-  m.surface_triangles << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 4, 1, 4, 3, 2, 3, 4;
-  m.fixed_vertices = Eigen::VectorXi::Constant(1, 0);
-  m.source_vertex_ids = Eigen::VectorXi::LinSpaced(5, 0, 4);
-  m.compliance_vertices = Eigen::VectorXi::LinSpaced(4, 1, 4);
-  m.softness_m_per_n = Eigen::VectorXd::Zero(5);
+  ComplianceModel m = testing::two_tetrahedra_model();
   m.method = "solves";
   m.producer = "palpate unit test";
   m.created_utc = "2024-01-02T03:04:05Z";

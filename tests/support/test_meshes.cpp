@@ -47,6 +47,23 @@ TetMesh box_mesh(double lx, double ly, double lz, int nx, int ny, int nz) {
   return mesh;
 }
 
+ComplianceModel two_tetrahedra_model() {
+  ComplianceModel m;
+  m.vertices_m.resize(5, 3);
+  m.vertices_m << 0, 0, 0, 0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.01, 0.01, 0.01, 0.01;
+  m.tetrahedra.resize(2, 4);
+  m.tetrahedra << 0, 1, 2, 3, 1, 4, 2, 3;
+  m.tet_material = Eigen::VectorXi::Zero(2);
+  m.materials = {{"organ", 85e3, 0.45}};
+  m.surface_triangles.resize(6, 3);
+  m.surface_triangles << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 4, 1, 4, 3, 2, 3, 4;
+  m.fixed_vertices = Eigen::VectorXi::Constant(1, 0);
+  m.source_vertex_ids = Eigen::VectorXi::LinSpaced(5, 0, 4);
+  m.compliance_vertices = Eigen::VectorXi::LinSpaced(4, 1, 4);
+  m.softness_m_per_n = Eigen::VectorXd::Zero(5);
+  return m;
+}
+
 void write_msh22(const TetMesh& mesh, const std::filesystem::path& file) {
   std::ofstream out(file);
   out.precision(17);

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <string>
 
+#include "palpate/file/compliance_file.hpp"
 #include "palpate/offline/mesh.hpp"
 
 namespace palpate::testing {
@@ -16,6 +17,12 @@ TetMesh box_mesh(double lx, double ly, double lz, int nx, int ny, int nz);
 inline int box_vertex(int i, int j, int k, int nx, int ny) {
   return i + (nx + 1) * (j + (ny + 1) * k);
 }
+
+/// The smallest compliance model: two tetrahedra sharing face (1, 2, 3),
+/// 1 cm edges, vertex 0 fixed, vertices 1..4 the compliance vertices, one
+/// material "organ" (85 kPa, 0.45), G's softness zero. Its metadata (method,
+/// producer, dates, hashes) is each test's to set.
+ComplianceModel two_tetrahedra_model();
 
 /// Writes a Gmsh .msh 2.2 ASCII file with node tags 1..#V (coordinates as
 /// given, no unit conversion) and one physical volume per tet_group value.
