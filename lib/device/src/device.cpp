@@ -196,6 +196,14 @@ int guarded(char* error, std::size_t error_size, int input_status, Body body) no
     if ((pointer) == nullptr)                                                                      \
       return fail(error, error_size, PALPATE_DEVICE_E_ARGUMENT, "%s: %s is NULL", what, #pointer); \
   } while (false)
+// A caller's struct older than version 1 of it (struct_size too small).
+#define PALPATE_DEVICE_NEED_SIZE(pointer, minimum, type)                                       \
+  do {                                                                                         \
+    if ((pointer)->struct_size < (minimum))                                                    \
+      return fail(error, error_size, PALPATE_DEVICE_E_VERSION,                                 \
+                  "%s: %s->struct_size %u: expected at least %u (sizeof(%s))", what, #pointer, \
+                  (pointer)->struct_size, (minimum), #type);                                   \
+  } while (false)
 
 /// The options after checking them, or a status and message.
 int check_options(const palpate_device_options& o, char* error, std::size_t error_size) {
@@ -460,10 +468,7 @@ int palpate_device_get_state(palpate_device* tool, palpate_device_state* state, 
   const char* what = "palpate_device_get_state";
   PALPATE_DEVICE_NEED(tool);
   PALPATE_DEVICE_NEED(state);
-  if (state->struct_size < kStateV1)
-    return fail(error, error_size, PALPATE_DEVICE_E_VERSION,
-                "%s: state->struct_size %u: expected at least %u (sizeof(palpate_device_state))",
-                what, state->struct_size, kStateV1);
+  PALPATE_DEVICE_NEED_SIZE(state, kStateV1, palpate_device_state);
   palpate_device& d = *tool;
   return guarded(error, error_size, PALPATE_DEVICE_E_ARGUMENT, [&]() -> int {
     palpate_device_state s{};
@@ -515,10 +520,7 @@ int palpate_device_next_answer(palpate_device* tool, palpate_device_answer* answ
   const char* what = "palpate_device_next_answer";
   PALPATE_DEVICE_NEED(tool);
   PALPATE_DEVICE_NEED(answer);
-  if (answer->struct_size < kAnswerV1)
-    return fail(error, error_size, PALPATE_DEVICE_E_VERSION,
-                "%s: answer->struct_size %u: expected at least %u (sizeof(palpate_device_answer))",
-                what, answer->struct_size, kAnswerV1);
+  PALPATE_DEVICE_NEED_SIZE(answer, kAnswerV1, palpate_device_answer);
   palpate_device& d = *tool;
   return guarded(error, error_size, PALPATE_DEVICE_E_ARGUMENT, [&]() -> int {
     d.drain();
@@ -534,10 +536,7 @@ int palpate_device_next_event(palpate_device* tool, palpate_device_event* event,
   const char* what = "palpate_device_next_event";
   PALPATE_DEVICE_NEED(tool);
   PALPATE_DEVICE_NEED(event);
-  if (event->struct_size < kEventV1)
-    return fail(error, error_size, PALPATE_DEVICE_E_VERSION,
-                "%s: event->struct_size %u: expected at least %u (sizeof(palpate_device_event))",
-                what, event->struct_size, kEventV1);
+  PALPATE_DEVICE_NEED_SIZE(event, kEventV1, palpate_device_event);
   palpate_device& d = *tool;
   return guarded(error, error_size, PALPATE_DEVICE_E_ARGUMENT, [&]() -> int {
     if (d.events.empty()) {
@@ -602,10 +601,7 @@ int palpate_device_get_model(palpate_device* tool, palpate_device_model* model, 
   const char* what = "palpate_device_get_model";
   PALPATE_DEVICE_NEED(tool);
   PALPATE_DEVICE_NEED(model);
-  if (model->struct_size < kModelV1)
-    return fail(error, error_size, PALPATE_DEVICE_E_VERSION,
-                "%s: model->struct_size %u: expected at least %u (sizeof(palpate_device_model))",
-                what, model->struct_size, kModelV1);
+  PALPATE_DEVICE_NEED_SIZE(model, kModelV1, palpate_device_model);
   const palpate::ModelInfo& m = tool->model;
   palpate_device_model out{};
   out.model_id = m.model_id.c_str();
