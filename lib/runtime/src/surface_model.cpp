@@ -14,7 +14,11 @@ SurfaceModel load_surface_model(std::string id, const std::filesystem::path& pat
                                             : read_compliance_file(path, &model.G);
   model.material_summary = file.material_summary;
   model.input_hash = file.input_hash;
-  if (file.cut_region) model.cut_region_spec = file.cut_region->spec;
+  if (file.cut_region) {
+    model.cut_region_spec = file.cut_region->spec;
+    model.cut_region = std::make_shared<const CutRegionData>(*file.cut_region);
+  }
+  model.source_vertex_ids.assign(file.source_vertex_ids.begin(), file.source_vertex_ids.end());
 
   const auto vertex_count = static_cast<std::size_t>(file.vertices_m.rows());
   model.compliance_index_of_vertex.assign(vertex_count,

@@ -5,10 +5,12 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "palpate/core/eigen.hpp"
+#include "palpate/file/cut_region_data.hpp"
 #include "palpate/runtime/drawn_surface.hpp"
 
 namespace palpate {
@@ -36,6 +38,11 @@ struct SurfaceModel {
   /// region: until the hybrid run time steps it, palpated serves the rest
   /// and says so (docs/model.md, "The hybrid model").
   std::string cut_region_spec;
+  /// The region itself (null without one): what HybridRegion steps.
+  std::shared_ptr<const CutRegionData> cut_region;
+  /// For each mesh vertex id, its index in the input mesh file (the numbers
+  /// messages use; a Γ vertex has the same one in cut_region).
+  std::vector<std::int32_t> source_vertex_ids;
 
   /// The surface to draw and touch: the N_S compliance vertices first
   /// (compliance order), then the fixed vertices of the surface.

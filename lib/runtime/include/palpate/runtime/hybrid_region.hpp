@@ -1,0 +1,153 @@
+#pragma once
+/// @file
+/// The hybrid model as served (docs/model.md, "The hybrid model as served"):
+/// a compliance file's cuttable region (/cut_region) stepped by the
+/// tensor-mass model inside each tool tick, coupled to the precomputed rest
+/// of the organ both ways through the file's own G:
+///
+///  - the rest's loads f_S (the tools' contacts on it) reach the region as
+///    u_Γ⁰ = G_ΓS f_S, where Γ would go if the region pushed nothing;
+///  - the region pushes on the rest with f_Γ = S (u_Γ − u_Γ⁰), S = G_ΓΓ⁻¹,
+///    which moves the rest's surface by G_SΓ f_Γ;
+///  - tool tips press the region's surface vertices (a penalty force);
+///  - a blade removes the region's tetrahedra it crosses (a cut), and the
+///    faces the rest shares with a removed tetrahedron are uncovered.
+///
+/// Every time is in seconds, every length in metres, every force in newtons,
+/// in the model frame (the compliance file's).
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "palpate/runtime/surface_model.hpp"
+#include "palpate/runtime/tensor_mass.hpp"
+
+namespace palpate {
+
+/// How the served region is stepped and touched.
+struct HybridRegionSettings {
+  /// The substep is this fraction of the stable step's proven bound
+  /// (docs/model.md: the element bound, the coupling and the contacts).
+  double step_safety = 0.9;
+  /// Stiffness of a tip's push on one region surface vertex (N/m): the
+  /// force is k (r − d) along the normal from the tip's axis, d the vertex's
+  /// distance to the axis. It enters the stable step as k / m per tip.
+  double contact_stiffness_n_per_m = 200;
+  /// Tips that may press at once (sizes the buffers and the step bound).
+  int max_tips = 4;
+  /// γ (1/s) of the mass-proportional damping; negative: the file's.
+  double damping_per_s = -1;
+};
+
+/// A tool tip as the region sees it: a capsule of radius r around the
+/// segment base → end (a sphere when they are equal), model frame.
+struct RegionTip {
+  Eigen::Vector3d base_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d end_m = Eigen::Vector3d::Zero();
+  double radius_m = 0;
+};
+
+/// A served model's cuttable region, stepped and coupled. Not thread-safe:
+/// the caller serializes advance(), cut() and the readers. advance()
+/// allocates nothing.
+class HybridRegion {
+ public:
+  /// @param model a loaded compliance file with a cut region; must outlive
+  ///        this object. G may be double or float32.
+  /// @throws InputError when the model has no cut region, G_ΓΓ is not
+  ///         positive definite, or a setting is out of range (what is accepted).
+  explicit HybridRegion(const SurfaceModel& model, const HybridRegionSettings& settings = {});
+
+  /// Steps the region over @p tick_s (> 0, at most 10 ms of it) in substeps
+  /// of substep_s(): as many whole ones as the tick and the last tick's
+  /// remainder hold (none when a tick is shorter than one: the last forces
+  /// stand), under the rest's loads (compliance indices and 3
+  /// forces each, the tool on the organ: ToolContactEngine::contact_indices
+  /// and contact_forces) and at most max_tips tips pressing the region.
+  /// Afterwards tip_force_n(t) is what the region pushes tip t with,
+  /// averaged over the substeps, and interface_force_n() the region's push
+  /// on the rest.
+  void advance(double tick_s, std::span<const int> rest_indices,
+               std::span<const double> rest_forces_n, std::span<const RegionTip> tips);
+
+  /// The force on tip @p tip from the region in the last advance() (N).
+  const Eigen::Vector3d& tip_force_n(int tip) const { return tip_force_n_.at(tip); }
+  /// Region surface vertices the tips pressed at the last substep.
+  int pressed_vertices() const { return pressed_vertices_; }
+  /// f_Γ = S (u_Γ − u_Γ⁰) (3n_Γ, N): the region's push on the rest at Γ,
+  /// in the order of interface_vertices().
+  const Eigen::VectorXd& interface_force_n() const { return interface_force_n_; }
+  /// u += G_SΓ f_Γ: what the region's push adds to a displacement field of
+  /// the rest's compliance vertices (3N_S, compliance order).
+  void add_rest_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const;
+  /// The last external force on the region's vertices (3#R, N): the tips'.
+  const Eigen::VectorXd& region_load_n() const { return region_load_n_; }
+
+  /// Removes every remaining tetrahedron the blade a–b meets (rest geometry:
+  /// the blade as it would lie on the undeformed organ). @returns how many.
+  int cut(const Eigen::Vector3d& blade_a_m, const Eigen::Vector3d& blade_b_m);
+
+  /// The proven stable step now, step_safety × 2/ω bound (it can shrink
+  /// after a cut: docs/model.md); the substep (the bound as loaded, or as
+  /// shortened by a cut); the substeps the last advance() took.
+  double substep_bound_s() const { return substep_bound_s_; }
+  double substep_s() const { return substep_s_; }
+  int substeps() const { return substeps_; }
+
+  const TensorMassModel& tensor_mass() const { return model_; }
+  /// The Γ vertices the region still holds (region numbering; a cut that
+  /// leaves one without a tetrahedron releases it), and their compliance
+  /// indices in the rest's G.
+  const std::vector<int>& interface_vertices() const { return interface_; }
+  const std::vector<int>& interface_compliance_indices() const { return interface_compliance_; }
+  /// Region vertex v's position now (rest + u), m.
+  Eigen::Vector3d position_m(int vertex) const;
+  /// Increments with every change of the region's surface (cuts).
+  std::uint64_t topology_version() const { return model_.boundary_version(); }
+  /// The region's surface to draw and touch (region vertex numbering,
+  /// outward): its boundary without the faces it shares with the rest.
+  void visible_triangles(std::vector<std::array<int, 3>>& out) const;
+  /// True when drawn triangle @p triangle of the rest (SurfaceModel::surface)
+  /// lies against a remaining region tetrahedron: inside the organ, neither
+  /// drawn nor touched. Rest faces of removed tetrahedra are uncovered.
+  bool covers_rest_triangle(int triangle) const;
+  /// The rest's drawn triangles the region covered as loaded (the faces Γ).
+  int interface_face_count() const { return static_cast<int>(interface_faces_.size()); }
+
+ private:
+  struct InterfaceFace {
+    std::array<int, 3> region_sorted{};  // region vertices, increasing
+    int rest_triangle = -1;              // drawn triangle of the rest
+    int region_tet = -1;                 // the region tetrahedron behind it
+  };
+  void update_after_topology_change();
+  void release_detached_interface();
+  bool is_interface_face(const std::array<int, 3>& triangle) const;
+  void add_tip_forces(std::span<const RegionTip> tips, bool accumulate);
+
+  const SurfaceModel& model_ref_;
+  HybridRegionSettings settings_;
+  TensorMassModel model_;
+  std::vector<int> interface_;             // region vertices, CutRegionData's order
+  std::vector<int> interface_compliance_;  // their compliance indices
+  Eigen::MatrixXd coupling_;               // S = G_ΓΓ⁻¹
+  double coupling_eigen_max_ = 0;          // λ_max(S)
+  double element_omega2_ = 0;              // the element bound alone, 1/s²
+
+  std::vector<InterfaceFace> interface_faces_;  // sorted by region_sorted
+  std::vector<int> rest_triangle_face_;         // per rest drawn triangle: interface face or −1
+  std::vector<int> skin_;                       // moving vertices of the visible surface
+  std::vector<char> on_skin_;
+  std::vector<std::array<int, 3>> visible_;
+
+  double substep_bound_s_ = 0, substep_s_ = 0, pending_s_ = 0;
+  int substeps_ = 0, pressed_vertices_ = 0;
+  Eigen::VectorXd offset_m_, interface_force_n_, gamma_u_m_;
+  Eigen::VectorXd region_load_n_, retimed_m_;
+  std::vector<Eigen::Vector3d> tip_force_n_, tip_force_step_n_;
+};
+
+}  // namespace palpate
