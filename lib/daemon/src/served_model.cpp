@@ -12,21 +12,83 @@ namespace palpate::daemon {
 
 namespace {
 
-ShownState::Snapshot make_snapshot_of(std::size_t capacity, std::size_t point_capacity) {
+ShownState::Snapshot make_snapshot_of(std::size_t capacity, std::size_t point_capacity,
+                                      const HybridRegion* region) {
   ShownState::Snapshot s;
   s.indices.resize(capacity);
   s.forces.resize(3 * capacity);
   s.points.resize(point_capacity);
+  if (region != nullptr) {
+    // Room for the most a cut can show: every face of every tetrahedron.
+    const TensorMassModel& t = region->tensor_mass();
+    const auto vertices = static_cast<std::size_t>(t.vertex_count());
+    const auto interface = region->interface_vertices().size();
+    s.region.positions.resize(3 * vertices);
+    s.region.triangles.resize(3 * 4 * static_cast<std::size_t>(t.tetrahedron_count()));
+    s.region.hidden_triangles.resize(static_cast<std::size_t>(region->interface_face_count()));
+    s.region.interface_indices.resize(interface);
+    s.region.interface_forces.resize(3 * interface);
+  }
   return s;
+}
+
+std::unique_ptr<HybridRegion> region_of(const SurfaceModel& model,
+                                        const ServedModel::Options& config) {
+  if (!model.cut_region || !config.simulate_cut_region) return nullptr;
+  return std::make_unique<HybridRegion>(model, config.region);
 }
 
 }  // namespace
 
-ShownState::ShownState(std::size_t capacity, std::size_t point_capacity)
-    : state_(make_snapshot_of(capacity, point_capacity)) {}
+ShownState::ShownState(std::size_t capacity, std::size_t point_capacity, const HybridRegion* region)
+    : region_(region), state_(make_snapshot_of(capacity, point_capacity, region)) {
+  if (region == nullptr) return;
+  visible_.reserve(4 * static_cast<std::size_t>(region->tensor_mass().tetrahedron_count()));
+  show_region(*region);
+}
 
 ShownState::Snapshot ShownState::make_snapshot() const {
-  return make_snapshot_of(state_.indices.size(), state_.points.size());
+  return make_snapshot_of(state_.indices.size(), state_.points.size(), region_);
+}
+
+void ShownState::show_region(const HybridRegion& region) {
+  const std::lock_guard lock(mutex_);
+  Snapshot::Region& r = state_.region;
+  const TensorMassModel& t = region.tensor_mass();
+  r.vertex_count = t.vertex_count();
+  for (int v = 0; v < r.vertex_count; ++v) {
+    const Eigen::Vector3d x = region.position_m(v);
+    std::copy_n(x.data(), 3, &r.positions[3 * static_cast<std::size_t>(v)]);
+  }
+  const std::vector<int>& gamma = region.interface_vertices();
+  r.interface_count = static_cast<int>(gamma.size());
+  std::copy_n(region.interface_compliance_indices().begin(), gamma.size(),
+              r.interface_indices.begin());
+  std::copy_n(region.interface_force_n().data(), 3 * gamma.size(), r.interface_forces.begin());
+  if (r.topology_version != region.topology_version() + 1) {
+    r.topology_version = region.topology_version() + 1;
+    region.visible_triangles(visible_);
+    r.triangle_count = static_cast<int>(visible_.size());
+    for (std::size_t f = 0; f < visible_.size(); ++f)
+      for (int c = 0; c < 3; ++c)
+        r.triangles[3 * f + static_cast<std::size_t>(c)] =
+            static_cast<std::uint32_t>(visible_[f][c]);
+    r.hidden_count = region.covered_rest_triangles(r.hidden_triangles);
+  }
+  ++version_;
+}
+
+void ShownState::copy_region(const Snapshot::Region& from, Snapshot::Region& to) const {
+  to.topology_version = from.topology_version;
+  to.vertex_count = from.vertex_count;
+  std::copy_n(from.positions.begin(), 3 * from.vertex_count, to.positions.begin());
+  to.triangle_count = from.triangle_count;
+  std::copy_n(from.triangles.begin(), 3 * from.triangle_count, to.triangles.begin());
+  to.hidden_count = from.hidden_count;
+  std::copy_n(from.hidden_triangles.begin(), from.hidden_count, to.hidden_triangles.begin());
+  to.interface_count = from.interface_count;
+  std::copy_n(from.interface_indices.begin(), from.interface_count, to.interface_indices.begin());
+  std::copy_n(from.interface_forces.begin(), 3 * from.interface_count, to.interface_forces.begin());
 }
 
 void ShownState::show(std::span<const int> indices, std::span<const double> forces_n,
@@ -63,6 +125,7 @@ bool ShownState::copy_if_newer(std::uint64_t& version, Snapshot& out) {
   std::memcpy(out.source, state_.source, sizeof out.source);
   out.source_request = state_.source_request;
   std::copy_n(state_.total_force, 3, out.total_force);
+  if (region_ != nullptr) copy_region(state_.region, out.region);
   return true;
 }
 
@@ -70,8 +133,9 @@ ServedModel::ServedModel(SurfaceModel loaded, const Options& config, bool warped
     // A constraint at a point of a triangle loads up to 3 vertices; the
     // tools' points are constraints.
     : model(std::move(loaded)),
+      region(region_of(model, config)),
       shown(3 * static_cast<std::size_t>(config.limits.max_constraints),
-            static_cast<std::size_t>(config.limits.max_constraints)) {
+            static_cast<std::size_t>(config.limits.max_constraints), region.get()) {
   // The organ's size: the diagonal of its surface's bounding box.
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
   for (int v = 0; v < model.surface.vertex_count(); ++v) {

@@ -2,6 +2,7 @@
 // Private to palpate_daemon: one model as palpated serves it, and the state
 // it shows on the surface stream.
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/hybrid_region.hpp"
 #include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/session_recorder.hpp"
 #include "palpate/runtime/surface_model.hpp"
@@ -37,11 +39,29 @@ class ShownState {
     char source[64] = {};              // client id, or "tool:<id>"
     std::uint64_t source_request = 0;
     double total_force[3] = {};
+    /// The served cut region's part (docs/model.md, "The hybrid model as
+    /// served"); all counts 0 without one.
+    struct Region {
+      /// 0: no region; else 1 + HybridRegion::topology_version(): changes
+      /// with every change of the region's surface (a cut).
+      std::uint64_t topology_version = 0;
+      int vertex_count = 0;
+      std::vector<double> positions;  // 3 per region vertex, m, deformed, model frame
+      int triangle_count = 0;
+      std::vector<std::uint32_t> triangles;  // 3 per visible triangle, region vertices, outward
+      int hidden_count = 0;
+      std::vector<std::uint32_t> hidden_triangles;  // drawn triangles of the rest it covers
+      int interface_count = 0;
+      std::vector<int> interface_indices;    // compliance indices of the Γ vertices it holds
+      std::vector<double> interface_forces;  // 3 per: f_Γ, its push on the rest, N
+    } region;
   };
 
   /// Room for @p capacity constrained vertices and @p point_capacity
-  /// contact points.
-  ShownState(std::size_t capacity, std::size_t point_capacity);
+  /// contact points, and for @p region's state when given (it must outlive
+  /// this object).
+  ShownState(std::size_t capacity, std::size_t point_capacity,
+             const HybridRegion* region = nullptr);
   /// A snapshot sized for this state.
   Snapshot make_snapshot() const;
 
@@ -51,11 +71,18 @@ class ShownState {
   void show(std::span<const int> indices, std::span<const double> forces_n,
             std::span<const ContactPoint> points, std::string_view source_prefix,
             std::string_view source_id, std::uint64_t source_request, const double* total_force_n);
+  /// Replaces the region's part of the state by what @p region says now
+  /// (the one given to the constructor); its surface's triangles only when
+  /// its topology changed.
+  void show_region(const HybridRegion& region);
   /// Copies the state into @p out when it changed since @p version (then
   /// updated); false when it did not.
   bool copy_if_newer(std::uint64_t& version, Snapshot& out);
 
  private:
+  void copy_region(const Snapshot::Region& from, Snapshot::Region& to) const;
+  const HybridRegion* region_ = nullptr;
+  std::vector<std::array<int, 3>> visible_;  // show_region's scratch (capacity: every face)
   PiMutex mutex_;
   std::uint64_t version_ = 1;  // the rest state: a late viewer gets a surface before any request
   Snapshot state_;
@@ -73,18 +100,23 @@ struct ServedModel {
     ContactSettings contact;
     std::filesystem::path record_directory;  ///< empty: no recording
     std::string daemon_id;                   ///< for the recordings
-    std::int64_t start_unix_ns = 0;  ///< wall clock at palpated's start: time 0 of the tools
+    std::int64_t start_unix_ns = 0;   ///< wall clock at palpated's start: time 0 of the tools
+    bool simulate_cut_region = true;  ///< step a file's cut region (else serve the rest alone)
+    HybridRegionSettings region;      ///< how
   };
 
-  /// Serves @p loaded. When recording is on, the model's session file
-  /// starts now, before any pose, so that the pose listener never creates a
-  /// file (a recorder that cannot start is logged and the model served
-  /// without).
+  /// Serves @p loaded, with its cut region stepped (HybridRegion) when the
+  /// file has one and @p options.simulate_cut_region. When recording is on, the model's session
+  /// file starts now, before any pose, so that the pose listener never creates a file (a recorder
+  /// that cannot start is logged and the model served without).
   /// @p warped: warped compliance for the requests, the tools and the
   /// stream (docs/model.md, "Large rotations: warped compliance").
   ServedModel(SurfaceModel loaded, const Options& options, bool warped = false);
 
   SurfaceModel model;
+  /// The file's cut region, stepped in the tools' ticks (under tools.mutex);
+  /// null without one or when not simulated.
+  std::unique_ptr<HybridRegion> region;
   /// Warped models: the rotations of requests (RotationField at
   /// kRequestEdges) and of the tools and the stream (kToolEdges); the
   /// requests' solver. Null for a linear model.

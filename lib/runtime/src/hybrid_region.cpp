@@ -333,6 +333,14 @@ void HybridRegion::visible_triangles(std::vector<std::array<int, 3>>& out) const
   out.assign(visible_.begin(), visible_.end());
 }
 
+int HybridRegion::covered_rest_triangles(std::span<std::uint32_t> out) const {
+  std::size_t count = 0;
+  for (const InterfaceFace& f : interface_faces_)
+    if (!model_.is_removed(f.region_tet) && count < out.size())
+      out[count++] = static_cast<std::uint32_t>(f.rest_triangle);
+  return static_cast<int>(count);
+}
+
 bool HybridRegion::covers_rest_triangle(int triangle) const {
   const int f = rest_triangle_face_.at(static_cast<std::size_t>(triangle));
   return f >= 0 && !model_.is_removed(interface_faces_[static_cast<std::size_t>(f)].region_tet);

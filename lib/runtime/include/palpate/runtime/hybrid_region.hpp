@@ -108,12 +108,16 @@ class HybridRegion {
   /// Increments with every change of the region's surface (cuts).
   std::uint64_t topology_version() const { return model_.boundary_version(); }
   /// The region's surface to draw and touch (region vertex numbering,
-  /// outward): its boundary without the faces it shares with the rest.
+  /// outward): its boundary without the faces it shares with the rest. No
+  /// allocation when @p out has room for every face (4 per tetrahedron).
   void visible_triangles(std::vector<std::array<int, 3>>& out) const;
   /// True when drawn triangle @p triangle of the rest (SurfaceModel::surface)
   /// lies against a remaining region tetrahedron: inside the organ, neither
   /// drawn nor touched. Rest faces of removed tetrahedra are uncovered.
   bool covers_rest_triangle(int triangle) const;
+  /// Writes the rest's drawn triangles the region covers now into @p out
+  /// (room for interface_face_count()); @returns how many.
+  int covered_rest_triangles(std::span<std::uint32_t> out) const;
   /// The rest's drawn triangles the region covered as loaded (the faces Γ).
   int interface_face_count() const { return static_cast<int>(interface_faces_.size()); }
 
