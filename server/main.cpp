@@ -219,9 +219,10 @@ int run(int argc, char** argv) {
                   entry.file.c_str(), model.compliance_vertex_count(),
                   model.material_summary.c_str());
       if (!model.cut_region_spec.empty())
-        std::fprintf(stderr, "palpated: warning: model %s: its cut region (%s): %s\n",
-                     model.id.c_str(), model.cut_region_spec.c_str(),
-                     palpate::kCutRegionNotSimulated);
+        std::fprintf(
+            stderr, "palpated: warning: model %s: its cut region (%s): %s\n", model.id.c_str(),
+            model.cut_region_spec.c_str(),
+            entry.warped ? palpate::kCutRegionNotSimulated : palpate::kCutRegionPartlyCoupled);
     }
     const auto dds = palpate::dds::resolve_domain_config(config.dds_config);
     std::string serving;  // only when not the default

@@ -375,11 +375,13 @@ TEST(PrecomputeRegion, TheSampleCutJobRunsOnTheSampleOrgan) {
     EXPECT_LE((centroid - center).norm(), 0.012 + 1e-12) << t;
   }
   EXPECT_EQ(G.rows(), 3 * m.compliance_vertices.size());
-  // A served model of it knows it has a region it does not step (palpated
-  // warns: kCutRegionNotSimulated); one without a region does not.
+  // A served model of it knows its region (palpated steps it: HybridRegion);
+  // one without a region does not.
   const SurfaceModel served = load_surface_model("cut", job.output);
   EXPECT_EQ(served.cut_region_spec, c.spec);
   EXPECT_FALSE(served.cut_region_spec.empty());
+  ASSERT_TRUE(served.cut_region);
+  EXPECT_EQ(served.cut_region->tetrahedra, c.tetrahedra);
   job.cut_region.reset();
   job.output = dir / "organ.h5";
   run_precompute(job, hooks);

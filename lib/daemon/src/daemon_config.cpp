@@ -110,7 +110,7 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
       r.only_keys(t, "tools",
                   {"id", "tip", "tip_radius_mm", "tip_length_mm", "friction", "jaw_length_mm",
                    "jaw_width_mm", "grasp_angle_deg", "release_angle_deg", "max_jaw_angle_deg",
-                   "force_limit_n", "max_force_rate_n_per_s"});
+                   "force_limit_n", "max_force_rate_n_per_s", "cutting"});
       ToolGeometry g;
       if (!t.get("id")) r.fail(&t, "tools", "needs an id");
       g.id = r.string(*t.get("id"), "tools.id");
@@ -146,6 +146,7 @@ DaemonConfig read_daemon_config(const std::filesystem::path& file) {
         g.force_limit_n = positive(*v, key + "force_limit_n");
       if (const auto* v = t.get("max_force_rate_n_per_s"))
         g.max_force_rate_n_per_s = positive(*v, key + "max_force_rate_n_per_s");
+      if (const auto* v = t.get("cutting")) g.cutting = r.boolean(*v, key + "cutting");
       config.tools.push_back(std::move(g));
     });
   }

@@ -33,9 +33,12 @@ ShownState::Snapshot make_snapshot_of(std::size_t capacity, std::size_t point_ca
 }
 
 std::unique_ptr<HybridRegion> region_of(const SurfaceModel& model,
-                                        const ServedModel::Options& config) {
-  if (!model.cut_region || !config.simulate_cut_region) return nullptr;
-  return std::make_unique<HybridRegion>(model, config.region);
+                                        const ServedModel::Options& config, bool warped) {
+  // The region is linear: a warped model serves the rest alone (Service says so).
+  if (!model.cut_region || warped) return nullptr;
+  HybridRegionSettings settings = config.region;
+  settings.max_tips = std::max(1, static_cast<int>(config.tools.size()));
+  return std::make_unique<HybridRegion>(model, settings);
 }
 
 }  // namespace
@@ -133,7 +136,7 @@ ServedModel::ServedModel(SurfaceModel loaded, const Options& config, bool warped
     // A constraint at a point of a triangle loads up to 3 vertices; the
     // tools' points are constraints.
     : model(std::move(loaded)),
-      region(region_of(model, config)),
+      region(region_of(model, config, warped)),
       shown(3 * static_cast<std::size_t>(config.limits.max_constraints),
             static_cast<std::size_t>(config.limits.max_constraints), region.get()) {
   // The organ's size: the diagonal of its surface's bounding box.
@@ -157,6 +160,12 @@ ServedModel::ServedModel(SurfaceModel loaded, const Options& config, bool warped
   tools.engine = std::make_unique<ToolContactEngine>(model, config.tools, config.contact,
                                                      config.limits, tool_field.get());
   tools.record_vertices.resize(k);
+  tools.posed_s.assign(config.tools.size(), -1.0);
+  tools.region_tips.reserve(config.tools.size());
+  tools.region_tip_tools.reserve(config.tools.size());
+  if (region)
+    for (int t = 0; t < model.surface.triangle_count(); ++t)
+      tools.engine->set_triangle_hidden(t, region->covers_rest_triangle(t));
   tools.record_forces.resize(3 * k);
   for (const ToolGeometry& tool : config.tools)
     tools.ids += (tools.ids.empty() ? "" : ", ") + tool.id;

@@ -100,13 +100,12 @@ struct ServedModel {
     ContactSettings contact;
     std::filesystem::path record_directory;  ///< empty: no recording
     std::string daemon_id;                   ///< for the recordings
-    std::int64_t start_unix_ns = 0;   ///< wall clock at palpated's start: time 0 of the tools
-    bool simulate_cut_region = true;  ///< step a file's cut region (else serve the rest alone)
-    HybridRegionSettings region;      ///< how
+    std::int64_t start_unix_ns = 0;  ///< wall clock at palpated's start: time 0 of the tools
+    HybridRegionSettings region;     ///< how a file's cut region is stepped
   };
 
   /// Serves @p loaded, with its cut region stepped (HybridRegion) when the
-  /// file has one and @p options.simulate_cut_region. When recording is on, the model's session
+  /// file has one and the model is linear. When recording is on, the model's session
   /// file starts now, before any pose, so that the pose listener never creates a file (a recorder
   /// that cannot start is logged and the model served without).
   /// @p warped: warped compliance for the requests, the tools and the
@@ -115,7 +114,7 @@ struct ServedModel {
 
   SurfaceModel model;
   /// The file's cut region, stepped in the tools' ticks (under tools.mutex);
-  /// null without one or when not simulated.
+  /// null without one, or for a warped model (the region is linear).
   std::unique_ptr<HybridRegion> region;
   /// Warped models: the rotations of requests (RotationField at
   /// kRequestEdges) and of the tools and the stream (kToolEdges); the
@@ -138,6 +137,12 @@ struct ServedModel {
     std::vector<std::uint32_t> record_vertices;  // one tool's contacts, for the recorder
     std::vector<double> record_forces;
     std::string ids;  // the tools' ids, "left, right": for a pose naming another
+    // The cut region's tick (with `region`): when it was last advanced, when
+    // each tool last posed (−1: never), the tips pressing it and their tools.
+    double region_time_s = -1;
+    std::vector<double> posed_s;
+    std::vector<RegionTip> region_tips;
+    std::vector<int> region_tip_tools;
   } tools;
 };
 

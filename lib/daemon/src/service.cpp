@@ -161,12 +161,21 @@ void Service::Impl::load_models() {
         loaded.id, loaded.path.string(), loaded.compliance_vertex_count(),
         loaded.mesh_vertex_count(), loaded.surface.triangle_count(), loaded.G_bytes() / 1e6,
         loaded.float32() ? "float32" : "float64", seconds);
-    if (!loaded.cut_region_spec.empty())
+    if (!loaded.cut_region_spec.empty() && entry.warped)
       spdlog::warn("event=cut_region_not_simulated model={} region=\"{}\" hint=\"{}\"", loaded.id,
                    loaded.cut_region_spec, palpate::kCutRegionNotSimulated);
     served_ids += (served_ids.empty() ? "" : ", ") + loaded.id;
     models.push_back(
         std::make_unique<daemon::ServedModel>(std::move(loaded), options, entry.warped));
+    if (const HybridRegion* region = models.back()->region.get()) {
+      spdlog::info(
+          "event=cut_region_served model={} region=\"{}\" tetrahedra={} interface_vertices={} "
+          "substep_us={:.1f}",
+          entry.id, models.back()->model.cut_region_spec, region->tensor_mass().tetrahedron_count(),
+          region->interface_vertices().size(), region->substep_bound_s() * 1e6);
+      spdlog::warn("event=cut_region_partly_coupled model={} hint=\"{}\"", entry.id,
+                   palpate::kCutRegionPartlyCoupled);
+    }
     if (entry.warped)
       spdlog::info("event=model_warped model={} request_radius_m={:.4g} tool_radius_m={:.4g}",
                    entry.id, models.back()->request_field->smoothing_radius_m(),

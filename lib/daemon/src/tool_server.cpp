@@ -204,7 +204,9 @@ void ToolServer::take(const palpate_ToolPose& pose) {
     refuse(pose, problem, engine.problem_message());
     return;
   }
-  const RequestStatus status = engine.update(tool, input, clock_.seconds());
+  const double now_s = clock_.seconds();
+  const RequestStatus status = engine.update(tool, input, now_s);
+  if (served->region) step_region(*served, tool, now_s);
   if (status != RequestStatus::kOk)
     warnings_.warn(kSolveFailed,
                    "event=tool_solve_failed tool={} model={} status={} message=\"{}\"", tool_id,
@@ -277,9 +279,75 @@ void ToolServer::take(const palpate_ToolCommand& command) {
                model_id);
 }
 
+void ToolServer::step_region(ServedModel& served, int tool, double now_s) {
+  HybridRegion& region = *served.region;
+  ServedModel::Tools& tools = served.tools;
+  ToolContactEngine& engine = *tools.engine;
+  const auto tip_of = [&](int t) {
+    const ToolGeometry& g = engine.tool(t);
+    const ToolPoseInput& pose = engine.pose(t);
+    const double length = g.tip == TipShape::kCapsule ? g.tip_length_m : 0.0;
+    return RegionTip{pose.position_m,
+                     pose.position_m + length * (pose.orientation * Eigen::Vector3d::UnitZ()),
+                     g.tip_radius_m};
+  };
+  const ToolGeometry& g = engine.tool(tool);
+  if (g.cutting && engine.pose(tool).jaw_angle_rad <= g.grasp_angle_rad) {
+    const RegionTip blade = tip_of(tool);
+    const int removed =
+        region.cut(region.rest_point_of(blade.base_m), region.rest_point_of(blade.end_m));
+    if (removed > 0) {
+      for (int t = 0; t < served.model.surface.triangle_count(); ++t)
+        engine.set_triangle_hidden(t, region.covers_rest_triangle(t));
+      spdlog::info(
+          "event=cut tool={} model={} tetrahedra={} remaining={} topology_version={} "
+          "substep_us={:.1f}",
+          g.id, served.model.id, removed, region.tensor_mass().remaining_tetrahedra(),
+          region.topology_version(), region.substep_s() * 1e6);
+    }
+  }
+  tools.region_tips.clear();
+  tools.region_tip_tools.clear();
+  for (int t = 0; t < engine.tool_count(); ++t) {
+    if (!engine.in_session(t)) continue;
+    tools.region_tips.push_back(tip_of(t));
+    tools.region_tip_tools.push_back(t);
+  }
+  // The region's clock follows the poses: the time since its last step (a
+  // 1 ms tick the first time).
+  const double tick_s = tools.region_time_s < 0 ? 1e-3 : now_s - tools.region_time_s;
+  if (tick_s <= 0) return;
+  tools.region_time_s = now_s;
+  region.advance(tick_s, engine.contact_indices(), engine.contact_forces(), tools.region_tips);
+  served.shown.show_region(region);
+}
+
+const ToolOutput& ToolServer::felt(const ServedModel& served, int tool) {
+  const ToolContactEngine& engine = *served.tools.engine;
+  if (!served.region) return engine.output(tool);
+  felt_ = engine.output(tool);
+  const auto& tools = served.tools.region_tip_tools;
+  const auto at = std::find(tools.begin(), tools.end(), tool);
+  if (at == tools.end()) return felt_;
+  const int tip = static_cast<int>(at - tools.begin());
+  const Eigen::Vector3d push = served.region->tip_force_n(tip);
+  if (push.squaredNorm() == 0) return felt_;
+  // The tip's base is the hinge: the torque is about the same point.
+  felt_.force_n += push;
+  felt_.torque_nm += served.region->tip_torque_nm(tip);
+  felt_.local.force_n += push;
+  felt_.local.torque_nm += served.region->tip_torque_nm(tip);
+  const double limit = engine.tool(tool).force_limit_n;
+  if (felt_.force_n.norm() > limit) {
+    felt_.force_n *= limit / felt_.force_n.norm();
+    felt_.force_limited = true;
+  }
+  return felt_;
+}
+
 void ToolServer::publish(ServedModel& served, int tool, std::uint64_t compute_ns) {
   const ToolContactEngine& engine = *served.tools.engine;
-  const ToolOutput& out = engine.output(tool);
+  const ToolOutput& out = felt(served, tool);
   const std::string& tool_id = engine.tool(tool).id;
   const ToolWriters* own = static_cast<std::size_t>(tool) < tool_writers_.size()
                                ? &tool_writers_[static_cast<std::size_t>(tool)]

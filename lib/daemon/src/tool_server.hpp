@@ -86,6 +86,14 @@ class ToolServer {
   /// Feedback, events, shown state and recording of tool @p tool after a
   /// tick (with served.tools.mutex held).
   void publish(ServedModel& served, int tool, std::uint64_t compute_ns);
+  /// The model's cut region after tool @p tool's tick (with
+  /// served.tools.mutex held): a live cutting edge cuts, the region is
+  /// stepped to @p now_s under the tools' loads on the rest and the tips in
+  /// session, and shown.
+  void step_region(ServedModel& served, int tool, double now_s);
+  /// What tool @p tool feels: the contact engine's output plus the region's
+  /// push on its tip, within its force limit.
+  const ToolOutput& felt(const ServedModel& served, int tool);
   void record(ServedModel& served, int tool, std::uint64_t compute_ns);
 
   const std::vector<std::unique_ptr<ServedModel>>& models_;
@@ -101,6 +109,7 @@ class ToolServer {
   };
   std::vector<ToolWriters> tool_writers_;
   palpate_ToolResponse response_{};
+  ToolOutput felt_;                     // felt()'s
   std::atomic<bool> listening_{false};  // as RequestServer::listening_
 
   palpate_ToolPose samples_[kBatch];

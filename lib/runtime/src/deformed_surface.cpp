@@ -77,6 +77,7 @@ DeformedSurface::DeformedSurface(const SurfaceModel& model, const RotationField*
   near_vertices_.resize(static_cast<std::size_t>(drawn));
   near_bits_.assign((static_cast<std::size_t>(drawn) + 63) / 64, 0);
   triangle_seen_.assign(static_cast<std::size_t>(triangles), 0);
+  triangle_hidden_.assign(static_cast<std::size_t>(triangles), 0);
   near_triangles_.resize(static_cast<std::size_t>(triangles));
   wanted_bits_.assign((static_cast<std::size_t>(n) + 63) / 64, 0);
   wanted_.resize(static_cast<std::size_t>(n));
@@ -256,7 +257,7 @@ std::span<int> DeformedSurface::triangles_around(std::span<const int> vertices) 
       const int tri = vertex_triangles_[static_cast<std::size_t>(e)];
       if (triangle_seen_[static_cast<std::size_t>(tri)] == triangle_epoch_) continue;
       triangle_seen_[static_cast<std::size_t>(tri)] = triangle_epoch_;
-      near_triangles_[count++] = tri;
+      if (triangle_hidden_[static_cast<std::size_t>(tri)] == 0) near_triangles_[count++] = tri;
     }
   return {near_triangles_.data(), count};
 }

@@ -97,9 +97,15 @@ class DeformedSurface {
   /// valid until the next call).
   std::span<const int> vertices_near(const Eigen::Vector3d& hinge, const Eigen::Vector3d& axis,
                                      double length, double radius);
-  /// The distinct triangles around @p vertices, in the order met (a view
-  /// of scratch the caller may rewrite, valid until the next call).
+  /// The distinct triangles around @p vertices, in the order met, hidden
+  /// ones left out (a view of scratch the caller may rewrite, valid until
+  /// the next call).
   std::span<int> triangles_around(std::span<const int> vertices);
+  /// A hidden triangle is inside the organ (a served cut region covers it):
+  /// never found by triangles_around. None is, at first.
+  void set_hidden(int triangle, bool hidden) {
+    triangle_hidden_.at(static_cast<std::size_t>(triangle)) = hidden ? 1 : 0;
+  }
 
   /// (1 + 1e-6) √(fᵀ G f): far_from()'s spread of the displacements.
   double spread() const;
@@ -141,6 +147,7 @@ class DeformedSurface {
   std::vector<std::uint64_t> near_bits_;  // per drawn vertex
   std::uint32_t triangle_epoch_ = 0;
   std::vector<std::uint32_t> triangle_seen_;
+  std::vector<char> triangle_hidden_;
   std::vector<int> near_triangles_;
   std::vector<std::uint64_t> wanted_bits_;  // per compliance vertex
   std::vector<int> wanted_;

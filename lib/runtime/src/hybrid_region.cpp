@@ -102,8 +102,8 @@ HybridRegion::HybridRegion(const SurfaceModel& model, const HybridRegionSettings
         Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(coupling_, Eigen::EigenvaluesOnly)
             .eigenvalues()
             .maxCoeff();
-    model_.set_interface_coupling(interface_, coupling_);
   }
+  update_coupling_row_sums();
 
   // The faces the region shares with the rest, matched by input-file ids.
   std::map<std::array<int, 3>, int> rest_faces;
@@ -143,8 +143,11 @@ HybridRegion::HybridRegion(const SurfaceModel& model, const HybridRegionSettings
   interface_force_n_ = Eigen::VectorXd::Zero(3 * n);
   gamma_u_m_ = Eigen::VectorXd::Zero(3 * n);
   region_load_n_ = Eigen::VectorXd::Zero(3 * nv);
+  step_force_n_ = Eigen::VectorXd::Zero(3 * nv);
   tip_force_n_.assign(static_cast<std::size_t>(settings_.max_tips), Vector3d::Zero());
   tip_force_step_n_ = tip_force_n_;
+  tip_torque_nm_ = tip_force_n_;
+  tip_torque_step_nm_ = tip_force_n_;
   retimed_m_ = Eigen::VectorXd::Zero(3 * nv);
   update_after_topology_change();
   substep_s_ = substep_bound_s_;
@@ -164,6 +167,9 @@ void HybridRegion::update_after_topology_change() {
     if (!is_interface_face(t)) visible_.push_back(t);
   for (int v : skin_) on_skin_[v] = 0;
   skin_.clear();
+  // Γ vertices are pressed through the rest's triangles around them (the
+  // contact engine's), not twice.
+  for (int v : interface_) on_skin_[v] = 1;
   for (const auto& t : visible_)
     for (int v : t)
       if (on_skin_[v] == 0 && !model_.is_fixed(v) && !model_.is_detached(v)) {
@@ -171,16 +177,34 @@ void HybridRegion::update_after_topology_change() {
         skin_.push_back(v);
       }
 
-  // ω² ≤ ω_elements² + λ_max(S) / min m_Γ + max_tips · k / min m_skin: each
-  // term bounds its part's Rayleigh quotient (docs/model.md).
+  for (int v : interface_) on_skin_[v] = 0;
+
+  // Two proven bounds on the elastic part, the smaller taken: the element
+  // bound with the coupling's, ω² ≤ ω_elements² + λ_max(S) / min m_Γ, and
+  // Gershgorin's on M⁻¹ (K + S); then the contacts', max_tips · k / min
+  // m_skin (each term bounds its part's Rayleigh quotient: docs/model.md).
   const double inf = std::numeric_limits<double>::infinity();
   double least_interface_mass = inf, least_skin_mass = inf;
   for (int v : interface_)
     if (!model_.is_detached(v))
       least_interface_mass = std::min(least_interface_mass, model_.mass_kg(v));
   for (int v : skin_) least_skin_mass = std::min(least_skin_mass, model_.mass_kg(v));
-  double omega2 = element_omega2_;
-  if (least_interface_mass < inf) omega2 += coupling_eigen_max_ / least_interface_mass;
+  double elastic2 = element_omega2_;
+  if (least_interface_mass < inf) elastic2 += coupling_eigen_max_ / least_interface_mass;
+  if (model_.remaining_tetrahedra() > 0) {
+    // Gershgorin's discs of M⁻¹ (K + S) lie within the sum of K's widest
+    // and S's widest (per mass) row.
+    const double gershgorin_k = model_.stable_time_step(0.5, 1).gershgorin_omega_rad_s;
+    double coupling_rows = 0;
+    for (std::size_t k = 0; k < interface_.size(); ++k)
+      if (!model_.is_detached(interface_[k]))
+        coupling_rows =
+            std::max(coupling_rows,
+                     coupling_row_sum_.segment<3>(3 * static_cast<Eigen::Index>(k)).maxCoeff() /
+                         model_.mass_kg(interface_[k]));
+    elastic2 = std::min(elastic2, gershgorin_k * gershgorin_k + coupling_rows);
+  }
+  double omega2 = elastic2;
   if (least_skin_mass < inf)
     omega2 += settings_.max_tips * settings_.contact_stiffness_n_per_m / least_skin_mass;
   substep_bound_s_ = omega2 > 0 ? settings_.step_safety * 2 / std::sqrt(omega2) : kMaxAdvanceS;
@@ -196,7 +220,7 @@ void HybridRegion::add_tip_forces(std::span<const RegionTip> tips, bool accumula
     const RegionTip& tip = tips[t];
     const Vector3d axis = tip.end_m - tip.base_m;
     const double length2 = axis.squaredNorm();
-    Vector3d on_tip = Vector3d::Zero();
+    Vector3d on_tip = Vector3d::Zero(), about_base = Vector3d::Zero();
     for (int v : skin_) {
       const Vector3d x = rest.row(v).transpose() + u.segment<3>(3 * v);
       const double s = length2 > 0 ? std::clamp((x - tip.base_m).dot(axis) / length2, 0.0, 1.0) : 0;
@@ -206,9 +230,13 @@ void HybridRegion::add_tip_forces(std::span<const RegionTip> tips, bool accumula
       const Vector3d f = k * (tip.radius_m - d) / d * from_axis;
       region_load_n_.segment<3>(3 * v) += f;
       on_tip -= f;
+      about_base -= (x - tip.base_m).cross(f);
       ++pressed_vertices_;
     }
-    if (accumulate) tip_force_step_n_[t] += on_tip;
+    if (accumulate) {
+      tip_force_step_n_[t] += on_tip;
+      tip_torque_step_nm_[t] += about_base;
+    }
   }
 }
 
@@ -234,7 +262,6 @@ void HybridRegion::advance(double tick_s, std::span<const int> rest_indices,
       offset_m_.segment<3>(3 * static_cast<Eigen::Index>(k)) +=
           model_ref_.G_block(interface_compliance_[k], rest_indices[j]) * f;
   }
-  if (!interface_.empty()) model_.set_interface_offset(offset_m_);
 
   // Substeps of a fixed Δt (the bound): the tick's time, plus what the
   // last tick left over, in whole steps; the remainder waits for the next.
@@ -243,19 +270,41 @@ void HybridRegion::advance(double tick_s, std::span<const int> rest_indices,
   pending_s_ -= substeps_ * substep_s_;
   if (substeps_ == 0) return;  // the last tick's forces stand
   for (auto& f : tip_force_step_n_) f.setZero();
+  for (auto& m : tip_torque_step_nm_) m.setZero();
   for (int n = 0; n < substeps_; ++n) {
     add_tip_forces(tips, true);
-    model_.step(substep_s_, region_load_n_);
+    step_force_n_ = region_load_n_;
+    add_coupling_force();
+    model_.step(substep_s_, step_force_n_);
   }
-  for (std::size_t t = 0; t < tip_force_n_.size(); ++t)
-    tip_force_n_[t] =
-        t < tips.size() ? Vector3d(tip_force_step_n_[t] / substeps_) : Vector3d::Zero();
+  for (std::size_t t = 0; t < tip_force_n_.size(); ++t) {
+    const bool given = t < tips.size();
+    tip_force_n_[t] = given ? Vector3d(tip_force_step_n_[t] / substeps_) : Vector3d::Zero();
+    tip_torque_nm_[t] = given ? Vector3d(tip_torque_step_nm_[t] / substeps_) : Vector3d::Zero();
+  }
 
-  // f_Γ = S (u_Γ − u_Γ⁰).
+  // f_Γ = S (u_Γ − u_Γ⁰) at the end of the tick.
+  step_force_n_.setZero();
+  add_coupling_force();
+}
+
+// f_Γ = S (u_Γ − u_Γ⁰) from the displacement now, and −f_Γ on the region's
+// Γ vertices (the rest pushes back) into step_force_n_.
+void HybridRegion::add_coupling_force() {
+  if (interface_.empty()) return;
   for (std::size_t k = 0; k < interface_.size(); ++k)
     gamma_u_m_.segment<3>(3 * static_cast<Eigen::Index>(k)) =
-        model_.displacement_m().segment<3>(3 * interface_[k]);
-  interface_force_n_.noalias() = coupling_ * (gamma_u_m_ - offset_m_);
+        model_.displacement_m().segment<3>(3 * interface_[k]) -
+        offset_m_.segment<3>(3 * static_cast<Eigen::Index>(k));
+  interface_force_n_.noalias() = coupling_ * gamma_u_m_;
+  for (std::size_t k = 0; k < interface_.size(); ++k)
+    step_force_n_.segment<3>(3 * interface_[k]) -=
+        interface_force_n_.segment<3>(3 * static_cast<Eigen::Index>(k));
+}
+
+// Σ_w |S_vw| per Γ row, the coupling's part of Gershgorin's bound.
+void HybridRegion::update_coupling_row_sums() {
+  coupling_row_sum_ = coupling_.cwiseAbs().rowwise().sum();
 }
 
 void HybridRegion::add_rest_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const {
@@ -317,7 +366,7 @@ void HybridRegion::release_detached_interface() {
   }
   interface_ = std::move(vertices);
   interface_compliance_ = std::move(compliance);
-  model_.set_interface_coupling(interface_, coupling_);
+  update_coupling_row_sums();
   const auto n = static_cast<Eigen::Index>(3 * interface_.size());
   offset_m_ = Eigen::VectorXd::Zero(n);
   interface_force_n_ = Eigen::VectorXd::Zero(n);
@@ -327,6 +376,20 @@ void HybridRegion::release_detached_interface() {
 Eigen::Vector3d HybridRegion::position_m(int vertex) const {
   return model_.rest_positions_m().row(vertex).transpose() +
          model_.displacement_m().segment<3>(3 * vertex);
+}
+
+Eigen::Vector3d HybridRegion::rest_point_of(const Eigen::Vector3d& x_m) const {
+  int nearest = -1;
+  double best = std::numeric_limits<double>::infinity();
+  for (int v = 0; v < model_.vertex_count(); ++v) {
+    if (model_.is_detached(v)) continue;
+    const double d = (position_m(v) - x_m).squaredNorm();
+    if (d < best) {
+      best = d;
+      nearest = v;
+    }
+  }
+  return nearest < 0 ? x_m : Vector3d(x_m - model_.displacement_m().segment<3>(3 * nearest));
 }
 
 void HybridRegion::visible_triangles(std::vector<std::array<int, 3>>& out) const {

@@ -202,7 +202,7 @@ struct ToolContactEngine::Impl {
       return;
     }
     const bool closing = tool.has_previous_jaw && tool.previous_jaw > g.grasp_angle_rad &&
-                         jaw <= g.grasp_angle_rad && g.jaw_length_m > 0;
+                         jaw <= g.grasp_angle_rad && g.jaw_length_m > 0 && !g.cutting;
     if (!closing) return;
     surface.next_epoch();
     // The triangles near the jaws that this tool may hold: not wholly fixed,
@@ -723,6 +723,13 @@ const ToolPoseInput& ToolContactEngine::pose(int t) const {
   return impl_->tools.at(static_cast<std::size_t>(t)).pose;
 }
 const char* ToolContactEngine::solver_message() const { return impl_->message; }
+bool ToolContactEngine::in_session(int tool) const {
+  const auto& t = impl_->tools.at(static_cast<std::size_t>(tool));
+  return t.alive && !t.in_watchdog;
+}
+void ToolContactEngine::set_triangle_hidden(int triangle, bool hidden) {
+  impl_->surface.set_hidden(triangle, hidden);
+}
 std::span<const ContactPoint> ToolContactEngine::contact_points() const {
   return {impl_->points.data(), static_cast<std::size_t>(impl_->count)};
 }

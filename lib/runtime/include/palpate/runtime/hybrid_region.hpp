@@ -9,7 +9,8 @@
 ///    u_Γ⁰ = G_ΓS f_S, where Γ would go if the region pushed nothing;
 ///  - the region pushes on the rest with f_Γ = S (u_Γ − u_Γ⁰), S = G_ΓΓ⁻¹,
 ///    which moves the rest's surface by G_SΓ f_Γ;
-///  - tool tips press the region's surface vertices (a penalty force);
+///  - tool tips press the region's surface vertices off Γ (a penalty
+///    force; on Γ the rest's triangles take the contact);
 ///  - a blade removes the region's tetrahedra it crosses (a cut), and the
 ///    faces the rest shares with a removed tetrahedron are uncovered.
 ///
@@ -73,8 +74,10 @@ class HybridRegion {
   void advance(double tick_s, std::span<const int> rest_indices,
                std::span<const double> rest_forces_n, std::span<const RegionTip> tips);
 
-  /// The force on tip @p tip from the region in the last advance() (N).
+  /// The force on tip @p tip from the region in the last advance() (N), and
+  /// its torque about the tip's base (N·m), averaged over the substeps.
   const Eigen::Vector3d& tip_force_n(int tip) const { return tip_force_n_.at(tip); }
+  const Eigen::Vector3d& tip_torque_nm(int tip) const { return tip_torque_nm_.at(tip); }
   /// Region surface vertices the tips pressed at the last substep.
   int pressed_vertices() const { return pressed_vertices_; }
   /// f_Γ = S (u_Γ − u_Γ⁰) (3n_Γ, N): the region's push on the rest at Γ,
@@ -105,6 +108,11 @@ class HybridRegion {
   const std::vector<int>& interface_compliance_indices() const { return interface_compliance_; }
   /// Region vertex v's position now (rest + u), m.
   Eigen::Vector3d position_m(int vertex) const;
+  /// Where point @p x_m of the deformed region was at rest, to first order:
+  /// x minus the displacement of the region's vertex nearest to it (a scan
+  /// of the remaining vertices; x itself when none remains). For placing a
+  /// blade given in the world on the rest geometry cut() takes.
+  Eigen::Vector3d rest_point_of(const Eigen::Vector3d& x_m) const;
   /// Increments with every change of the region's surface (cuts).
   std::uint64_t topology_version() const { return model_.boundary_version(); }
   /// The region's surface to draw and touch (region vertex numbering,
@@ -129,6 +137,8 @@ class HybridRegion {
   };
   void update_after_topology_change();
   void release_detached_interface();
+  void add_coupling_force();
+  void update_coupling_row_sums();
   bool is_interface_face(const std::array<int, 3>& triangle) const;
   void add_tip_forces(std::span<const RegionTip> tips, bool accumulate);
 
@@ -150,8 +160,9 @@ class HybridRegion {
   double substep_bound_s_ = 0, substep_s_ = 0, pending_s_ = 0;
   int substeps_ = 0, pressed_vertices_ = 0;
   Eigen::VectorXd offset_m_, interface_force_n_, gamma_u_m_;
-  Eigen::VectorXd region_load_n_, retimed_m_;
-  std::vector<Eigen::Vector3d> tip_force_n_, tip_force_step_n_;
+  Eigen::VectorXd region_load_n_, step_force_n_, retimed_m_;
+  Eigen::VectorXd coupling_row_sum_;  // Σ_w |S_vw| per Γ DOF
+  std::vector<Eigen::Vector3d> tip_force_n_, tip_force_step_n_, tip_torque_nm_, tip_torque_step_nm_;
 };
 
 }  // namespace palpate

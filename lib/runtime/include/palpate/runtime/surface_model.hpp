@@ -35,8 +35,8 @@ struct SurfaceModel {
   std::string input_hash;        ///< "sha256:<hex>", from the file
   /// The file's cuttable region (/cut_region, format 1.3), as the job chose
   /// it, or empty. Such a file's mesh and G are the organ without that
-  /// region: until the hybrid run time steps it, palpated serves the rest
-  /// and says so (docs/model.md, "The hybrid model").
+  /// region, which palpated steps beside it (HybridRegion; docs/model.md,
+  /// "The hybrid model as served").
   std::string cut_region_spec;
   /// The region itself (null without one): what HybridRegion steps.
   std::shared_ptr<const CutRegionData> cut_region;
@@ -72,12 +72,19 @@ struct SurfaceModel {
   }
 };
 
-/// What palpated says of a file with a cut region, which it cannot step yet.
+/// What palpated says of a warped model's cut region, which it does not
+/// step (the tensor-mass region is linear).
 inline constexpr const char* kCutRegionNotSimulated =
-    "this palpated serves the organ without its cuttable region, which it does not simulate "
-    "yet: where the region was, tools and requests meet the rest of the organ's surface, a "
-    "cavity (docs/model.md, \"The hybrid model\"); for the whole organ, serve a file made "
-    "without [cut_region]";
+    "a warped model is served without its cuttable region, which is linear: where the region "
+    "was, tools and requests meet the rest of the organ's surface, a cavity (docs/model.md, "
+    "\"The hybrid model as served\"); serve it linear (no warped = true) to step the region";
+/// What palpated says of every cut region it steps: the coupling it does
+/// not have yet.
+inline constexpr const char* kCutRegionPartlyCoupled =
+    "the region is stepped and coupled to the rest both ways, but a tool touching the rest of "
+    "the organ feels the rest without the region's push on it (the stream shows that push): "
+    "near the region the rest feels softer than the whole organ (docs/model.md, \"The hybrid "
+    "model as served\")";
 
 /// Loads and checks a compliance file (read_compliance_file) and derives the
 /// drawing and addressing tables.

@@ -127,7 +127,15 @@ class ToolContactEngine {
   const ToolOutput& output(int tool) const;
   /// The last pose taken of @p tool.
   const ToolPoseInput& pose(int tool) const;
+  /// True while tool @p tool's poses come: taken, and the watchdog not
+  /// ramping it out.
+  bool in_session(int tool) const;
   const char* solver_message() const;
+  /// Hides drawn triangle @p triangle from the tools (or shows it again): a
+  /// hidden triangle is inside the organ, covered by a served cut region
+  /// (HybridRegion::covers_rest_triangle); contacts already on it stay
+  /// until they leave. None is hidden at first.
+  void set_triangle_hidden(int triangle, bool hidden);
 
   /// The contact points of the last solve, all tools.
   std::span<const ContactPoint> contact_points() const;

@@ -32,7 +32,13 @@ struct ToolGeometry {
   double release_angle_rad = degrees(25);  ///< jaws opening above this release
   double max_jaw_angle_rad = degrees(75);  ///< poses beyond are refused
   double force_limit_n = 8;                ///< the device's maximum force
-  double max_force_rate_n_per_s = 500;     ///< slew limit of the fed-back force
+  /// A cutting tool (an electrosurgical hook, scissors): its tip segment
+  /// (hinge → hinge + tip_length·z) is a cutting edge, live while the jaws
+  /// are closed below grasp_angle (the handle is the trigger); it removes
+  /// the served cut region's tetrahedra it meets (docs/tools.md, "Cutting")
+  /// and never grasps.
+  bool cutting = false;
+  double max_force_rate_n_per_s = 500;  ///< slew limit of the fed-back force
 };
 
 /// Engine-wide contact settings (configuration's [contact] table, SI).

@@ -1,0 +1,157 @@
+// The hybrid model as served (issue 20): one haptic tick of the cuttable
+// region — HybridRegion::advance over 1 ms: u_Γ⁰ = G_ΓS f_S from eight loads
+// on the rest, the tensor-mass substeps with the coupling −S (u_Γ − u_Γ⁰)
+// and a tip pressing the region's surface, then f_Γ = S (u_Γ − u_Γ⁰) — and
+// one cut (HybridRegion::cut: the blade's query, the removals, the Γ
+// vertices released, the new step bound), on the sample organ with balls of
+// two radii at its lower front (BENCHMARKS.md, "The hybrid model as
+// served"). Targets: a tick p99 ≤ 500 µs at up to 2,000 tetrahedra, a cut
+// ≤ 10 ms. Same-run baseline: the same substeps of the uncoupled
+// TensorMassModel::step alone (what the coupling and the tip add).
+//
+//   build/bench/palpate_hybrid_tick_bench [mesh_size_m] [ticks]
+//
+// A small timed program: every tick and every cut is timed; the
+// percentiles are printed.
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "palpate/core/statistics.hpp"
+#include "palpate/core/system_info.hpp"
+#include "palpate/offline/mesh_io.hpp"
+#include "palpate/offline/precompute.hpp"
+#include "palpate/runtime/hybrid_region.hpp"
+#include "palpate/runtime/surface_model.hpp"
+
+namespace {
+
+using namespace palpate;
+using Clock = std::chrono::steady_clock;
+using Eigen::Vector3d;
+
+double microseconds(Clock::time_point since) {
+  return std::chrono::duration<double, std::micro>(Clock::now() - since).count();
+}
+
+struct Quantiles {
+  double p50, p99, max;
+};
+Quantiles quantiles(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return {sorted_percentile(v, 0.5), sorted_percentile(v, 0.99), v.empty() ? 0 : v.back()};
+}
+
+// The ball's centre: (40, 0, −34.64) mm is on the sample organ's surface.
+const Vector3d kCentre(0.040, 0, -0.03464);
+
+void run(const std::filesystem::path& dir, double radius_m, int ticks) {
+  PrecomputeJob job;
+  job.mesh_file = dir / "organ.msh";
+  job.young_modulus_pa = 85e3;
+  job.poisson_ratio = 0.45;
+  job.attachment.spheres.push_back({Vector3d(-0.03, 0, 0.04), 0.025});
+  job.cut_region = CutRegionJob{RegionSpec::sphere(kCentre, radius_m), 1060, 20};
+  job.output = dir / "organ-cut.h5";
+  job.write_xdmf = false;
+  run_precompute(job, {});
+  const SurfaceModel model = load_surface_model("organ", job.output);
+  HybridRegion region(model);
+  const CutRegionData& data = *model.cut_region;
+
+  // Eight loads on the rest (0.1 N inward), the compliance vertices nearest
+  // a point on its top; a 4 mm sphere pressing the region's surface 2 mm
+  // deep at its lowest point, sliding 5 mm along y and back each second.
+  std::vector<int> rest_indices;
+  std::vector<double> rest_forces;
+  std::vector<std::pair<double, int>> by_distance;
+  for (int a = 0; a < model.compliance_vertex_count(); ++a)
+    by_distance.emplace_back((model.surface.rest_position(a) - Vector3d(0, 0, 0.04)).norm(), a);
+  std::partial_sort(by_distance.begin(), by_distance.begin() + 8, by_distance.end());
+  for (int i = 0; i < 8; ++i) {
+    rest_indices.push_back(by_distance[static_cast<std::size_t>(i)].second);
+    rest_forces.insert(rest_forces.end(), {0, 0, -0.1});
+  }
+  int lowest = 0;
+  for (int v = 0; v < static_cast<int>(data.vertices_m.rows()); ++v)
+    if (data.vertices_m(v, 2) < data.vertices_m(lowest, 2)) lowest = v;
+  const Vector3d touch = data.vertices_m.row(lowest).transpose();
+  const double r = 0.004;
+
+  TensorMassModel uncoupled(
+      data.vertices_m, data.tetrahedra,
+      [&] {
+        std::vector<Matrix12d> k(static_cast<std::size_t>(data.tetrahedra.rows()));
+        for (Eigen::Index t = 0; t < data.tetrahedra.rows(); ++t)
+          for (int i = 0; i < 12; ++i)
+            for (int j = 0; j < 12; ++j)
+              k[static_cast<std::size_t>(t)](i, j) = data.element_stiffness_n_per_m(t, 12 * i + j);
+        return k;
+      }(),
+      {data.density_kg_m3, data.damping_per_s},
+      std::vector<int>(data.fixed_vertices.begin(), data.fixed_vertices.end()));
+  const Eigen::VectorXd no_load = Eigen::VectorXd::Zero(3 * data.vertices_m.rows());
+
+  std::vector<double> tick_us, baseline_us;
+  long substeps = 0;
+  for (int n = 0; n < ticks; ++n) {
+    const double y = 0.005 * std::sin(2 * 3.14159265358979 * n * 1e-3);
+    const RegionTip tip{touch + Vector3d(0, y, r - 0.002), touch + Vector3d(0, y, r - 0.002), r};
+    const auto start = Clock::now();
+    region.advance(1e-3, rest_indices, rest_forces, {&tip, 1});
+    tick_us.push_back(microseconds(start));
+    substeps += region.substeps();
+    const auto base = Clock::now();
+    for (int s = 0; s < region.substeps(); ++s) uncoupled.step(region.substep_s(), no_load);
+    baseline_us.push_back(microseconds(base));
+  }
+  const Quantiles tick = quantiles(tick_us), base = quantiles(baseline_us);
+
+  // Cuts: a vertical blade 30 mm long through the ball's centre, moved
+  // 0.5 mm along y per cut, from one side of the ball to the other.
+  std::vector<double> cut_us;
+  int removed = 0, cuts_that_removed = 0;
+  for (double y = -radius_m; y <= radius_m; y += 5e-4) {
+    const Vector3d a = kCentre + Vector3d(0, y, 0.015), b = kCentre + Vector3d(0, y, -0.015);
+    const auto start = Clock::now();
+    const int k = region.cut(a, b);
+    cut_us.push_back(microseconds(start));
+    removed += k;
+    cuts_that_removed += k > 0;
+  }
+  const Quantiles cut = quantiles(cut_us);
+  std::printf(
+      "ball %.0f mm: %d tetrahedra, %d vertices, %zu on Γ; substep %.1f µs, %.2f per tick\n"
+      "  tick (advance 1 ms): p50 %.1f µs, p99 %.1f µs, max %.1f µs\n"
+      "  baseline (the same substeps, uncoupled step alone): p50 %.1f µs, p99 %.1f µs\n"
+      "  cut (%zu blades, %d removing, %d tetrahedra in all): p50 %.1f µs, p99 %.1f µs, "
+      "max %.1f µs; Γ vertices still held %zu; substep after %.1f µs\n",
+      radius_m * 1e3, static_cast<int>(data.tetrahedra.rows()),
+      static_cast<int>(data.vertices_m.rows()),
+      static_cast<std::size_t>(data.interface_vertices.size()), region.substep_s() * 1e6,
+      static_cast<double>(substeps) / ticks, tick.p50, tick.p99, tick.max, base.p50, base.p99,
+      cut_us.size(), cuts_that_removed, removed, cut.p50, cut.p99, cut.max,
+      region.interface_vertices().size(), region.substep_s() * 1e6);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  palpate::ensure_optimized_blas(argv);
+  const double size_m = argc > 1 ? std::atof(argv[1]) : 0.004;
+  const int ticks = argc > 2 ? std::atoi(argv[2]) : 5000;
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("palpate-hybrid-bench-" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  write_sample_organ(dir / "organ.msh", size_m);
+  std::printf("sample organ at %.1f mm, %s\n", size_m * 1e3, palpate::utc_timestamp().c_str());
+  for (const double radius_m : {0.016, 0.025}) run(dir, radius_m, ticks);
+  std::filesystem::remove_all(dir);
+}
