@@ -85,9 +85,10 @@ void StreamPublisher::publish_surfaces() {
     const auto gamma = static_cast<std::size_t>(region.interface_count);
     // u_S = G_SC f_C + G_SΓ f_Γ, off the request path: the tools' loads, and
     // the cut region's push on the rest at Γ (docs/model.md, "The hybrid
-    // model as served"). f_Γ is not a tool's: it stays out of the
-    // constrained vertices below. (The region is linear: for a warped model
-    // its f_Γ enters the material field as the tools' material loads do.)
+    // model"; docs/dds.md, "The cut region"). f_Γ is not a tool's: it stays
+    // out of the constrained vertices below. (The region is linear: for a
+    // warped model its f_Γ enters the material field as the tools' material
+    // loads do.)
     std::span<const int> load_indices(s.shown.indices.data(), count);
     const double* load_forces = s.shown.forces.data();
     if (gamma > 0) {
