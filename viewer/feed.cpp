@@ -237,10 +237,15 @@ struct Feed::Impl {
     index.clear();
     for (std::uint32_t v = 0; v < nv; ++v) index.emplace(surface.vertex_ids[v], v);
 
-    json text = {{"type", "model"},          {"model_id", m.model_id},
-                 {"units", m.units},         {"material", m.material_summary},
-                 {"mechanics", m.mechanics}, {"input_hash", m.input_hash},
-                 {"vertex_count", nv},       {"compliance_vertex_count", compliance},
+    json text = {{"type", "model"},
+                 {"model_id", m.model_id},
+                 {"units", m.units},
+                 {"material", m.material_summary},
+                 {"mechanics", m.mechanics},
+                 {"cut_region", m.cut_region},
+                 {"input_hash", m.input_hash},
+                 {"vertex_count", nv},
+                 {"compliance_vertex_count", compliance},
                  {"triangle_count", nt}};
     FrameWriter frame(kGeometryFrame);
     frame.reserve(64 + 12 * static_cast<std::size_t>(nv) + 12 * static_cast<std::size_t>(nt));
@@ -265,7 +270,8 @@ struct Feed::Impl {
         std::min(s.constrained_vertices.size(), s.constrained_forces_n.size() / 3));
     FrameWriter frame(kSurfaceFrame);
     frame.reserve(128 + 12 * static_cast<std::size_t>(ns) + 16 * static_cast<std::size_t>(nc) +
-                  64 * s.contact_points.size());
+                  64 * s.contact_points.size() + 4 * s.region_positions_m.size() +
+                  4 * s.region_triangles.size() + 4 * s.hidden_triangles.size());
     frame.string(s.model_id);
     frame.string(s.source_client_id);
     frame.u32(static_cast<std::uint32_t>(s.sequence_number));
@@ -284,7 +290,31 @@ struct Feed::Impl {
     }
     for (std::uint32_t i = 0; i < 3 * nc; ++i) frame.f32(s.constrained_forces_n[i]);
     write_contact_points(s, index == drawn_index.end() ? nullptr : &index->second, frame);
+    write_region(s, frame);
     sink({Message::Kind::kSurface, s.model_id, {}, frame.take()});
+  }
+
+  /// The served cut region, after the contact points (a page that predates
+  /// it stops reading before): its topology version, its deformed vertices,
+  /// its visible triangles and the model's triangles it covers
+  /// (docs/viewer.md, "Surface frame"). A triangle naming a vertex the
+  /// region does not have is sent as (0, 0, 0): degenerate, not drawn.
+  static void write_region(const SurfaceSample& s, FrameWriter& frame) {
+    const auto nrv = static_cast<std::uint32_t>(s.region_positions_m.size() / 3);
+    const auto nrt = static_cast<std::uint32_t>(s.region_triangles.size() / 3);
+    const auto nh = static_cast<std::uint32_t>(s.hidden_triangles.size());
+    frame.u32(static_cast<std::uint32_t>(s.topology_version));
+    frame.u32(static_cast<std::uint32_t>(s.topology_version >> 32));
+    frame.u32(nrv);
+    frame.u32(nrt);
+    frame.u32(nh);
+    for (std::uint32_t i = 0; i < 3 * nrv; ++i) frame.f32(s.region_positions_m[i]);
+    for (std::uint32_t t = 0; t < nrt; ++t) {
+      const std::uint32_t* corners = &s.region_triangles[3 * std::size_t{t}];
+      const bool valid = corners[0] < nrv && corners[1] < nrv && corners[2] < nrv;
+      for (int c = 0; c < 3; ++c) frame.u32(valid ? corners[c] : 0);
+    }
+    for (const std::uint32_t h : s.hidden_triangles) frame.u32(h);
   }
 
   /// The tools' contact points, after the constrained vertices (a page that

@@ -34,7 +34,8 @@ export function readContactPoints(data, o, readString) {
   const vertices = new Uint32Array(buffer, o, 3 * count), weights = new Float32Array(buffer, o + 12 * count, 3 * count);
   o += 24 * count;
   const position = new Float32Array(buffer, o, 3 * count), force = new Float32Array(buffer, o + 12 * count, 3 * count);
-  return { count, toolIds, tool, held, vertices, weights, position, force };
+  // end: where what follows the points starts (the cut region, region.js).
+  return { count, toolIds, tool, held, vertices, weights, position, force, end: o + 24 * count };
 }
 
 /** The points as plain objects (true positions, m; forces, N), for tests. */

@@ -9,7 +9,8 @@ export function renderModel(m) {
   document.getElementById('model').textContent =
     `${m.model_id}: ${m.vertex_count} surface vertices (${m.compliance_vertex_count} free), ` +
     `${m.triangle_count} triangles · ${m.material} · ` +
-    (m.mechanics === 'warped' ? 'warped (large rotations)' : 'linear');
+    (m.mechanics === 'warped' ? 'warped (large rotations)' : 'linear') +
+    (m.cut_region ? ` · cut region ${m.cut_region}` : '');
 }
 
 /** The tools table; each tool's name in the colour of its contact points (colourOf(id), 0xRRGGBB). */

@@ -4,7 +4,8 @@
 // in metres, as the messages are; the panel converts at display (mm, N).
 //
 // This file holds the organ, the wire and the render loop; camera.js,
-// legend.js, exaggeration.js, tools.js, contacts.js and panel.js one concept each.
+// legend.js, exaggeration.js, tools.js, contacts.js, region.js and panel.js
+// one concept each.
 
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
@@ -14,12 +15,16 @@ import { MIN_SCALE_M, PeakHoldScale, colourAt, drawLegendBar, legendMeaning, mm 
 import { addEvent, renderModel, renderRates, renderToolTable } from './panel.js';
 import { ContactLayer, NO_POINTS, listContactPoints, readContactPoints } from './contacts.js';
 import { ToolLayer, toolColour } from './tools.js';
+import { NO_REGION, organIndexWithout, readRegion, regionIndex } from './region.js';
 
 const GEOMETRY_FRAME = 1;
 const SURFACE_FRAME = 2;
 const MAX_CONTACTS = 256;
 const FIXED_COLOR = new THREE.Color(0x5a6270);
 const FIXED_MARKER_COLOR = 0x7fdbff;
+// The cut region: one colour (the stream gives its positions, not how far
+// they moved, so it cannot be shaded by displacement).
+const REGION_COLOR = 0xd08770;
 
 const parameters = new URLSearchParams(location.search);
 const wantedModel = parameters.get('model');           // ?model=ID: which model (default: the first)
@@ -47,6 +52,10 @@ const view = {
   contacts: 0,            // markers drawn: contact points, or a request's constrained vertices
   contactPoints: 0,       // of them, the tools' contact points (on triangles)
   vertexLoads: 0,         // of them, a request's constrained vertices (no contact points)
+  topologyVersion: 0,     // of the served cut region drawn; 0: none
+  organTriangles: 0,      // the organ's triangles drawn (its own less those the region covers)
+  regionTriangles: 0,     // the region's triangles drawn
+  regionVertices: 0,
   tools: {},
   framesRendered: 0,
   events: [],
@@ -95,13 +104,25 @@ createExaggerationControl({
 });
 
 // ---------------------------------------------------------------- the organ
-// { id, mesh, fixedMarkers, rest, restNormal, displacement, magnitude,
-//   contactIndex, contactForce, points, nv, ns, box, centre, radius }: displacement (3·ns, m) is
-// the last streamed one, true; the mesh draws it exaggerated.
+// { id, mesh, fixedMarkers, rest, restNormal, triangles, displacement, magnitude,
+//   contactIndex, contactForce, points, nv, ns, box, centre, radius, region }: displacement
+// (3·ns, m) is the last streamed one, true; the mesh draws it exaggerated.
+// triangles: every triangle of the description (the mesh may draw fewer:
+// those the cut region covers are left out). region: { version, mesh, hidden }
+// of the served cut region drawn (hidden: the triangles it covers, as
+// streamed), version 0 and no mesh without one.
 let organ = null;
+
+function disposeRegion() {
+  if (!organ || !organ.region.mesh) return;
+  const m = organ.region.mesh;
+  scene.remove(m); m.geometry.dispose(); m.material.dispose();
+  organ.region.mesh = null;
+}
 
 function disposeOrgan() {
   if (!organ) return;
+  disposeRegion();
   for (const o of [organ.mesh, organ.fixedMarkers]) { scene.remove(o); o.geometry.dispose(); o.material.dispose(); }
   organ = null;
 }
@@ -128,7 +149,8 @@ function loadGeometry(id, nv, ns, rest, triangles) {
   const radius = box.getSize(new THREE.Vector3()).length() / 2;
   organ = { id, mesh, rest, nv, ns, box, centre, radius, displacement: new Float32Array(3 * ns),
             magnitude: new Float32Array(ns), contactIndex: new Uint32Array(0), contactForce: new Float32Array(0),
-            points: NO_POINTS };
+            points: NO_POINTS, triangles: triangles.slice(),
+            region: { version: 0, mesh: null, hidden: new Uint32Array(0) } };
   organ.restNormal = geometry.attributes.normal.array.slice();
   organ.fixedMarkers = makeFixedMarkers(rest, organ.restNormal, ns, nv, radius);
   scene.add(organ.fixedMarkers);
@@ -136,6 +158,9 @@ function loadGeometry(id, nv, ns, rest, triangles) {
   view.vertexCount = nv;
   view.complianceVertexCount = ns;
   view.triangleCount = triangles.length / 3;
+  view.organTriangles = triangles.length / 3;
+  view.topologyVersion = 0;
+  view.regionTriangles = view.regionVertices = 0;
   view.fixedMarkers = nv - ns;
   view.firstOrganFrame = null;
   showStreamEnded(false);
@@ -194,10 +219,48 @@ function applySurface(ns, displacement, contactIndex, contactForce, points) {
       : `${contactIndex.length} constrained vertices`);
 }
 
+// The served cut region of a surface frame (region.js): its own mesh at the
+// streamed positions (true: the exaggeration multiplies the organ's
+// displacement only), and the organ without the triangles it covers. Both
+// index buffers are rebuilt only when its topology version changes (a cut);
+// version 0 (no region) draws the organ whole, as without the fields.
+function applyRegion(region) {
+  const r = organ.region;
+  const nrv = region.positions.length / 3;
+  if (region.version !== r.version) {
+    r.version = region.version;
+    r.hidden = Uint32Array.from(region.hidden);
+    const index = organIndexWithout(organ.triangles, region.hidden);
+    organ.mesh.geometry.setIndex(new THREE.BufferAttribute(index, 1));
+    view.organTriangles = index.length / 3;
+    disposeRegion();
+    if (region.version !== 0) {
+      const geometry = new THREE.BufferGeometry();
+      geometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(3 * nrv), 3));
+      geometry.setIndex(new THREE.BufferAttribute(regionIndex(region.triangles, nrv), 1));
+      const material = new THREE.MeshStandardMaterial({ color: REGION_COLOR, roughness: 0.55, metalness: 0.0 });
+      r.mesh = new THREE.Mesh(geometry, material);
+      scene.add(r.mesh);
+    }
+    view.topologyVersion = region.version;
+    view.regionTriangles = r.mesh ? r.mesh.geometry.index.count / 3 : 0;
+    view.regionVertices = r.mesh ? nrv : 0;
+    organ.mesh.geometry.computeVertexNormals();
+  }
+  if (!r.mesh) return;
+  const position = r.mesh.geometry.attributes.position;
+  if (position.array.length !== region.positions.length) return;  // not this topology's: wait for the next
+  position.array.set(region.positions);
+  position.needsUpdate = true;
+  r.mesh.geometry.computeVertexNormals();
+  r.mesh.geometry.computeBoundingSphere();
+}
+
 // palpated stopped serving the model (the bridge's surface_ended): its last
 // state is gone with it, so the organ is drawn at rest, and the page says so.
 function endStream() {
   applySurface(organ.ns, new Float32Array(3 * organ.ns), new Uint32Array(0), new Float32Array(0), NO_POINTS);
+  applyRegion(NO_REGION);
   colourScale.reset();
   view.source = '';
   showStreamEnded(true);
@@ -233,6 +296,13 @@ function largestOffset(count) {
 // The largest distance of a drawn free vertex from its rest position (0 before any model).
 view.drawnDisplacement = () => largestOffset(organ ? organ.ns : 0);
 view.drawnPositions = () => (organ ? Array.from(organ.mesh.geometry.attributes.position.array) : []);
+// The triangles the renderer draws: the organ's (index triples into its
+// vertices) and the cut region's (into the region's), and the region's positions.
+view.drawnOrganTriangles = () => (organ ? Array.from(organ.mesh.geometry.index.array) : []);
+view.drawnRegionTriangles = () => (organ && organ.region.mesh ? Array.from(organ.region.mesh.geometry.index.array) : []);
+view.hiddenTriangles = () => (organ ? Array.from(organ.region.hidden) : []);  // as streamed
+view.drawnRegionPositions = () =>
+  (organ && organ.region.mesh ? Array.from(organ.region.mesh.geometry.attributes.position.array) : []);
 view.restPositions = () => (organ ? Array.from(organ.rest) : []);
 view.trueDisplacement = () => (organ ? Array.from(organ.displacement) : []);
 view.vertexColours = () => (organ ? Array.from(organ.mesh.geometry.attributes.color.array) : []);
@@ -317,7 +387,9 @@ function onBinary(buffer) {
     const contactIndex = new Uint32Array(buffer, o, nc);
     const contactForce = new Float32Array(buffer, o + 4 * nc, 3 * nc);
     o += 16 * nc;
-    applySurface(ns, displacement, contactIndex, contactForce, readContactPoints(data, o, readString));
+    const points = readContactPoints(data, o, readString);
+    applySurface(ns, displacement, contactIndex, contactForce, points);
+    if (organ.ns === ns) applyRegion(readRegion(data, points.end));
     showStreamEnded(false);
     view.surfacesReceived += 1;
     view.lastSequence = sequence;

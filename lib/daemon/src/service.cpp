@@ -215,9 +215,9 @@ Service::Impl::~Impl() {
 
 void Service::Impl::publish_descriptions() {
   for (const auto& served : models) {
-    const palpate_ModelDescription d =
-        wire::describe(served->model, served->request_limits.max_displacement_m,
-                       served->request_limits.max_force_n, served->warped());
+    const palpate_ModelDescription d = wire::describe(
+        served->model, served->request_limits.max_displacement_m,
+        served->request_limits.max_force_n, served->warped(), served->region != nullptr);
     dds::check(dds_write(model_writer.get(), &d), "publishing model " + served->model.id);
   }
 }

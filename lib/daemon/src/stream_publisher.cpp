@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <span>
 
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/transport/wire.hpp"
@@ -33,6 +34,11 @@ StreamPublisher::StreamPublisher(Sources sources, const DaemonConfig& config,
     // The tools' ids never change: read once, not under the tools' lock.
     const ToolContactEngine& engine = *served.tools.engine;
     for (int t = 0; t < engine.tool_count(); ++t) s.tool_ids.push_back(engine.tool(t).id);
+    // The loads of the displacement field: the tools' and, with a served
+    // cut region, its push on the rest at Γ.
+    const std::size_t loads = s.shown.indices.size() + s.shown.region.interface_indices.size();
+    s.load_indices.resize(loads);
+    s.load_forces.resize(3 * loads);
     s.displacement = Eigen::VectorXd::Zero(served.model.compliance_rows());
     if (served.warped()) {
       s.omega.assign(static_cast<std::size_t>(served.model.compliance_rows()), 0.0);
@@ -75,9 +81,25 @@ void StreamPublisher::publish_surfaces() {
     ModelStream& s = streams_[i];
     if (!served.shown.copy_if_newer(s.published_version, s.shown)) continue;
     const auto count = static_cast<std::size_t>(s.shown.count);
-    // u_S = G_SC f_C, off the request path.
-    surface_displacement(served.model, {s.shown.indices.data(), count}, s.shown.forces.data(),
-                         s.displacement);
+    const ShownState::Snapshot::Region& region = s.shown.region;
+    const auto gamma = static_cast<std::size_t>(region.interface_count);
+    // u_S = G_SC f_C + G_SΓ f_Γ, off the request path: the tools' loads, and
+    // the cut region's push on the rest at Γ (docs/model.md, "The hybrid
+    // model"; docs/dds.md, "The cut region"). f_Γ is not a tool's: it stays
+    // out of the constrained vertices below. (The region is linear: for a
+    // warped model its f_Γ enters the material field as the tools' material
+    // loads do.)
+    std::span<const int> load_indices(s.shown.indices.data(), count);
+    const double* load_forces = s.shown.forces.data();
+    if (gamma > 0) {
+      std::copy_n(s.shown.indices.begin(), count, s.load_indices.begin());
+      std::copy_n(region.interface_indices.begin(), gamma, s.load_indices.begin() + count);
+      std::copy_n(s.shown.forces.begin(), 3 * count, s.load_forces.begin());
+      std::copy_n(region.interface_forces.begin(), 3 * gamma, s.load_forces.begin() + 3 * count);
+      load_indices = {s.load_indices.data(), count + gamma};
+      load_forces = s.load_forces.data();
+    }
+    surface_displacement(served.model, load_indices, load_forces, s.displacement);
     const double* forces = s.shown.forces.data();
     if (served.warped()) {
       // The field is the material û: x − p = R̃(ω) û vertex by vertex, and a
@@ -123,6 +145,17 @@ void StreamPublisher::publish_surfaces() {
     }
     wire::view(sample.contact_points,
                std::span<const palpate_SurfaceContact>(s.contacts.data(), points));
+    // The region's surface and the rest's triangles it covers, in every
+    // sample: the topic keeps the last one only, and a late viewer needs all.
+    wire::view_region(
+        region.topology_version,
+        std::span<const double>(region.positions.data(),
+                                3 * static_cast<std::size_t>(region.vertex_count)),
+        std::span<const std::uint32_t>(region.triangles.data(),
+                                       3 * static_cast<std::size_t>(region.triangle_count)),
+        std::span<const std::uint32_t>(region.hidden_triangles.data(),
+                                       static_cast<std::size_t>(region.hidden_count)),
+        sample);
     if (const dds_return_t rc = dds_write(surface_writer_.get(), &sample); rc < 0)
       spdlog::error("event=dds_error what=\"writing the surface of {}\" error={}", served.model.id,
                     dds_strretcode(rc));

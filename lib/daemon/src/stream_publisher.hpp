@@ -56,6 +56,10 @@ class StreamPublisher {
     std::vector<std::uint32_t> vertex_ids;         // mesh vertex ids of shown.indices
     std::vector<palpate_SurfaceContact> contacts;  // shown.points, as sent
     std::vector<std::string> tool_ids;             // of the model's tools, by index
+    // The displacement field's loads: the shown ones then the cut region's
+    // f_Γ (room for both).
+    std::vector<int> load_indices;
+    std::vector<double> load_forces;
     Eigen::VectorXd displacement;
     // Warped models: the rotation of every compliance vertex, and the loads
     // in the world (the shown ones are material).

@@ -54,7 +54,7 @@ auto to_vector(const Sequence& sequence) {
 }  // namespace
 
 palpate_ModelDescription describe(const SurfaceModel& model, double max_displacement_m,
-                                  double max_force_n, bool warped) {
+                                  double max_force_n, bool warped, bool region_served) {
   palpate_ModelDescription d{};
   copy_bounded(d.model_id, model.id);
   copy_bounded(d.units, "m, N (SI)");
@@ -67,6 +67,7 @@ palpate_ModelDescription describe(const SurfaceModel& model, double max_displace
   d.max_displacement = max_displacement_m;
   d.max_force = max_force_n;
   copy_bounded(d.mechanics, warped ? "warped" : "linear");
+  if (region_served) copy_bounded(d.cut_region, model.cut_region_spec);
   return d;
 }
 
@@ -84,6 +85,7 @@ ModelInfo from_idl(const palpate_ModelDescription& d) {
   info.max_force_n = d.max_force;
   info.mechanics = bounded(d.mechanics);
   if (info.mechanics.empty()) info.mechanics = "linear";
+  info.cut_region = bounded(d.cut_region);
   return info;
 }
 
@@ -218,7 +220,21 @@ SurfaceSample from_idl(const palpate_SurfaceDisplacement& s) {
   out.contact_points.reserve(s.contact_points._length);
   for (std::uint32_t c = 0; c < s.contact_points._length; ++c)
     out.contact_points.push_back(from_idl(s.contact_points._buffer[c]));
+  out.topology_version = s.topology_version;
+  out.region_positions_m = to_vector(s.region_positions);
+  out.region_triangles = to_vector(s.region_triangles);
+  out.hidden_triangles = to_vector(s.hidden_triangles);
   return out;
+}
+
+void view_region(std::uint64_t topology_version, std::span<const double> positions_m,
+                 std::span<const std::uint32_t> triangles,
+                 std::span<const std::uint32_t> hidden_triangles,
+                 palpate_SurfaceDisplacement& out) {
+  out.topology_version = topology_version;
+  view(out.region_positions, positions_m);
+  view(out.region_triangles, triangles);
+  view(out.hidden_triangles, hidden_triangles);
 }
 
 LatencySummary from_idl(const palpate_Latency& l) {

@@ -26,6 +26,10 @@ struct ModelInfo {
   /// "linear", or "warped" (large rotations, docs/model.md); "linear" from
   /// a palpated older than the field.
   std::string mechanics = "linear";
+  /// The compliance file's cuttable region as its job chose it, when
+  /// palpated simulates it (the surface samples then carry its surface);
+  /// empty otherwise and from a palpated older than the field.
+  std::string cut_region;
 };
 
 /// One constraint of a request (see ConstraintKind).
@@ -90,6 +94,16 @@ struct SurfaceSample {
   /// The tools' contact points; empty at rest, for a request's state and
   /// from a palpated older than the field.
   std::vector<SurfaceContactSample> contact_points;
+  /// The served cut region (ModelInfo::cut_region), all empty and version 0
+  /// without one or from a palpated older than the fields. displacement_m
+  /// then includes the region's push on the rest.
+  std::uint64_t topology_version = 0;      ///< 0: no region; changes with its surface (a cut)
+  std::vector<double> region_positions_m;  ///< 3 per region vertex, deformed
+  std::vector<std::uint32_t>
+      region_triangles;  ///< 3 per visible triangle, region vertices, outward
+  /// Triangles of the model's drawn surface (index into
+  /// DrawnSurface::triangles / 3) the region covers: not to be drawn.
+  std::vector<std::uint32_t> hidden_triangles;
 };
 
 struct LatencySummary {

@@ -64,9 +64,11 @@ void view(Sequence& sequence, std::span<T> values) {
 
 /// The description of @p model, with the bounds on a request's values there
 /// (m, N); its sequences are views of the model's surface (valid while
-/// @p model lives).
+/// @p model lives). @p region_served: palpated simulates the model's cut
+/// region (cut_region then names it: SurfaceModel::cut_region_spec).
 palpate_ModelDescription describe(const SurfaceModel& model, double max_displacement_m,
-                                  double max_force_n, bool warped = false);
+                                  double max_force_n, bool warped = false,
+                                  bool region_served = false);
 ModelInfo from_idl(const palpate_ModelDescription& description);
 
 // ---- palpate_request, palpate_reply --------------------------------------------
@@ -100,6 +102,14 @@ Reply from_idl(const palpate_ConstraintReply& reply);
 void to_idl(const ContactPoint& point, std::string_view tool_id,
             std::span<const std::uint32_t> vertex_ids, palpate_SurfaceContact& out);
 SurfaceContactSample from_idl(const palpate_SurfaceContact& contact);
+/// The served cut region's part of a surface sample: @p topology_version
+/// (0: none), the region's deformed vertex positions (3 each, m), its visible
+/// triangles (3 region vertex indices each) and the drawn triangles of the
+/// model it covers. @p out's sequences view the arrays (no copy, no
+/// allocation); they must live until the sample is written.
+void view_region(std::uint64_t topology_version, std::span<const double> positions_m,
+                 std::span<const std::uint32_t> triangles,
+                 std::span<const std::uint32_t> hidden_triangles, palpate_SurfaceDisplacement& out);
 SurfaceSample from_idl(const palpate_SurfaceDisplacement& sample);
 LatencySummary from_idl(const palpate_Latency& latency);
 palpate_Latency to_idl(const LatencySummary& latency);
