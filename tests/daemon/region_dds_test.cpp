@@ -3,7 +3,8 @@
 // namespace): the model's description names the region, and every surface
 // sample carries its part (docs/dds.md, "The cut region") as the region
 // itself says it, computed here from the same file by HybridRegion; a
-// model without a region streams none.
+// model without a region streams none; a probe pressing the region feels
+// it, and a cutting tool's live edge cuts it (docs/tools.md, "Cutting").
 
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -11,7 +12,11 @@
 #include <Eigen/Core>
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <fstream>
+#include <optional>
+#include <string>
+#include <thread>
 #include <vector>
 
 #include "palpate/offline/cut_region.hpp"
@@ -19,6 +24,7 @@
 #include "palpate/runtime/hybrid_region.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/transport/client.hpp"
+#include "palpate/transport/tool_client.hpp"
 #include "support/box_job.hpp"
 #include "support/daemon_process.hpp"
 #include "support/test_meshes.hpp"
@@ -52,7 +58,13 @@ class RegionStream : public ::testing::Test {
         << "[daemon]\nid = \"region-daemon\"\n"
            "[rates]\nsurface_hz = 200\n"
            "[[model]]\nid = \"cut\"\nfile = \"cut.h5\"\n"
-           "[[model]]\nid = \"plain\"\nfile = \"plain.h5\"\n";
+           "[[model]]\nid = \"plain\"\nfile = \"plain.h5\"\n"
+           "[[tools]]\nid = \"probe\"\ntip = \"sphere\"\ntip_radius_mm = 4\n"
+           "jaw_length_mm = 0\nforce_limit_n = 100\nmax_force_rate_n_per_s = 1e6\n"
+           "[[tools]]\nid = \"hook\"\ntip_radius_mm = 1\ntip_length_mm = 35\n"
+           "jaw_length_mm = 0\ncutting = true\nforce_limit_n = 100\n"
+           "max_force_rate_n_per_s = 1e6\n"
+           "[contact]\nwatchdog_timeout_ms = 200\n";
     daemon_ = new Daemon({"--config", (dir_->path() / "palpated.toml").string()},
                          dir_->path() / "palpated.log");
   }
@@ -137,6 +149,68 @@ TEST_F(RegionStream, AModelWithoutARegionStreamsNone) {
   EXPECT_TRUE(none->region_positions_m.empty());
   EXPECT_TRUE(none->region_triangles.empty());
   EXPECT_TRUE(none->hidden_triangles.empty());
+}
+
+// Poses at the haptic rate (1 ms apart), each answered before the next.
+struct Driver {
+  ToolClient client{ToolClientOptions{}};
+  std::uint64_t sequence = 0;
+  std::optional<ToolFeedbackSample> pose(const std::string& tool, const Eigen::Vector3d& at,
+                                         double jaw_rad) {
+    ++sequence;
+    // Tool +z along the model's −z: the tip points down.
+    client.send_pose(tool, "cut", sequence, {at.x(), at.y(), at.z()}, {0, 1, 0, 0}, jaw_rad);
+    auto feedback = client.wait_feedback(tool, sequence, std::chrono::steady_clock::now() + 1s);
+    std::this_thread::sleep_for(1ms);
+    return feedback;
+  }
+};
+
+TEST_F(RegionStream, AProbeFeelsTheRegionAndAHookCutsIt) {
+  Driver hand;
+  hand.client.open_tool("probe");
+  hand.client.open_tool("hook");
+  ASSERT_TRUE(hand.client.wait_for_daemon(kTimeout)) << daemon_->log();
+  Client viewer(ClientOptions{"cut-viewer", 0, "", true, false});
+  ASSERT_TRUE(viewer.wait_for_model("cut", kTimeout)) << daemon_->log();
+  const auto before = viewer.wait_surface("cut", 1, 0, kTimeout);
+  ASSERT_TRUE(before) << daemon_->log();
+
+  // A 4 mm sphere 2 mm into the region's top at (80, 32) mm, a region vertex
+  // off Γ and 16 mm from the rest's top faces: only the region is touched.
+  // The region pushes the probe up, by at most k · 2 mm (the vertex moves
+  // away: docs/model.md, "The hybrid model as served").
+  const Eigen::Vector3d touch(0.080, 0.032, 0.048 + 0.004 - 0.002);
+  for (int i = 0; i <= 20; ++i)
+    hand.pose("probe", touch + Eigen::Vector3d(0, 0, 0.002 - i * 1e-4), 0);
+  std::optional<ToolFeedbackSample> pressed;
+  for (int i = 0; i < 300; ++i) pressed = hand.pose("probe", touch, 0);
+  ASSERT_TRUE(pressed) << daemon_->log();
+  const Eigen::Vector3d f(pressed->force_n.data());
+  EXPECT_GT(f.z(), 0.05) << "N, up";
+  EXPECT_LE(f.norm(), 200 * 0.002 * (1 + 1e-9)) << "N: k · depth at most";
+  EXPECT_EQ(pressed->contacts, 0u) << "nothing of the rest is touched";
+
+  // A hook 35 mm long, its edge live (jaws closed), drawn along y through
+  // the region at x = 88 mm from 2 mm above the top to 25 mm (1 mm above
+  // the region's floor on the rest) and away from its sides.
+  const std::string log_before = daemon_->log();
+  const Eigen::Vector3d start(0.088, 0.020, 0.060), end(0.088, 0.044, 0.060);
+  for (int i = 0; i <= 240; ++i) hand.pose("hook", start + (end - start) * (i / 240.0), 0);
+  const auto after = viewer.wait_surface("cut", before->sequence_number + 1, 0, kTimeout);
+  ASSERT_TRUE(after) << daemon_->log();
+  std::optional<SurfaceSample> cut = after;
+  for (int i = 0; i < 100 && cut && cut->topology_version == before->topology_version; ++i) {
+    hand.pose("hook", end, 0);
+    cut = viewer.wait_surface("cut", cut->sequence_number + 1, 0, 100ms);
+  }
+  ASSERT_TRUE(cut) << daemon_->log();
+  EXPECT_GT(cut->topology_version, before->topology_version) << daemon_->log();
+  EXPECT_NE(cut->region_triangles, before->region_triangles) << "the cut's faces";
+  // The edge reached the bottom layer: rest faces under it are open now.
+  EXPECT_LT(cut->hidden_triangles.size(), before->hidden_triangles.size());
+  EXPECT_NE(daemon_->log().find("event=cut tool=hook model=cut"), std::string::npos);
+  for (const double x : cut->region_positions_m) EXPECT_TRUE(std::isfinite(x));
 }
 
 }  // namespace
