@@ -296,7 +296,8 @@ void HybridRegion::add_coupling_force() {
     gamma_u_m_.segment<3>(3 * static_cast<Eigen::Index>(k)) =
         model_.displacement_m().segment<3>(3 * interface_[k]) -
         offset_m_.segment<3>(3 * static_cast<Eigen::Index>(k));
-  interface_force_n_.noalias() = coupling_ * gamma_u_m_;
+  // S is symmetric: its lower half is read, half the memory of the product.
+  interface_force_n_.noalias() = coupling_.selfadjointView<Eigen::Lower>() * gamma_u_m_;
   for (std::size_t k = 0; k < interface_.size(); ++k)
     step_force_n_.segment<3>(3 * interface_[k]) -=
         interface_force_n_.segment<3>(3 * static_cast<Eigen::Index>(k));
