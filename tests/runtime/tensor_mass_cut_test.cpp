@@ -4,7 +4,7 @@
 // exchange no force, cutting through entirely, and 10,000 random cuts
 // between explicit steps that keep the region finite, uninverted and within
 // the energy the load put in (docs/model.md, "The tensor-mass model: a
-// cuttable region").
+// cuttable region"). The index itself (the internal tet_grid) first.
 
 #include <gtest/gtest.h>
 
@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "../../lib/runtime/src/tet_grid.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/offline/fem.hpp"
 #include "palpate/runtime/tensor_mass.hpp"
@@ -95,6 +96,53 @@ bool segment_crosses_triangle(const Vector3d& a, const Vector3d& b, const Vector
   const Vector3d g = s.cross(e1);
   const double v = d.dot(g) / det, w = e2.dot(g) / det;
   return u >= 0 && v >= 0 && u + v <= 1 && w >= 0 && w <= 1;
+}
+
+// 0. Each tetrahedron is listed, once, in every cell that holds a point of
+// it (its corners, its centroid, random points), the lists ascending, the
+// cells from cell_of(lo) to cell_of(hi) covering any box.
+TEST(TensorMassCut, GridListsEachTetrahedronInTheCellsOfItsPoints) {
+  const TetMesh mesh = big_box(true);
+  const detail::TetGrid grid(mesh.vertices, mesh.tetrahedra);
+  const int nt = static_cast<int>(mesh.tetrahedra.rows());
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (int t = 0; t < nt; ++t) {
+    Eigen::Vector4d w;
+    for (int n = 0; n < 6; ++n) {
+      // Corners, the centroid, then a random point (barycentric weights).
+      if (n < 4)
+        w = Eigen::Vector4d::Unit(n);
+      else if (n == 4)
+        w.setConstant(0.25);
+      else
+        w = Eigen::Vector4d(unit(rng), unit(rng), unit(rng), unit(rng)).normalized().cwiseAbs2();
+      Vector3d x = Vector3d::Zero();
+      for (int k = 0; k < 4; ++k) x += w[k] * mesh.vertices.row(mesh.tetrahedra(t, k)).transpose();
+      const auto list = grid.tetrahedra_in(grid.cell_of(x));
+      EXPECT_EQ(std::count(list.begin(), list.end(), t), 1) << "tetrahedron " << t;
+    }
+  }
+  std::size_t entries = 0;
+  const auto dims = grid.dims();
+  for (int z = 0; z < dims[2]; ++z)
+    for (int y = 0; y < dims[1]; ++y)
+      for (int x = 0; x < dims[0]; ++x) {
+        const detail::TetGrid::Cell cell{x, y, z};
+        // The centre of a cell is in it.
+        EXPECT_EQ(grid.cell_of(grid.cell_centre(cell)), cell);
+        const auto list = grid.tetrahedra_in(cell);
+        EXPECT_TRUE(std::is_sorted(list.begin(), list.end()));
+        EXPECT_TRUE(std::adjacent_find(list.begin(), list.end()) == list.end());
+        entries += list.size();
+      }
+  EXPECT_EQ(entries, grid.entry_count());
+  // About the element size: each tetrahedron in a few cells, not dozens.
+  std::printf("tetrahedron grid: %lld cells, %.2f per tetrahedron\n",
+              static_cast<long long>(grid.cell_count()),
+              static_cast<double>(grid.entry_count()) / nt);
+  EXPECT_LE(grid.entry_count(), static_cast<std::size_t>(27 * nt));
+  EXPECT_GE(grid.cell_count(), 64);
 }
 
 // 1. The separating-axis test against an independent characterisation: a

@@ -40,6 +40,7 @@ class TetGrid {
   const Eigen::Vector3d& lower_m() const { return origin_; }
   const Eigen::Vector3d& upper_m() const { return upper_; }
   std::int64_t cell_count() const { return std::int64_t{dims_[0]} * dims_[1] * dims_[2]; }
+  const Cell& dims() const { return dims_; }  ///< cells along x, y, z
   /// Entries of the cell lists (about 8 per tetrahedron on a structured mesh).
   std::size_t entry_count() const { return tets_.size(); }
 
