@@ -258,7 +258,9 @@ TEST(TensorMassCut, IndexedQueriesEqualTheScan) {
     if (!r.model.is_removed(t)) r.model.remove_tetrahedron(t);
   }
   long segment_hits = 0, triangle_hits = 0, quad_hits = 0;
-  for (int trial = 0; trial < 600; ++trial) {
+  // Fewer under the sanitizers (the scans are slow there).
+  const int trials = testing::time_scale() > 1 ? 150 : 600;
+  for (int trial = 0; trial < trials; ++trial) {
     const auto [before, after] = random_sweep(rng, trial % 3);
     const Vector3d &p = before.a_m, &q = before.b_m, &s = after.b_m, &w = after.a_m;
     const auto segment = r.model.tetrahedra_crossed_by_segment(p, q);
@@ -281,10 +283,10 @@ TEST(TensorMassCut, IndexedQueriesEqualTheScan) {
     triangle_hits += std::ssize(triangle);
     quad_hits += std::ssize(quad);
   }
-  std::printf("600 queries each: %ld segment, %ld triangle, %ld swept-quad hits\n", segment_hits,
-              triangle_hits, quad_hits);
-  EXPECT_GT(segment_hits, 300);  // the queries did meet tetrahedra
-  EXPECT_GT(quad_hits, 1000);
+  std::printf("%d queries each: %ld segment, %ld triangle, %ld swept-quad hits\n", trials,
+              segment_hits, triangle_hits, quad_hits);
+  EXPECT_GT(segment_hits, trials / 2);  // the queries did meet tetrahedra (about 2 each)
+  EXPECT_GT(quad_hits, 2 * trials);     // (about 4 each)
 
   // A blade that did not move cuts its segment's tetrahedra (the degenerate
   // quadrilateral), up to touching within round-off: none here.
@@ -543,9 +545,12 @@ TEST(TensorMassCut, RandomCutsStayPhysical) {
   const TensorMassMaterial material{1060, 20};
   constexpr int kCuts = 10000;
   constexpr double kAccel = 1.0;  // m/s², along −z
-  // Under the sanitizers (several times slower) fewer steps between cuts;
-  // the cuts stay 10,000.
-  const int steps_per_cut = std::max(1, static_cast<int>(std::lround(4 / testing::time_scale())));
+  // Under the sanitizers (PALPATE_TEST_TIME_SCALE > 1: Eigen checked and
+  // instrumented, some 50 times slower) one step between cuts and the
+  // energies and volumes checked at every 20th cut; the cuts stay 10,000,
+  // the work W is summed at every step.
+  const bool slow = testing::time_scale() > 1;
+  const int steps_per_cut = slow ? 1 : 4, check_every = slow ? 20 : 1;
   const double side = kBoxCells * kBoxCell_m;
 
   std::mt19937 rng(2026);
@@ -558,7 +563,7 @@ TEST(TensorMassCut, RandomCutsStayPhysical) {
   std::vector<int> removed;
   removed.reserve(static_cast<std::size_t>(nt));
   // Counts.
-  int episodes = 0, refused = 0, direct = 0, stroke_ticks = 0;
+  int episodes = 0, refused = 0, direct = 0, stroke_ticks = 0, checks = 0;
   long swept_away = 0, steps = 0;
   double worst_h_over_w = 0, worst_e_over_w = 0, least_volume = 1, largest_u = 0;
   Blade blade;
@@ -623,7 +628,8 @@ TEST(TensorMassCut, RandomCutsStayPhysical) {
     const Blade next{centre - half, centre + half};
     --stroke_ticks;
 
-    const double h_before = energies(m)[0];
+    const bool checked = cut % check_every == 0;
+    const double h_before = checked ? energies(m)[0] : 0.0;
     try {
       swept_away += m.cut_swept_blade(blade, next, removed);
       if (cut % 7 == 0) {
@@ -646,11 +652,14 @@ TEST(TensorMassCut, RandomCutsStayPhysical) {
       FAIL() << "cut " << cut << ": " << e.what();
     }
     blade = next;
-    // A cut takes energy away, never adds it (round-off: 10⁻⁹ of W).
-    const double h_after = energies(m)[0];
-    ASSERT_LE(h_after, h_before + 1e-9 * work) << "cut " << cut;
-    const std::string after_cut = check_state(m);
-    ASSERT_EQ(after_cut, "") << "after cut " << cut;
+    if (checked) {
+      ++checks;
+      // A cut takes energy away, never adds it (round-off: 10⁻⁹ of W).
+      const double h_after = energies(m)[0];
+      ASSERT_LE(h_after, h_before + 1e-9 * work) << "cut " << cut;
+      const std::string after_cut = check_state(m);
+      ASSERT_EQ(after_cut, "") << "after cut " << cut;
+    }
 
     for (int s = 0; s < steps_per_cut; ++s) {
       force.setZero();
@@ -662,6 +671,7 @@ TEST(TensorMassCut, RandomCutsStayPhysical) {
       m.step(dt, force);
       ++steps;
       work += 0.5 * (force.dot(m.displacement_m()) - before_dot);
+      if (!checked) continue;
       const std::string after_step = check_state(m);
       ASSERT_EQ(after_step, "") << "after step " << steps << ", cut " << cut;
       const auto [shadow, energy] = energies(m);
@@ -674,11 +684,11 @@ TEST(TensorMassCut, RandomCutsStayPhysical) {
     }
   }
   std::printf(
-      "%d cuts (%d steps each, Δt %.3g µs): %ld tetrahedra swept away, %d removals by index "
-      "(%d refused: already removed), %d regions, %ld steps; H/W up to %.4f, E/W up to %.4f "
-      "(bound %.3f); least volume ratio %.4f; largest |u| %.3g mm\n",
-      kCuts, steps_per_cut, dt * 1e6, swept_away, direct, refused, episodes, steps, worst_h_over_w,
-      worst_e_over_w, energy_factor, least_volume, largest_u * 1e3);
+      "%d cuts (%d steps each, Δt %.3g µs, %d checked): %ld tetrahedra swept away, %d removals "
+      "by index (%d refused: already removed), %d regions, %ld steps; H/W up to %.4f, E/W up "
+      "to %.4f (bound %.3f); least volume ratio %.4f; largest |u| %.3g mm\n",
+      kCuts, steps_per_cut, dt * 1e6, checks, swept_away, direct, refused, episodes, steps,
+      worst_h_over_w, worst_e_over_w, energy_factor, least_volume, largest_u * 1e3);
   EXPECT_GT(swept_away, 5000);  // the cuts did cut
   EXPECT_GT(refused, 0);
   EXPECT_GT(episodes, 2);
