@@ -10,6 +10,17 @@
 // thick box of the same material beyond it, held on its far face.
 // BM_CriticalStep reports Δt_crit = 2/ω_max and the steps per 1 ms tick.
 //
+// Cutting (issue 20: a cut within 10 ms; the tick is 1 ms), on the 2,058-
+// tetrahedron box held on x = 0: BM_CutTick is one tick's cut, the query
+// of the quadrilateral a blade swept (tetrahedra_swept_by_blade, spatial
+// index) and remove_tetrahedron for each tetrahedron it returns, for a
+// blade of 10 mm and one of 40 mm (across the whole 28 mm section) moving
+// 1 mm a tick in strokes across the region, and BM_CutSection a blade
+// sweeping a whole cross-section in one tick; BM_SweptQuery is the query
+// alone (no removal), through the index and, as the same-run baseline, by
+// a scan of every tetrahedron with the same exact test; BM_SegmentQuery the
+// same for tetrahedra_crossed_by_segment.
+//
 // Usage: palpate_tensor_mass_bench [--benchmark_...]
 
 #include <benchmark/benchmark.h>
@@ -18,6 +29,7 @@
 #include <Eigen/SparseCholesky>
 #include <array>
 #include <cmath>
+#include <random>
 #include <utility>
 #include <vector>
 
@@ -160,6 +172,151 @@ void BM_CriticalStep(benchmark::State& state) {
   state.counters["substeps_per_ms"] = std::ceil(1e-3 / (0.9 * bound.critical_time_step_s));
 }
 
+/// Strokes of a blade of @p length_m across the size-1 box (7 × 7 × 7
+/// cells): twenty, at random x and heights, the blade leaning 17° from z,
+/// each moving along y at 1 mm a tick from 2 mm before the region to 2 mm
+/// past it (32 ticks). A fixed seed: the same sweeps in every run.
+std::vector<std::array<palpate::Blade, 2>> strokes(double length_m) {
+  const double side = kSizes[1][1] * kCell_m;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::vector<std::array<palpate::Blade, 2>> out;
+  const Eigen::Vector3d along = Eigen::Vector3d(0.3, 0, 1).normalized();
+  for (int s = 0; s < 20; ++s) {
+    const double x = (0.1 + 0.8 * unit(rng)) * side, z = (0.2 + 0.6 * unit(rng)) * side;
+    for (int tick = 0; tick < 32; ++tick) {
+      const Eigen::Vector3d at(x, -2e-3 + 1e-3 * tick, z), next = at + Eigen::Vector3d(0, 1e-3, 0);
+      const Eigen::Vector3d half = 0.5 * length_m * along;
+      out.push_back(
+          {palpate::Blade{at - half, at + half}, palpate::Blade{next - half, next + half}});
+    }
+  }
+  return out;
+}
+
+/// One tick's cut: the swept quadrilateral's tetrahedra, each removed. The
+/// strokes cut the region apart as they go; after the last, the region is
+/// restored (outside the timing) and the strokes start again.
+void BM_CutTick(benchmark::State& state) {
+  const double length_m = static_cast<double>(state.range(0)) * 1e-3;
+  Setup s = make(kSizes[1][0], kSizes[1][1], false);
+  const TensorMassModel whole = s.model;
+  const auto sweeps = strokes(length_m);
+  std::vector<int> removed;
+  removed.reserve(static_cast<std::size_t>(whole.tetrahedron_count()));
+  std::size_t next = 0;
+  long cut = 0, most = 0;
+  for (auto _ : state) {
+    if (next == sweeps.size()) {
+      state.PauseTiming();
+      s.model = whole;
+      next = 0;
+      state.ResumeTiming();
+    }
+    const int n = s.model.cut_swept_blade(sweeps[next][0], sweeps[next][1], removed);
+    ++next;
+    cut += n;
+    most = std::max<long>(most, n);
+    benchmark::DoNotOptimize(removed.data());
+  }
+  state.counters["tets"] = static_cast<double>(whole.tetrahedron_count());
+  state.counters["removed_per_tick"] =
+      static_cast<double>(cut) / static_cast<double>(state.iterations());
+  state.counters["most_removed"] = static_cast<double>(most);
+}
+
+/// The heaviest tick: a blade across the whole section sweeping all of it
+/// at once, the plane x = 14 mm (through the middle of a layer of cubes)
+/// from y = −6 mm to 34 mm, z −6 to 34 mm: every tetrahedron of the layer
+/// (294) removed in one tick, leaving two parts. The region is restored
+/// before each tick, outside the timing.
+void BM_CutSection(benchmark::State& state) {
+  Setup s = make(kSizes[1][0], kSizes[1][1], false);
+  const TensorMassModel whole = s.model;
+  const double x = 3.5 * kCell_m, lo = -6e-3, hi = 34e-3;
+  const palpate::Blade before{{x, lo, lo}, {x, lo, hi}}, after{{x, hi, lo}, {x, hi, hi}};
+  std::vector<int> removed;
+  removed.reserve(static_cast<std::size_t>(whole.tetrahedron_count()));
+  int n = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    s.model = whole;
+    state.ResumeTiming();
+    n = s.model.cut_swept_blade(before, after, removed);
+    benchmark::DoNotOptimize(removed.data());
+  }
+  state.counters["tets"] = static_cast<double>(whole.tetrahedron_count());
+  state.counters["removed"] = n;
+  state.counters["parts"] = s.model.connected_parts();
+}
+
+/// The swept-quadrilateral query alone on the whole region: through the
+/// index (scan = 0) or by the scan of every tetrahedron (scan = 1, the
+/// baseline: the same exact test, triangle_meets_tetrahedron).
+void BM_SweptQuery(benchmark::State& state) {
+  const bool scan = state.range(1) != 0;
+  Setup s = make(kSizes[1][0], kSizes[1][1], false);
+  const auto sweeps = strokes(static_cast<double>(state.range(0)) * 1e-3);
+  const TensorMassModel& m = s.model;
+  std::vector<int> out;
+  out.reserve(static_cast<std::size_t>(m.tetrahedron_count()));
+  std::vector<palpate::Matrix43d> corners(static_cast<std::size_t>(m.tetrahedron_count()));
+  for (int t = 0; t < m.tetrahedron_count(); ++t)
+    for (int k = 0; k < 4; ++k)
+      corners[static_cast<std::size_t>(t)].row(k) = m.rest_positions_m().row(m.tetrahedra()(t, k));
+  std::size_t next = 0;
+  long met = 0;
+  for (auto _ : state) {
+    const auto& [before, after] = sweeps[next];
+    next = (next + 1) % sweeps.size();
+    if (scan) {
+      out.clear();
+      for (int t = 0; t < m.tetrahedron_count(); ++t) {
+        const auto& x = corners[static_cast<std::size_t>(t)];
+        if (!m.is_removed(t) &&
+            (palpate::triangle_meets_tetrahedron(before.a_m, before.b_m, after.b_m, x) ||
+             palpate::triangle_meets_tetrahedron(before.a_m, after.b_m, after.a_m, x)))
+          out.push_back(t);
+      }
+    } else {
+      m.tetrahedra_swept_by_blade(before, after, out);
+    }
+    met += static_cast<long>(out.size());
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.counters["tets"] = static_cast<double>(m.tetrahedron_count());
+  state.counters["met_per_query"] =
+      static_cast<double>(met) / static_cast<double>(state.iterations());
+}
+
+/// The same for the segment query: the blades of the strokes above.
+void BM_SegmentQuery(benchmark::State& state) {
+  const bool scan = state.range(1) != 0;
+  Setup s = make(kSizes[1][0], kSizes[1][1], false);
+  const auto sweeps = strokes(static_cast<double>(state.range(0)) * 1e-3);
+  const TensorMassModel& m = s.model;
+  std::vector<int> out;
+  out.reserve(static_cast<std::size_t>(m.tetrahedron_count()));
+  std::size_t next = 0;
+  for (auto _ : state) {
+    const palpate::Blade& blade = sweeps[next][0];
+    next = (next + 1) % sweeps.size();
+    if (scan) {
+      out.clear();
+      palpate::Matrix43d x;
+      for (int t = 0; t < m.tetrahedron_count(); ++t) {
+        for (int k = 0; k < 4; ++k) x.row(k) = m.rest_positions_m().row(m.tetrahedra()(t, k));
+        if (!m.is_removed(t) && palpate::segment_meets_tetrahedron(blade.a_m, blade.b_m, x))
+          out.push_back(t);
+      }
+    } else {
+      m.tetrahedra_crossed_by_segment(blade.a_m, blade.b_m, out);
+    }
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.counters["tets"] = static_cast<double>(m.tetrahedron_count());
+}
+
 BENCHMARK(BM_TensorMassStep)
     ->ArgsProduct({{0, 1, 2}, {0, 1}})
     ->ArgNames({"size", "coupled"})
@@ -170,6 +327,16 @@ BENCHMARK(BM_CriticalStep)
     ->ArgNames({"size", "coupled"})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
+BENCHMARK(BM_CutTick)->Arg(10)->Arg(40)->ArgName("blade_mm")->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_CutSection)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_SweptQuery)
+    ->ArgsProduct({{10, 40}, {0, 1}})
+    ->ArgNames({"blade_mm", "scan"})
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_SegmentQuery)
+    ->ArgsProduct({{10, 40}, {0, 1}})
+    ->ArgNames({"blade_mm", "scan"})
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

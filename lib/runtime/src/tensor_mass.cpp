@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "palpate/core/error.hpp"
+#include "tet_grid.hpp"
 
 namespace palpate {
 namespace {
@@ -116,6 +117,8 @@ TensorMassModel::TensorMassModel(CRef<Eigen::MatrixX3d> rest_positions_m,
   }
 
   build_topology();
+  grid_ = std::make_shared<const detail::TetGrid>(rest_m_, tets_);
+  tet_stamp_.assign(static_cast<std::size_t>(nt), 0U);
 
   u_ = Eigen::VectorXd::Zero(3 * nv);
   u_previous_ = u_;
@@ -303,7 +306,13 @@ StableTimeStep TensorMassModel::stable_time_step(double tolerance, int max_itera
     state = state * 6364136223846793005ULL + 1442695040888963407ULL;
     y[i] = (scale[i] != 0) ? 0.5 + static_cast<double>(state >> 11) * 0x1.0p-53 : 0.0;
   }
-  if (y.norm() == 0) return out;  // nothing moves
+  if (y.norm() == 0) {  // nothing moves (every tetrahedron cut, say): any step is stable
+    const double inf = std::numeric_limits<double>::infinity();
+    out.critical_time_step_s = out.gershgorin_time_step_s = out.element_time_step_s = inf;
+    out.iterations = 0;
+    out.converged = true;
+    return out;
+  }
   y.normalize();
   double rho = 0;
   for (out.iterations = 1; out.iterations <= max_iterations; ++out.iterations) {

@@ -1,7 +1,8 @@
 // The tensor-mass region's topology: the adjacency a cut updates locally
 // (vertex and edge → tetrahedra, faces), the tensors re-summed from it, the
-// boundary, removal, and the tetrahedra a cutting segment meets
-// (docs/model.md, "The tensor-mass model: a cuttable region").
+// boundary, removal, and the connected parts a cut leaves (docs/model.md,
+// "The tensor-mass model: a cuttable region"; the queries of what a blade
+// meets are tensor_mass_query.cpp's).
 
 #include <fmt/format.h>
 
@@ -16,7 +17,6 @@ namespace palpate {
 namespace {
 
 using Eigen::Matrix3d;
-using Eigen::Vector3d;
 
 constexpr const char* kWhat = "tensor-mass region";
 
@@ -27,8 +27,6 @@ constexpr std::array<std::array<int, 3>, 4> kFaceOpposite = {
 /// The six edges as pairs of local vertices.
 constexpr std::array<std::array<int, 2>, 6> kLocalEdges = {
     {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}};
-
-Vector3d row(const Eigen::MatrixX3d& m, int r) { return m.row(r).transpose(); }
 
 int local_index(const Eigen::MatrixX4i& t, int tet, int v) {
   for (int k = 0; k < 4; ++k)
@@ -254,33 +252,36 @@ void TensorMassModel::remove_tetrahedron(int tet) {
   ++boundary_version_;
 }
 
-// Cyrus–Beck: the segment x(s) = a + s (b − a), s ∈ [0, 1], is inside the
-// tetrahedron where n_f·(x(s) − p_f) ≤ 0 for its four outward face normals.
-std::vector<int> TensorMassModel::tetrahedra_crossed_by_segment(const Eigen::Vector3d& a_m,
-                                                                const Eigen::Vector3d& b_m) const {
-  std::vector<int> out;
-  const Vector3d d = b_m - a_m;
-  for (int t = 0; t < tetrahedron_count(); ++t) {
-    if (tet_alive_[t] == 0) continue;
-    double lo = 0, hi = 1;
-    for (int k = 0; k < 4 && lo <= hi; ++k) {
-      const Vector3d p = row(rest_m_, tets_(t, kFaceOpposite[k][0]));
-      const Vector3d n = (row(rest_m_, tets_(t, kFaceOpposite[k][1])) - p)
-                             .cross(row(rest_m_, tets_(t, kFaceOpposite[k][2])) - p);
-      // Touching counts: a tolerance of round-off relative to the sizes.
-      const double slack = 1e-12 * n.norm() * (d.norm() + (a_m - p).norm());
-      const double start = n.dot(a_m - p), rate = n.dot(d);
-      if (std::abs(rate) <= 1e-300) {
-        if (start > slack) hi = -1;
-      } else if (rate > 0) {
-        hi = std::min(hi, (slack - start) / rate);
-      } else {
-        lo = std::max(lo, (slack - start) / rate);
+// Faces shared by two remaining tetrahedra join them; a search from each
+// tetrahedron not yet labelled labels its part.
+std::vector<int> TensorMassModel::part_labels() const {
+  const int nt = tetrahedron_count();
+  std::vector<int> label(nt, -1), stack;
+  int parts = 0;
+  for (int seed = 0; seed < nt; ++seed) {
+    if (tet_alive_[seed] == 0 || label[seed] >= 0) continue;
+    label[seed] = parts;
+    stack.push_back(seed);
+    while (!stack.empty()) {
+      const int t = stack.back();
+      stack.pop_back();
+      for (const int face : tet_faces_[t]) {
+        const auto& two = face_tets_[face];
+        const int other = two[0] == t ? two[1] : two[0];
+        if (other >= 0 && tet_alive_[other] != 0 && label[other] < 0) {
+          label[other] = parts;
+          stack.push_back(other);
+        }
       }
     }
-    if (lo <= hi) out.push_back(t);
+    ++parts;
   }
-  return out;
+  return label;
+}
+
+int TensorMassModel::connected_parts() const {
+  const std::vector<int> label = part_labels();
+  return label.empty() ? 0 : *std::max_element(label.begin(), label.end()) + 1;
 }
 
 }  // namespace palpate

@@ -11,11 +11,41 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "palpate/core/eigen.hpp"
 
 namespace palpate {
+
+namespace detail {
+class TetGrid;  // the cut queries' spatial index (lib/runtime/src/tet_grid.hpp)
+}
+
+/// A cutting tool's blade at one instant: the segment a–b, in the region's
+/// rest geometry (m).
+struct Blade {
+  Eigen::Vector3d a_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d b_m = Eigen::Vector3d::Zero();
+};
+
+/// Whether the segment a–b meets the tetrahedron @p corners (rows: its four
+/// vertices, m, positively oriented), touching included to round-off
+/// (10⁻¹² relative): Cyrus–Beck clipping of the segment by the four faces'
+/// half-spaces. False for non-finite input. The test the model's segment
+/// query applies to each candidate; public so that a caller can scan.
+bool segment_meets_tetrahedron(const Eigen::Vector3d& a_m, const Eigen::Vector3d& b_m,
+                               const Matrix43d& corners_m);
+/// Whether the triangle p q r (any orientation, degenerate allowed: a
+/// segment or a point) meets the tetrahedron @p corners (rows: its four
+/// vertices, m), touching included to round-off (10⁻¹² relative): the
+/// separating-axis test of two convex polytopes (Gottschalk, Lin & Manocha,
+/// SIGGRAPH 1996): they are disjoint if and only if their projections are
+/// disjoint on one of the tetrahedron's 4 face normals, the triangle's
+/// normal, or the 18 cross products of a triangle edge with a tetrahedron
+/// edge. False for non-finite input.
+bool triangle_meets_tetrahedron(const Eigen::Vector3d& p_m, const Eigen::Vector3d& q_m,
+                                const Eigen::Vector3d& r_m, const Matrix43d& corners_m);
 
 /// The region's material as the dynamics see it (the elasticity is in the
 /// element stiffnesses).
@@ -55,7 +85,9 @@ struct StableTimeStep {
 /// remaining tetrahedron: no mass, no force, held at its last displacement
 /// and left out of the step) or *moving*. The per-step functions
 /// (`internal_force`, `apply_stiffness`, `add_coupling_force`, `step`,
-/// `set_interface_offset`) allocate nothing.
+/// `set_interface_offset`) allocate nothing, nor do a cut
+/// (`remove_tetrahedron`) and the cut queries' forms that write into a
+/// caller's vector of sufficient capacity.
 class TensorMassModel {
  public:
   /// @param rest_positions_m #V × 3, metres, finite
@@ -139,7 +171,8 @@ class TensorMassModel {
   /// ω_max of M⁻¹ (K + S) on the moving DOFs by power iteration from a fixed
   /// start, stopped when ‖A y − ρ y‖ ≤ @p tolerance · ρ or after
   /// @p max_iterations; and Gershgorin's bound. Allocates; call it after a
-  /// cut too (a cut can raise ω_max: docs/model.md).
+  /// cut too (a cut can raise ω_max: docs/model.md). When nothing moves
+  /// (every tetrahedron cut, say) the ω are 0 and the steps infinite.
   StableTimeStep stable_time_step(double tolerance = 1e-6, int max_iterations = 100000) const;
 
   /// Cuts tetrahedron @p tet out: re-sums its 4 vertex and 6 edge tensors and
@@ -150,10 +183,58 @@ class TensorMassModel {
   void remove_tetrahedron(int tet);
 
   /// The remaining tetrahedra that the segment a–b (rest geometry, metres)
-  /// meets, boundary contact included, in increasing index: those a cutting
-  /// edge swept through. A scan of all tetrahedra.
+  /// meets, boundary contact included, in increasing index
+  /// (segment_meets_tetrahedron on the candidates of the spatial index: the
+  /// same answer as a scan of every tetrahedron). Nothing for non-finite
+  /// input.
   std::vector<int> tetrahedra_crossed_by_segment(const Eigen::Vector3d& a_m,
                                                  const Eigen::Vector3d& b_m) const;
+  /// The same into @p out (cleared first): allocates nothing when
+  /// out.capacity() is at least the count (tetrahedron_count() always is).
+  void tetrahedra_crossed_by_segment(const Eigen::Vector3d& a_m, const Eigen::Vector3d& b_m,
+                                     std::vector<int>& out) const;
+
+  /// The remaining tetrahedra that the triangle p q r (rest geometry, m)
+  /// meets, touching included, in increasing index
+  /// (triangle_meets_tetrahedron on the index's candidates). Nothing for
+  /// non-finite input. The second form writes into @p out (cleared first)
+  /// and allocates nothing when its capacity suffices.
+  std::vector<int> tetrahedra_met_by_triangle(const Eigen::Vector3d& p_m,
+                                              const Eigen::Vector3d& q_m,
+                                              const Eigen::Vector3d& r_m) const;
+  void tetrahedra_met_by_triangle(const Eigen::Vector3d& p_m, const Eigen::Vector3d& q_m,
+                                  const Eigen::Vector3d& r_m, std::vector<int>& out) const;
+
+  /// The remaining tetrahedra that a blade meets while it moves from
+  /// @p before to @p after during one tick: those met by the quadrilateral
+  /// (before.a, before.b, after.b, after.a) as the two triangles
+  /// (before.a, before.b, after.b) and (before.a, after.b, after.a), in
+  /// increasing index, each once (a planar quadrilateral exactly; a twisted
+  /// one by these two triangles rather than the bilinear surface a blade
+  /// moving linearly sweeps). A blade that did not move gives its segment's
+  /// tetrahedra. Nothing for non-finite input. The second form writes into
+  /// @p out (cleared first) and allocates nothing when out.capacity() ≥ the
+  /// count (reserve tetrahedron_count() once: the haptic tick's form).
+  /// Not to be called on one model from two threads at once (a
+  /// per-tetrahedron stamp in the model dedupes the candidates).
+  std::vector<int> tetrahedra_swept_by_blade(const Blade& before, const Blade& after) const;
+  void tetrahedra_swept_by_blade(const Blade& before, const Blade& after,
+                                 std::vector<int>& out) const;
+  /// One tick's cut: removes every tetrahedron tetrahedra_swept_by_blade
+  /// returns (remove_tetrahedron on each) and leaves them in @p removed
+  /// (increasing index); returns their count. Allocates nothing when
+  /// removed.capacity() ≥ the count.
+  int cut_swept_blade(const Blade& before, const Blade& after, std::vector<int>& removed);
+
+  /// The face-connected components of the remaining tetrahedra (two
+  /// remaining tetrahedra are connected when they share a face): 0 when
+  /// none remains. Allocates (not for the tick). Parts meeting only at an
+  /// edge or a vertex count as two here, though the shared vertex still
+  /// carries force between them.
+  int connected_parts() const;
+  /// Per tetrahedron as built: its part, 0 .. connected_parts() − 1,
+  /// numbered in the order of each part's least tetrahedron; −1 if removed.
+  std::vector<int> part_labels() const;
 
  private:
   struct LiveEdge {
@@ -168,6 +249,13 @@ class TensorMassModel {
   int find_edge(int i, int j) const;
   void add_boundary_face(int face, int tet);
   void drop_boundary_face(int face);
+  Matrix43d rest_corners(int tet) const;
+  // The remaining tetrahedra of the index's cells in the box [lo, hi] that
+  // cell_meets (centre, half side) keeps, for which tet_meets (corners) is
+  // true: each tested once, into out, sorted (tensor_mass_query.cpp).
+  template <class CellTest, class TetTest>
+  void collect(const Eigen::Vector3d& lo_m, const Eigen::Vector3d& hi_m, CellTest cell_meets,
+               TetTest tet_meets, std::vector<int>& out) const;
 
   Eigen::MatrixX3d rest_m_;
   Eigen::MatrixX4i tets_;
@@ -204,6 +292,11 @@ class TensorMassModel {
   Eigen::VectorXd gap_m_, coupling_force_n_;  // scratch of add_coupling_force
 
   Eigen::VectorXd u_, u_previous_, force_;
+
+  // The cut queries' index: immutable once built, so copies share it.
+  std::shared_ptr<const detail::TetGrid> grid_;
+  mutable std::vector<std::uint32_t> tet_stamp_;  // == stamp_: already tested by this query
+  mutable std::uint32_t stamp_ = 0;
 };
 
 }  // namespace palpate
