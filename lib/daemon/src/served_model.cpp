@@ -161,6 +161,8 @@ ServedModel::ServedModel(SurfaceModel loaded, const Options& config, bool warped
                                                      config.limits, tool_field.get());
   tools.record_vertices.resize(k);
   tools.posed_s.assign(config.tools.size(), -1.0);
+  tools.blades.assign(config.tools.size(), Blade{});
+  tools.blade_live.assign(config.tools.size(), 0);
   tools.region_tips.reserve(config.tools.size());
   tools.region_tip_tools.reserve(config.tools.size());
   if (region)

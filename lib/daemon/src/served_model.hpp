@@ -143,6 +143,10 @@ struct ServedModel {
     std::vector<double> posed_s;
     std::vector<RegionTip> region_tips;
     std::vector<int> region_tip_tools;
+    // Each cutting tool's edge at its last live pose (rest geometry), and
+    // whether that pose's edge was live: a cut sweeps from there.
+    std::vector<Blade> blades;
+    std::vector<char> blade_live;
   } tools;
 };
 

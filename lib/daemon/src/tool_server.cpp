@@ -292,11 +292,16 @@ void ToolServer::step_region(ServedModel& served, int tool, double now_s) {
                      g.tip_radius_m};
   };
   const ToolGeometry& g = engine.tool(tool);
-  if (g.cutting && engine.pose(tool).jaw_angle_rad <= g.grasp_angle_rad) {
-    const RegionTip blade = tip_of(tool);
-    const int removed =
-        region.cut(region.rest_point_of(blade.base_m), region.rest_point_of(blade.end_m));
-    if (removed > 0) {
+  const auto slot = static_cast<std::size_t>(tool);
+  const bool live = g.cutting && engine.pose(tool).jaw_angle_rad <= g.grasp_angle_rad;
+  if (live) {
+    // The edge on the region at rest; it cuts what it swept since its last
+    // live pose (or what it lies in, on the first).
+    const RegionTip edge = tip_of(tool);
+    const Blade now{region.rest_point_of(edge.base_m), region.rest_point_of(edge.end_m)};
+    const Blade before = tools.blade_live[slot] != 0 ? tools.blades[slot] : now;
+    tools.blades[slot] = now;
+    if (const int removed = region.cut(before, now); removed > 0) {
       for (int t = 0; t < served.model.surface.triangle_count(); ++t)
         engine.set_triangle_hidden(t, region.covers_rest_triangle(t));
       spdlog::info(
@@ -306,6 +311,7 @@ void ToolServer::step_region(ServedModel& served, int tool, double now_s) {
           region.topology_version(), region.substep_s() * 1e6);
     }
   }
+  tools.blade_live[slot] = live ? 1 : 0;
   tools.region_tips.clear();
   tools.region_tip_tools.clear();
   for (int t = 0; t < engine.tool_count(); ++t) {

@@ -149,6 +149,7 @@ HybridRegion::HybridRegion(const SurfaceModel& model, const HybridRegionSettings
   tip_torque_nm_ = tip_force_n_;
   tip_torque_step_nm_ = tip_force_n_;
   retimed_m_ = Eigen::VectorXd::Zero(3 * nv);
+  removed_.reserve(static_cast<std::size_t>(model_.tetrahedron_count()));
   update_after_topology_change();
   substep_s_ = substep_bound_s_;
 }
@@ -324,13 +325,23 @@ void HybridRegion::add_rest_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const 
 
 int HybridRegion::cut(const Vector3d& blade_a_m, const Vector3d& blade_b_m) {
   if (!blade_a_m.allFinite() || !blade_b_m.allFinite())
-    throw InputError(
-        fmt::format("{}: a blade with a non-finite end; finite positions in metres "
-                    "are accepted",
-                    kWhat));
-  const std::vector<int> crossed = model_.tetrahedra_crossed_by_segment(blade_a_m, blade_b_m);
-  for (int t : crossed) model_.remove_tetrahedron(t);
-  if (crossed.empty()) return 0;
+    throw InputError(fmt::format(
+        "{}: a blade with a non-finite end; finite positions in metres are accepted", kWhat));
+  model_.tetrahedra_crossed_by_segment(blade_a_m, blade_b_m, removed_);
+  for (int t : removed_) model_.remove_tetrahedron(t);
+  return after_cut(static_cast<int>(removed_.size()));
+}
+
+int HybridRegion::cut(const Blade& before, const Blade& after) {
+  if (!before.a_m.allFinite() || !before.b_m.allFinite() || !after.a_m.allFinite() ||
+      !after.b_m.allFinite())
+    throw InputError(fmt::format(
+        "{}: a blade with a non-finite end; finite positions in metres are accepted", kWhat));
+  return after_cut(model_.cut_swept_blade(before, after, removed_));
+}
+
+int HybridRegion::after_cut(int removed) {
+  if (removed == 0) return 0;
   release_detached_interface();
   update_after_topology_change();
   if (substep_bound_s_ < substep_s_) {
@@ -341,7 +352,7 @@ int HybridRegion::cut(const Vector3d& blade_a_m, const Vector3d& blade_b_m) {
     model_.set_state(u, retimed_m_);
     substep_s_ = substep_bound_s_;
   }
-  return static_cast<int>(crossed.size());
+  return removed;
 }
 
 // A Γ vertex the cut left without a region tetrahedron is no longer held by

@@ -92,6 +92,10 @@ class HybridRegion {
   /// Removes every remaining tetrahedron the blade a–b meets (rest geometry:
   /// the blade as it would lie on the undeformed organ). @returns how many.
   int cut(const Eigen::Vector3d& blade_a_m, const Eigen::Vector3d& blade_b_m);
+  /// Removes every remaining tetrahedron the blade swept from @p before to
+  /// @p after (rest geometry; TensorMassModel::tetrahedra_swept_by_blade):
+  /// one tick of a moving edge. The query allocates nothing. @returns how many.
+  int cut(const Blade& before, const Blade& after);
 
   /// The proven stable step now, step_safety × 2/ω bound (it can shrink
   /// after a cut: docs/model.md); the substep (the bound as loaded, or as
@@ -138,6 +142,7 @@ class HybridRegion {
   void update_after_topology_change();
   void release_detached_interface();
   void add_coupling_force();
+  int after_cut(int removed);
   void update_coupling_row_sums();
   bool is_interface_face(const std::array<int, 3>& triangle) const;
   void add_tip_forces(std::span<const RegionTip> tips, bool accumulate);
@@ -156,6 +161,7 @@ class HybridRegion {
   std::vector<int> skin_;                       // moving vertices of the visible surface
   std::vector<char> on_skin_;
   std::vector<std::array<int, 3>> visible_;
+  std::vector<int> removed_;  // cut()'s, capacity: every tetrahedron
 
   double substep_bound_s_ = 0, substep_s_ = 0, pending_s_ = 0;
   int substeps_ = 0, pressed_vertices_ = 0;
