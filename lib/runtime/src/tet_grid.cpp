@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "grid_shape.hpp"
+
 namespace palpate::detail {
 
 TetGrid::TetGrid(const Eigen::MatrixX3d& rest_m, const Eigen::MatrixX4i& tetrahedra) {
@@ -30,17 +32,9 @@ TetGrid::TetGrid(const Eigen::MatrixX3d& rest_m, const Eigen::MatrixX4i& tetrahe
   upper_ = all_hi;
   const Eigen::Vector3d extent = all_hi - all_lo;
   double cell = mean_side > 0 ? mean_side : 1;
-  constexpr double kMaxCells = 1 << 18;
-  const auto cells_for = [&](double side) {
-    double count = 1;
-    for (int k = 0; k < 3; ++k) count *= std::floor(extent[k] / side) + 1;
-    return count;
-  };
-  while (cells_for(cell) > kMaxCells) cell *= 1.25;
-  inverse_cell_ = 1 / cell;
-  for (int k = 0; k < 3; ++k)
-    dims_[static_cast<std::size_t>(k)] =
-        static_cast<int>(std::floor(extent[k] * inverse_cell_)) + 1;
+  const GridShape shape = grid_shape(extent, cell);
+  inverse_cell_ = shape.inverse_cell;
+  dims_ = shape.dims;
 
   // Counting sort of (cell, tetrahedron) by cell, tetrahedra ascending in each.
   const auto for_each_cell = [&](Eigen::Index t, auto&& f) {

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "grid_shape.hpp"
+
 namespace palpate::detail {
 
 VertexGrid::VertexGrid(std::span<const Eigen::Vector3d> points, double cell_m) {
@@ -18,17 +20,9 @@ VertexGrid::VertexGrid(std::span<const Eigen::Vector3d> points, double cell_m) {
   const Eigen::Vector3d extent = hi - lo;
   double cell = cell_m > 0 && std::isfinite(cell_m) ? cell_m : extent.maxCoeff();
   if (!(cell > 0)) cell = 1;  // every vertex at one place: one cell
-  constexpr double kMaxCells = 1 << 18;
-  const auto cells_for = [&](double side) {
-    double count = 1;
-    for (int k = 0; k < 3; ++k) count *= std::floor(extent[k] / side) + 1;
-    return count;
-  };
-  while (cells_for(cell) > kMaxCells) cell *= 1.25;
-  inverse_cell_ = 1 / cell;
-  for (int k = 0; k < 3; ++k)
-    dims_[static_cast<std::size_t>(k)] =
-        static_cast<int>(std::floor(extent[k] * inverse_cell_)) + 1;
+  const GridShape shape = grid_shape(extent, cell);
+  inverse_cell_ = shape.inverse_cell;
+  dims_ = shape.dims;
   // Counting sort of the vertices by cell: each cell's ascending.
   begin_.assign(static_cast<std::size_t>(cell_count()) + 1, 0);
   for (const auto& x : points) ++begin_[flat(cell_of(x)) + 1];
