@@ -13,26 +13,9 @@ build=$(realpath "$1")
 out=$(realpath -m "$2")
 source_dir=$(realpath "$(dirname "$0")/../..")
 
-interfaces=$(ip -o link show | awk -F': ' '{print $2}' | tr '\n' ' ')
-if [ "$interfaces" != "lo " ]; then
-  echo "region_e2e: refusing to start DDS outside a private network namespace (interfaces: $interfaces)" >&2
-  exit 1
-fi
-for tool in node /usr/bin/chromium; do
-  command -v "$tool" >/dev/null || { echo "region_e2e: $tool not found; run scripts/install-deps.sh" >&2; exit 1; }
-done
-[ -d "$source_dir/viewer/node_modules/playwright-core" ] ||
-  { echo "region_e2e: viewer/node_modules is missing; run scripts/install-deps.sh (npm ci in viewer/)" >&2; exit 1; }
-
-mkdir -p "$out"
-work=$(mktemp -d)
-pids=()
-cleanup() {
-  for pid in "${pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  rm -rf "$work"
-}
-trap cleanup EXIT
+name=region_e2e
+# shellcheck source=tests/viewer/e2e_common.sh
+source "$source_dir/tests/viewer/e2e_common.sh"
 
 # The small sample organ (958 vertices), with and without its region: each
 # precomputed in well under a second.
