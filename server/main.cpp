@@ -218,11 +218,13 @@ int run(int argc, char** argv) {
       std::printf("model %s: %s, %d compliance vertices, %s\n", model.id.c_str(),
                   entry.file.c_str(), model.compliance_vertex_count(),
                   model.material_summary.c_str());
-      if (!model.cut_region_spec.empty())
-        std::fprintf(
-            stderr, "palpated: warning: model %s: its cut region (%s): %s\n", model.id.c_str(),
-            model.cut_region_spec.c_str(),
-            entry.warped ? palpate::kCutRegionNotSimulated : palpate::kCutRegionPartlyCoupled);
+      if (!model.cut_region_spec.empty() && entry.warped)
+        std::fprintf(stderr, "palpated: warning: model %s: its cut region (%s): %s\n",
+                     model.id.c_str(), model.cut_region_spec.c_str(),
+                     palpate::kCutRegionNotSimulated);
+      else if (!model.cut_region_spec.empty())
+        std::printf("model %s: its cut region (%s) is stepped beside the rest\n", model.id.c_str(),
+                    model.cut_region_spec.c_str());
     }
     const auto dds = palpate::dds::resolve_domain_config(config.dds_config);
     std::string serving;  // only when not the default

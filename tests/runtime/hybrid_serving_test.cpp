@@ -24,6 +24,7 @@
 #include "palpate/offline/precompute.hpp"
 #include "palpate/runtime/hybrid_region.hpp"
 #include "palpate/runtime/surface_model.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 #include "support/box_job.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
@@ -369,6 +370,77 @@ TEST(HybridServing, RandomCutsUnderLoadStayBounded) {
       cuts, removed, regions, releases, largest_m * 1e3, least_substep_s * 1e6);
   EXPECT_GT(removed, 300);
   EXPECT_GT(releases, 5);
+}
+
+/// A frictionless 3 mm sphere probe (no jaws, no force limit in the way).
+ToolGeometry sphere_probe() {
+  ToolGeometry g;
+  g.id = "probe";
+  g.tip = TipShape::kSphere;
+  g.tip_radius_m = 0.003;
+  g.tip_length_m = 0;
+  g.friction = 0;
+  g.jaw_length_m = 0;
+  g.force_limit_n = 100;
+  g.max_force_rate_n_per_s = 1e9;
+  return g;
+}
+
+/// The force on the probe pressing 1.5 mm at @p hinge, held for @p ticks
+/// of 1 ms; with @p region, the region stepped in each tick and, when
+/// @p coupled, its push given to the engine as background loads.
+Vector3d probe_force(const SurfaceModel& model, const Vector3d& hinge, HybridRegion* region,
+                     bool coupled, int ticks) {
+  ToolContactEngine engine(model, {sphere_probe()}, {}, {});
+  if (region != nullptr)
+    engine.reserve_background_loads(static_cast<int>(region->interface_vertices().size()));
+  Vector3d previous = Vector3d::Zero();
+  for (int tick = 1; tick <= ticks; ++tick) {
+    ToolPoseInput pose;
+    pose.sequence = static_cast<std::uint64_t>(tick);
+    pose.position_m = hinge;
+    pose.orientation = Eigen::Quaterniond(0, 1, 0, 0);  // tip down
+    EXPECT_EQ(engine.check(0, pose), PoseProblem::kNone);
+    EXPECT_EQ(engine.update(0, pose, 1e-3 * tick), RequestStatus::kOk);
+    if (region != nullptr) {
+      region->advance(1e-3, engine.contact_indices(), engine.contact_forces(), {});
+      const VectorXd& push = region->interface_force_n();
+      if (coupled)
+        engine.set_background_loads(region->interface_compliance_indices(),
+                                    {push.data(), static_cast<std::size_t>(push.size())},
+                                    region->interface_energy_j());
+    }
+    const Vector3d f = engine.output(0).force_n;
+    if (tick > 20 && (f - previous).norm() <= 1e-12 * f.norm()) break;
+    previous = f;
+  }
+  return engine.output(0).force_n;
+}
+
+// A probe on the rest one cell from the region: the region resists the
+// rest's motion at Γ, and the tools feel it through the background loads
+// (ToolContactEngine::set_background_loads): the same force as on the
+// whole organ, which the rest alone (the region's push left out) misses.
+TEST(HybridServing, AProbeOnTheRestNextToTheRegionFeelsTheWholeOrgan) {
+  const Organ o;
+  PrecomputeJob whole_job = testing::clamped_job(o.mesh, o.dir.path(), "whole", kE);
+  run_precompute(whole_job, {});
+  const SurfaceModel whole = load_surface_model("whole", whole_job.output);
+  const Vector3d hinge(0.056, 0.032, kLz + 0.003 - 0.0015);
+  const Vector3d expected = probe_force(whole, hinge, nullptr, false, 50);
+  HybridRegion coupled_region(o.model, settling_settings());
+  const Vector3d coupled = probe_force(o.model, hinge, &coupled_region, true, 20000);
+  HybridRegion one_way_region(o.model, settling_settings());
+  const Vector3d one_way = probe_force(o.model, hinge, &one_way_region, false, 20000);
+  const double e_coupled = (coupled - expected).norm() / expected.norm();
+  const double e_one_way = (one_way - expected).norm() / expected.norm();
+  std::printf(
+      "probe next to the region: whole organ %.6f N; hybrid %.6f N (relative %.3g); "
+      "without the region's push %.6f N (relative %.3g)\n",
+      expected.norm(), coupled.norm(), e_coupled, one_way.norm(), e_one_way);
+  EXPECT_GT(expected.z(), 0.05);
+  EXPECT_LE(e_coupled, 1e-6);
+  EXPECT_GT(e_one_way, 100 * e_coupled) << "the test tells the coupling from its absence";
 }
 
 TEST(HybridServing, BadInputIsNamed) {

@@ -165,9 +165,11 @@ ServedModel::ServedModel(SurfaceModel loaded, const Options& config, bool warped
   tools.blade_live.assign(config.tools.size(), 0);
   tools.region_tips.reserve(config.tools.size());
   tools.region_tip_tools.reserve(config.tools.size());
-  if (region)
+  if (region) {
     for (int t = 0; t < model.surface.triangle_count(); ++t)
       tools.engine->set_triangle_hidden(t, region->covers_rest_triangle(t));
+    tools.engine->reserve_background_loads(static_cast<int>(region->interface_vertices().size()));
+  }
   tools.record_forces.resize(3 * k);
   for (const ToolGeometry& tool : config.tools)
     tools.ids += (tools.ids.empty() ? "" : ", ") + tool.id;

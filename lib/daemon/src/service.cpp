@@ -173,8 +173,6 @@ void Service::Impl::load_models() {
           "substep_us={:.1f}",
           entry.id, models.back()->model.cut_region_spec, region->tensor_mass().tetrahedron_count(),
           region->interface_vertices().size(), region->substep_bound_s() * 1e6);
-      spdlog::warn("event=cut_region_partly_coupled model={} hint=\"{}\"", entry.id,
-                   palpate::kCutRegionPartlyCoupled);
     }
     if (entry.warped)
       spdlog::info("event=model_warped model={} request_radius_m={:.4g} tool_radius_m={:.4g}",

@@ -325,6 +325,11 @@ void ToolServer::step_region(ServedModel& served, int tool, double now_s) {
   if (tick_s <= 0) return;
   tools.region_time_s = now_s;
   region.advance(tick_s, engine.contact_indices(), engine.contact_forces(), tools.region_tips);
+  // The tools meet the rest as the region pushes it, from the next tick on.
+  const Eigen::VectorXd& push = region.interface_force_n();
+  engine.set_background_loads(region.interface_compliance_indices(),
+                              {push.data(), static_cast<std::size_t>(push.size())},
+                              region.interface_energy_j());
   served.shown.show_region(region);
 }
 

@@ -18,6 +18,7 @@
 /// in the model frame (the compliance file's).
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
@@ -83,6 +84,9 @@ class HybridRegion {
   /// f_Γ = S (u_Γ − u_Γ⁰) (3n_Γ, N): the region's push on the rest at Γ,
   /// in the order of interface_vertices().
   const Eigen::VectorXd& interface_force_n() const { return interface_force_n_; }
+  /// f_Γᵀ G_ΓΓ f_Γ = f_Γ · (u_Γ − u_Γ⁰) (J, ≥ 0 to round-off): the energy
+  /// ToolContactEngine::set_background_loads takes with f_Γ.
+  double interface_energy_j() const { return std::max(0.0, interface_force_n_.dot(gamma_u_m_)); }
   /// u += G_SΓ f_Γ: what the region's push adds to a displacement field of
   /// the rest's compliance vertices (3N_S, compliance order).
   void add_rest_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const;

@@ -78,13 +78,6 @@ inline constexpr const char* kCutRegionNotSimulated =
     "a warped model is served without its cuttable region, which is linear: where the region "
     "was, tools and requests meet the rest of the organ's surface, a cavity (docs/model.md, "
     "\"The hybrid model as served\"); serve it linear (no warped = true) to step the region";
-/// What palpated says of every cut region it steps: the coupling it does
-/// not have yet.
-inline constexpr const char* kCutRegionPartlyCoupled =
-    "the region is stepped and coupled to the rest both ways, but a tool touching the rest of "
-    "the organ feels the rest without the region's push on it (the stream shows that push): "
-    "near the region the rest feels softer than the whole organ (docs/model.md, \"The hybrid "
-    "model as served\")";
 
 /// Loads and checks a compliance file (read_compliance_file) and derives the
 /// drawing and addressing tables.

@@ -136,6 +136,20 @@ class ToolContactEngine {
   /// (HybridRegion::covers_rest_triangle); contacts already on it stay
   /// until they leave. None is hidden at first.
   void set_triangle_hidden(int triangle, bool hidden);
+  /// Room for @p count background loads (allocates: once, before the
+  /// ticks). @throws InputError for a warped engine.
+  void reserve_background_loads(int count);
+  /// Known loads on compliance vertices that are not the tools' (3 forces
+  /// each, N, on the organ; e.g. a served cut region's push f_Γ on the
+  /// rest), with their energy f_bᵀ G f_b (J). From the next solve on they
+  /// move the surface the tools meet, u = G (Hᵀ f_C + f_b), and every
+  /// contact row's imposed displacement discounts H G f_b: the tools feel
+  /// the organ as these loads have it. Replaces the previous ones; none at
+  /// first. Allocates nothing.
+  /// @throws InputError for more than reserved, a vertex out of range, or
+  ///         a force count other than 3 per load.
+  void set_background_loads(std::span<const int> indices, std::span<const double> forces_n,
+                            double energy_j);
 
   /// The contact points of the last solve, all tools.
   std::span<const ContactPoint> contact_points() const;
