@@ -7,7 +7,9 @@
 // two radii at its lower front (BENCHMARKS.md, "The hybrid model as
 // served"). Targets: a tick p99 ≤ 500 µs at up to 2,000 tetrahedra, a cut
 // ≤ 10 ms. Same-run baseline: the same substeps of the uncoupled
-// TensorMassModel::step alone (what the coupling and the tip add).
+// TensorMassModel::step alone (what the coupling and the tip add). And the
+// contact tick of a probe on the rest next to the region, with the
+// region's push as background loads and without (what they cost).
 //
 //   build/bench/palpate_hybrid_tick_bench [mesh_size_m] [ticks]
 //
@@ -30,6 +32,7 @@
 #include "palpate/offline/precompute.hpp"
 #include "palpate/runtime/hybrid_region.hpp"
 #include "palpate/runtime/surface_model.hpp"
+#include "palpate/runtime/tool_contact.hpp"
 
 namespace {
 
@@ -114,6 +117,56 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
   }
   const Quantiles tick = quantiles(tick_us), base = quantiles(baseline_us);
 
+  // The contact tick next to the region: a 3 mm sphere 1.5 mm into the
+  // rest's surface at its vertex off Γ nearest the ball, 3–8 mm outside it,
+  // with the region's push as background loads (what palpated does), and
+  // the same engine without them (same run, same poses).
+  const Eigen::MatrixX3d normals = vertex_normals(model.surface);
+  int near = -1;
+  std::vector<char> on_gamma(static_cast<std::size_t>(model.compliance_vertex_count()), 0);
+  for (int a : region.interface_compliance_indices()) on_gamma[static_cast<std::size_t>(a)] = 1;
+  for (int a = 0; a < model.compliance_vertex_count(); ++a) {
+    if (on_gamma[static_cast<std::size_t>(a)] != 0) continue;  // Γ: the cavity's wall too
+    const double d = (model.surface.rest_position(a) - kCentre).norm();
+    if (d > radius_m + 0.003 && d < radius_m + 0.008 &&
+        (near < 0 || d < (model.surface.rest_position(near) - kCentre).norm()))
+      near = a;
+  }
+  ToolGeometry probe;
+  probe.id = "probe";
+  probe.tip = TipShape::kSphere;
+  probe.tip_radius_m = 0.003;
+  probe.tip_length_m = 0;
+  probe.jaw_length_m = 0;
+  probe.friction = 0;
+  ToolContactEngine with(model, {probe}, {}, {}), without(model, {probe}, {}, {});
+  with.reserve_background_loads(static_cast<int>(region.interface_vertices().size()));
+  std::vector<double> with_us, without_us;
+  if (near >= 0) {
+    const Vector3d n = normals.row(near).transpose();
+    ToolPoseInput pose;
+    pose.position_m = model.surface.rest_position(near) + (probe.tip_radius_m - 0.0015) * n;
+    pose.orientation = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -n);
+    for (int step = 1; step <= 2000; ++step) {
+      pose.sequence = static_cast<std::uint64_t>(step);
+      with.check(0, pose);
+      auto start = Clock::now();
+      with.update(0, pose, 1e-3 * step);
+      with_us.push_back(microseconds(start));
+      region.advance(1e-3, with.contact_indices(), with.contact_forces(), {});
+      const Eigen::VectorXd& push = region.interface_force_n();
+      with.set_background_loads(region.interface_compliance_indices(),
+                                {push.data(), static_cast<std::size_t>(push.size())},
+                                region.interface_energy_j());
+      without.check(0, pose);
+      start = Clock::now();
+      without.update(0, pose, 1e-3 * step);
+      without_us.push_back(microseconds(start));
+    }
+  }
+  const Quantiles contact_with = quantiles(with_us), contact_without = quantiles(without_us);
+  const int contacts = near >= 0 ? with.output(0).contacts : -1;
+
   // Cuts: a vertical blade 30 mm long through the ball's centre, moved
   // 0.5 mm along y per cut, from one side of the ball to the other.
   std::vector<double> cut_us;
@@ -127,18 +180,22 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
     cuts_that_removed += k > 0;
   }
   const Quantiles cut = quantiles(cut_us);
+
   std::printf(
       "ball %.0f mm: %d tetrahedra, %d vertices, %zu on Γ; substep %.1f µs, %.2f per tick\n"
       "  tick (advance 1 ms): p50 %.1f µs, p99 %.1f µs, max %.1f µs\n"
       "  baseline (the same substeps, uncoupled step alone): p50 %.1f µs, p99 %.1f µs\n"
       "  cut (%zu blades, %d removing, %d tetrahedra in all): p50 %.1f µs, p99 %.1f µs, "
-      "max %.1f µs; Γ vertices still held %zu; substep after %.1f µs\n",
+      "max %.1f µs; Γ vertices still held %zu; substep after %.1f µs\n"
+      "  contact tick next to the region (%d contacts): with its push as background loads p50 "
+      "%.1f µs, p99 %.1f µs; without p50 %.1f µs, p99 %.1f µs\n",
       radius_m * 1e3, static_cast<int>(data.tetrahedra.rows()),
       static_cast<int>(data.vertices_m.rows()),
       static_cast<std::size_t>(data.interface_vertices.size()), region.substep_s() * 1e6,
       static_cast<double>(substeps) / ticks, tick.p50, tick.p99, tick.max, base.p50, base.p99,
       cut_us.size(), cuts_that_removed, removed, cut.p50, cut.p99, cut.max,
-      region.interface_vertices().size(), region.substep_s() * 1e6);
+      region.interface_vertices().size(), region.substep_s() * 1e6, contacts, contact_with.p50,
+      contact_with.p99, contact_without.p50, contact_without.p99);
 }
 
 }  // namespace
