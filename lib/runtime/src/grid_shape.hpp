@@ -34,4 +34,20 @@ inline GridShape grid_shape(const Eigen::Vector3d& extent_m, double cell_m) {
   return shape;
 }
 
+/// The cell of @p x in the grid of @p shape whose first cell starts at
+/// @p origin_m: out-of-grid coordinates clamp to the nearest cell, a NaN to
+/// the first (callers refuse non-finite input before or after).
+inline std::array<int, 3> grid_cell(const GridShape& shape, const Eigen::Vector3d& origin_m,
+                                    const Eigen::Vector3d& x) {
+  std::array<int, 3> cell{};
+  for (int k = 0; k < 3; ++k) {
+    const double at = std::floor((x[k] - origin_m[k]) * shape.inverse_cell);
+    const int last = shape.dims[static_cast<std::size_t>(k)] - 1;
+    cell[static_cast<std::size_t>(k)] = at >= static_cast<double>(last) ? last
+                                        : at > 0                        ? static_cast<int>(at)
+                                                                        : 0;
+  }
+  return cell;
+}
+
 }  // namespace palpate::detail

@@ -56,17 +56,7 @@ TetGrid::TetGrid(const Eigen::MatrixX3d& rest_m, const Eigen::MatrixX4i& tetrahe
 }
 
 TetGrid::Cell TetGrid::cell_of(const Eigen::Vector3d& x) const {
-  Cell cell{};
-  for (int k = 0; k < 3; ++k) {
-    const double at = std::floor((x[k] - origin_[k]) * inverse_cell_);
-    const int last = dims_[static_cast<std::size_t>(k)] - 1;
-    // Out-of-grid coordinates clamp; a NaN goes to the first cell (the
-    // queries refuse non-finite input before they get here).
-    cell[static_cast<std::size_t>(k)] = at >= static_cast<double>(last) ? last
-                                        : at > 0                        ? static_cast<int>(at)
-                                                                        : 0;
-  }
-  return cell;
+  return grid_cell({inverse_cell_, dims_}, origin_, x);
 }
 
 std::span<const int> TetGrid::tetrahedra_in(const Cell& cell) const {

@@ -11,6 +11,7 @@
 #include <span>
 
 #include "active_set.hpp"
+#include "background_loads.hpp"
 #include "contact_geometry.hpp"
 #include "deformed_surface.hpp"
 #include "jaw_grasp.hpp"
@@ -96,18 +97,9 @@ struct ToolContactEngine::Impl {
   // ‖G^{vv}‖, it bounds every vertex's displacement (DeformedSurface::far_from).
   double load_energy = 0;
   // Known loads that are not the tools' (set_background_loads): they deform
-  // the surface with the tools' loads (deform_*: the tools' then these) and
-  // every row's imposed displacement discounts them. u_b is memoized per
-  // compliance vertex for an epoch of the loads.
-  int background_count = 0;
-  std::vector<int> background_index;
-  std::vector<double> background_force;
-  double background_energy = 0;
-  std::vector<int> deform_index;
-  std::vector<double> deform_force;
-  std::vector<Vector3d> background_u;
-  std::vector<std::uint32_t> background_u_epoch;
-  std::uint32_t background_epoch = 1;
+  // the surface with the tools' loads and every row's imposed displacement
+  // discounts them.
+  detail::BackgroundLoads background;
   char message[256] = {};
   mutable char problem[256] = {};  // why check() refused the last pose it refused
 
@@ -182,41 +174,11 @@ struct ToolContactEngine::Impl {
     surface.set_loads(0, load_index.data(), load_force.data(), 0);
   }
 
-  /// How far the background loads move any vertex at most, m:
-  /// |G_v f_b| ≤ √‖G^{vv}‖ √(f_bᵀ G f_b).
-  double background_reach() const {
-    return background_count > 0 ? surface.max_softness() * std::sqrt(background_energy) : 0.0;
-  }
-
-  /// u_b = Σ_j G^{v b_j} f_j at compliance vertex @p v (memoized per epoch).
-  const Vector3d& background_at(int v) {
-    const auto slot = static_cast<std::size_t>(v);
-    if (background_u_epoch[slot] != background_epoch) {
-      Vector3d u = Vector3d::Zero();
-      for (int j = 0; j < background_count; ++j)
-        u += model.G_block(v, background_index[static_cast<std::size_t>(j)]) *
-             Eigen::Map<const Vector3d>(&background_force[3 * static_cast<std::size_t>(j)]);
-      background_u[slot] = u;
-      background_u_epoch[slot] = background_epoch;
-    }
-    return background_u[slot];
-  }
-  /// H u_b at a point of a triangle (fixed vertices do not move).
-  template <typename Point>
-  Vector3d background_at_point(const Point& point) {
-    Vector3d u = Vector3d::Zero();
-    for (int i = 0; i < point.count; ++i) {
-      const int v = point.vertices[static_cast<std::size_t>(i)];
-      if (v < compliance_count) u += point.weights[static_cast<std::size_t>(i)] * background_at(v);
-    }
-    return u;
-  }
-
   /// How far from a tool's segment its candidate vertices lie at rest, m.
   double search_radius(const ToolGeometry& g) const {
     const double wedge = g.jaw_length_m * std::tan(0.5 * g.max_jaw_angle_rad);
     return std::max(g.tip_radius_m, wedge + g.tip_radius_m) + settings.search_margin_m +
-           max_displacement + background_reach();
+           max_displacement + background.reach_m(surface.max_softness());
   }
 
   /// The distinct surface triangles around tool @p tool's candidate
@@ -350,8 +312,8 @@ struct ToolContactEngine::Impl {
                    const Vector3d& normal, const Vector3d& lever) {
       // The background loads move the point by H u_b already: the tools'
       // forces make the rest (linear engines only: set_background_loads).
-      if (background_count > 0) {
-        const Vector3d moved = background_at_point(point);
+      if (background.count() > 0) {
+        const Vector3d moved = background.at_point(model, point, compliance_count);
         if (kind == ConstraintKind::kDisplacement) value -= moved;
         if (kind == ConstraintKind::kNormalDisplacement) value.x() -= normal.dot(moved);
       }
@@ -498,10 +460,12 @@ struct ToolContactEngine::Impl {
       const Vector3d displacement = warping != nullptr ? Vector3d(Rt * active_set.displacement(b))
                                                        : Vector3d(active_set.displacement(b));
       point.position_m = at_rest + displacement;
-      if (background_count > 0)
+      if (background.count() > 0)
         point.position_m +=
-            point.held ? background_at_point(tool.held[static_cast<std::size_t>(b_held[bb])])
-                       : background_at_point(tool.tips[static_cast<std::size_t>(b_tip[bb])]);
+            point.held ? background.at_point(model, tool.held[static_cast<std::size_t>(b_held[bb])],
+                                             compliance_count)
+                       : background.at_point(model, tool.tips[static_cast<std::size_t>(b_tip[bb])],
+                                             compliance_count);
       point.normal =
           row.kind == ConstraintKind::kNormalDisplacement ? row_world_normal[bb] : Vector3d::Zero();
       max_displacement = std::max(max_displacement, displacement.norm());
@@ -549,21 +513,17 @@ struct ToolContactEngine::Impl {
     }
     for (int l = 0; l < load_count; ++l)
       load_slot[static_cast<std::size_t>(load_index[static_cast<std::size_t>(l)])] = -1;
-    if (background_count == 0) {
+    if (background.count() == 0) {
       surface.set_loads(load_count, load_index.data(), load_force.data(), load_energy);
       return;
     }
-    // The surface moves under both: the tools' loads, then the background's;
-    // √ of the energy of the sum ≤ the sum of the √ (the G-norm's triangle
-    // inequality), which is what bounds a vertex's displacement.
-    std::copy_n(load_index.begin(), load_count, deform_index.begin());
-    std::copy_n(load_force.begin(), 3 * load_count, deform_force.begin());
-    std::copy_n(background_index.begin(), background_count, deform_index.begin() + load_count);
-    std::copy_n(background_force.begin(), 3 * background_count,
-                deform_force.begin() + 3 * load_count);
-    const double root = std::sqrt(load_energy) + std::sqrt(background_energy);
-    surface.set_loads(load_count + background_count, deform_index.data(), deform_force.data(),
-                      root * root);
+    // The surface moves under both: the tools' loads, then the background's.
+    const int* index = nullptr;
+    const double* force = nullptr;
+    double energy = 0;
+    const int loads = background.merge(load_count, load_index.data(), load_force.data(),
+                                       load_energy, index, force, energy);
+    surface.set_loads(loads, index, force, energy);
   }
 
   /// Tool @p t's contact wrench linearized about its pose (LocalContactModel,
@@ -799,35 +759,12 @@ void ToolContactEngine::reserve_background_loads(int count) {
   Impl& m = *impl_;
   if (m.warping != nullptr)
     throw InputError("a warped contact engine takes no background loads (they are linear)");
-  const auto n = static_cast<std::size_t>(std::max(count, 0));
-  m.background_index.resize(n);
-  m.background_force.resize(3 * n);
-  m.deform_index.resize(m.load_index.size() + n);
-  m.deform_force.resize(m.load_force.size() + 3 * n);
-  m.background_u.assign(static_cast<std::size_t>(m.compliance_count), Vector3d::Zero());
-  m.background_u_epoch.assign(static_cast<std::size_t>(m.compliance_count), 0);
+  m.background.reserve(count, m.compliance_count, m.load_index.size());
 }
 
 void ToolContactEngine::set_background_loads(std::span<const int> indices,
                                              std::span<const double> forces_n, double energy_j) {
-  Impl& m = *impl_;
-  if (indices.size() > m.background_index.size() || forces_n.size() != 3 * indices.size())
-    throw InputError(fmt::format(
-        "{} background loads with {} forces; at most {} (reserve_background_loads), 3 forces "
-        "each, are accepted",
-        indices.size(), forces_n.size(), m.background_index.size()));
-  for (const int v : indices)
-    if (v < 0 || v >= m.compliance_count)
-      throw InputError(fmt::format("background load on compliance vertex {}; 0..{} are accepted", v,
-                                   m.compliance_count - 1));
-  m.background_count = static_cast<int>(indices.size());
-  std::copy(indices.begin(), indices.end(), m.background_index.begin());
-  std::copy(forces_n.begin(), forces_n.end(), m.background_force.begin());
-  m.background_energy = std::max(energy_j, 0.0);
-  if (++m.background_epoch == 0) {
-    std::fill(m.background_u_epoch.begin(), m.background_u_epoch.end(), 0);
-    m.background_epoch = 1;
-  }
+  impl_->background.set(indices, forces_n, energy_j);
 }
 
 void ToolContactEngine::set_triangle_hidden(int triangle, bool hidden) {

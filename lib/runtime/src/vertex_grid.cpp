@@ -34,17 +34,7 @@ VertexGrid::VertexGrid(std::span<const Eigen::Vector3d> points, double cell_m) {
 }
 
 std::array<int, 3> VertexGrid::cell_of(const Eigen::Vector3d& x) const {
-  std::array<int, 3> cell{};
-  for (int k = 0; k < 3; ++k) {
-    const double at = std::floor((x[k] - origin_[k]) * inverse_cell_);
-    const int last = dims_[static_cast<std::size_t>(k)] - 1;
-    // NaN and out-of-grid coordinates clamp (a NaN to the first cell: the
-    // scan's test refuses it anyway).
-    cell[static_cast<std::size_t>(k)] = at >= static_cast<double>(last) ? last
-                                        : at > 0                        ? static_cast<int>(at)
-                                                                        : 0;
-  }
-  return cell;
+  return grid_cell({inverse_cell_, dims_}, origin_, x);
 }
 
 std::span<const int> VertexGrid::vertices_in(const std::array<int, 3>& cell) const {
