@@ -1,7 +1,8 @@
 #pragma once
 // What the tensor-mass tests share: a 4 cm cube of 4 × 4 × 4 Kuhn cells
 // (optionally jittered), its element blocks and assembled K from the offline
-// layer, a region model owning its mesh, and dense modal helpers.
+// layer, a region model owning its mesh, and dense modal helpers; the
+// 7 × 7 × 7 box of the cutting tests and their random directions.
 
 #include <gtest/gtest.h>
 
@@ -123,6 +124,47 @@ inline void settle(TensorMassModel& m, const VectorXd& load_n, double omega_min)
   const double dt = 0.9 * m.stable_time_step().critical_time_step_s;
   const int steps = static_cast<int>(std::ceil(30 / (omega_min * dt)));
   for (int n = 0; n < steps; ++n) m.step(dt, load_n);
+}
+
+inline Matrix43d corners(const TensorMassModel& m, int t) {
+  Matrix43d x;
+  for (int k = 0; k < 4; ++k) x.row(k) = m.rest_positions_m().row(m.tetrahedra()(t, k));
+  return x;
+}
+
+/// The region of the robustness tests: 7 × 7 × 7 cubes of 4 mm (2,058
+/// tetrahedra, 512 vertices, a 28 mm cube), liver, interior vertices moved
+/// by up to 0.1 cell when @p jitter (a generic mesh for the queries).
+constexpr int kBoxCells = 7;
+constexpr double kBoxCell_m = 4e-3;
+inline TetMesh big_box(bool jitter) {
+  const double side = kBoxCells * kBoxCell_m;
+  TetMesh mesh = testing::box_mesh(side, side, side, kBoxCells, kBoxCells, kBoxCells);
+  if (jitter) {
+    std::mt19937 rng(21);
+    std::uniform_real_distribution<double> d(-0.1 * kBoxCell_m, 0.1 * kBoxCell_m);
+    for (int i = 1; i < kBoxCells; ++i)
+      for (int j = 1; j < kBoxCells; ++j)
+        for (int k = 1; k < kBoxCells; ++k)
+          mesh.vertices.row(testing::box_vertex(i, j, k, kBoxCells, kBoxCells)) +=
+              Eigen::RowVector3d(d(rng), d(rng), d(rng));
+  }
+  return mesh;
+}
+inline std::vector<int> big_box_face_x0() {
+  std::vector<int> out;
+  for (int j = 0; j <= kBoxCells; ++j)
+    for (int k = 0; k <= kBoxCells; ++k)
+      out.push_back(testing::box_vertex(0, j, k, kBoxCells, kBoxCells));
+  return out;
+}
+
+inline Vector3d random_unit(std::mt19937& rng) {
+  std::normal_distribution<double> n(0, 1);
+  Vector3d d;
+  do d = Vector3d(n(rng), n(rng), n(rng));
+  while (d.norm() < 1e-6);
+  return d.normalized();
 }
 
 }  // namespace palpate::tensor_mass_test
