@@ -10,6 +10,7 @@
 #include <map>
 
 #include "palpate/core/error.hpp"
+#include "region_implicit_step.hpp"
 
 namespace palpate {
 namespace {
@@ -56,6 +57,12 @@ TensorMassMaterial material_of(const CutRegionData& region, const HybridRegionSe
                                  kWhat, s.contact_stiffness_n_per_m));
   if (s.max_tips < 1 || s.max_tips > 64)
     throw InputError(fmt::format("{}: {} tips; 1 to 64 are accepted", kWhat, s.max_tips));
+  if (!(s.implicit_step_s > 0 && s.implicit_step_s <= kMaxAdvanceS))
+    throw InputError(fmt::format("{}: implicit step {} s; a step in (0, {}] s is accepted", kWhat,
+                                 s.implicit_step_s, kMaxAdvanceS));
+  if (s.refactor_rank < 3 || s.refactor_rank > 3000)
+    throw InputError(fmt::format("{}: refactor rank {}; 3 to 3000 DOFs are accepted", kWhat,
+                                 s.refactor_rank));
   if (!std::isfinite(s.damping_per_s))
     throw InputError(fmt::format(
         "{}: damping {} 1/s; a finite γ ≥ 0, or a negative value for the file's, is accepted",
@@ -104,6 +111,10 @@ HybridRegion::HybridRegion(const SurfaceModel& model, const HybridRegionSettings
             .maxCoeff();
   }
   update_coupling_row_sums();
+  loaded_interface_ = interface_;
+  loaded_compliance_ = interface_compliance_;
+  held_slot_.resize(interface_.size());
+  for (std::size_t k = 0; k < held_slot_.size(); ++k) held_slot_[k] = static_cast<int>(k);
 
   // The faces the region shares with the rest, matched by input-file ids.
   std::map<std::array<int, 3>, int> rest_faces;
@@ -152,6 +163,30 @@ HybridRegion::HybridRegion(const SurfaceModel& model, const HybridRegionSettings
   removed_.reserve(static_cast<std::size_t>(model_.tetrahedron_count()));
   update_after_topology_change();
   substep_s_ = substep_bound_s_;
+  if (settings_.integrator == RegionIntegrator::kImplicit) {
+    substep_s_ = settings_.implicit_step_s;
+    const detail::ImplicitStepCoefficients coefficients{
+        settings_.implicit_step_s, material_of(region, settings_).mass_damping_per_s,
+        settings_.contact_stiffness_n_per_m};
+    implicit_ = std::make_unique<detail::ImplicitRegionStep>(
+        model_, loaded_interface_, coupling_, coefficients, on_skin_, settings_.refactor_rank);
+    rhs_n_ = Eigen::VectorXd::Zero(3 * nv);
+    next_m_ = rhs_n_;
+    loaded_offset_m_ = Eigen::VectorXd::Zero(3 * n);
+    loaded_s_offset_n_ = loaded_offset_m_;
+    loaded_push_n_ = loaded_offset_m_;
+    loaded_rows_n_ = loaded_offset_m_;
+    skin_before_.reserve(static_cast<std::size_t>(nv));
+    touched_.reserve(static_cast<std::size_t>(nv));
+  }
+}
+
+HybridRegion::~HybridRegion() = default;
+
+int HybridRegion::update_rank() const { return implicit_ ? implicit_->update_rank() : 0; }
+int HybridRegion::factorizations() const { return implicit_ ? implicit_->factorizations() : 0; }
+void HybridRegion::finish_background_work() {
+  if (implicit_) implicit_->finish_background_work(on_skin_);
 }
 
 bool HybridRegion::is_interface_face(const std::array<int, 3>& triangle) const {
@@ -255,21 +290,47 @@ void HybridRegion::advance(double tick_s, std::span<const int> rest_indices,
                     "accepted",
                     kWhat, rest_forces_n.size(), rest_indices.size()));
 
-  // u_Γ⁰ = G_ΓS f_S.
-  offset_m_.setZero();
-  for (std::size_t j = 0; j < rest_indices.size(); ++j) {
-    const Vector3d f(rest_forces_n[3 * j], rest_forces_n[3 * j + 1], rest_forces_n[3 * j + 2]);
-    for (std::size_t k = 0; k < interface_.size(); ++k)
-      offset_m_.segment<3>(3 * static_cast<Eigen::Index>(k)) +=
-          model_ref_.G_block(interface_compliance_[k], rest_indices[j]) * f;
+  offset_from_rest_loads(rest_indices, rest_forces_n);
+  if (settings_.integrator == RegionIntegrator::kImplicit) {
+    // The whole steps nearest to the time owed: a tick a little short or
+    // long of Δt still takes one step.
+    pending_s_ = std::min(pending_s_ + tick_s, kMaxAdvanceS);
+    substeps_ = static_cast<int>(std::floor(pending_s_ / substep_s_ + 0.5));
+    pending_s_ -= substeps_ * substep_s_;
+    if (substeps_ > 0) advance_implicit(tips);
+    return;
   }
-
   // Substeps of a fixed Δt (the bound): the tick's time, plus what the
   // last tick left over, in whole steps; the remainder waits for the next.
   pending_s_ = std::min(pending_s_ + tick_s, kMaxAdvanceS);
   substeps_ = static_cast<int>(std::floor(pending_s_ / substep_s_));
   pending_s_ -= substeps_ * substep_s_;
-  if (substeps_ == 0) return;  // the last tick's forces stand
+  if (substeps_ > 0) advance_explicit(tips);
+}
+
+// u_Γ⁰ = G_ΓS f_S on the held Γ (explicit) or on Γ as loaded (implicit,
+// with S u_Γ⁰).
+void HybridRegion::offset_from_rest_loads(std::span<const int> rest_indices,
+                                          std::span<const double> rest_forces_n) {
+  const bool implicit = settings_.integrator == RegionIntegrator::kImplicit;
+  const std::vector<int>& gamma = implicit ? loaded_compliance_ : interface_compliance_;
+  Eigen::VectorXd& offset = implicit ? loaded_offset_m_ : offset_m_;
+  offset.setZero();
+  for (std::size_t j = 0; j < rest_indices.size(); ++j) {
+    const Vector3d f(rest_forces_n[3 * j], rest_forces_n[3 * j + 1], rest_forces_n[3 * j + 2]);
+    for (std::size_t k = 0; k < gamma.size(); ++k)
+      offset.segment<3>(3 * static_cast<Eigen::Index>(k)) +=
+          model_ref_.G_block(gamma[k], rest_indices[j]) * f;
+  }
+  if (implicit && offset.size() > 0) {
+    if (rest_indices.empty())
+      loaded_s_offset_n_.setZero();
+    else
+      loaded_s_offset_n_.noalias() = coupling_.selfadjointView<Eigen::Lower>() * offset;
+  }
+}
+
+void HybridRegion::advance_explicit(std::span<const RegionTip> tips) {
   for (auto& f : tip_force_step_n_) f.setZero();
   for (auto& m : tip_torque_step_nm_) m.setZero();
   for (int n = 0; n < substeps_; ++n) {
@@ -287,6 +348,63 @@ void HybridRegion::advance(double tick_s, std::span<const int> rest_indices,
   // f_Γ = S (u_Γ − u_Γ⁰) at the end of the tick.
   step_force_n_.setZero();
   add_coupling_force();
+}
+
+// Backward Euler, A u⁺ = b (region_implicit_step.hpp), per step:
+//   b = f_tips(u) + M [c u + (u − u⁻)/Δt²] + k_s u (skin) + h u (held)
+//       + S u_Γ⁰ (Γ),
+// the tips' penalty taken at u and corrected by k_s (u⁺ − u) (A's k_s), so
+// that it is exact at rest and damps, never feeds, the motion between.
+// The push on the rest is read off Γ's rows: S (u⁺_Γ − u_Γ⁰) = b_Γ − S u_Γ⁰
+// − ((A − S) u⁺)_Γ, a sparse product instead of a dense one.
+void HybridRegion::advance_implicit(std::span<const RegionTip> tips) {
+  const detail::ImplicitStepCoefficients& step = implicit_->coefficients();
+  const double c = step.mass_coefficient(), inv_dt2 = 1 / (step.time_step_s * step.time_step_s);
+  const int nv = model_.vertex_count();
+  const auto n_loaded = static_cast<Eigen::Index>(loaded_interface_.size());
+  for (int n = 0; n < substeps_; ++n) {
+    const Eigen::VectorXd& u = model_.displacement_m();
+    const Eigen::VectorXd& u_previous = model_.previous_displacement_m();
+    add_tip_forces(tips, false);
+    rhs_n_ = region_load_n_;
+    for (int v = 0; v < nv; ++v) {
+      if (model_.is_fixed(v)) continue;
+      const auto u_v = u.segment<3>(3 * v);
+      rhs_n_.segment<3>(3 * v) +=
+          model_.mass_kg(v) * (c * u_v + inv_dt2 * (u_v - u_previous.segment<3>(3 * v))) +
+          ((on_skin_[v] != 0 ? step.skin_stiffness_n_per_m : 0.0) +
+           (implicit_->holds(v) ? implicit_->hold_stiffness() : 0.0)) *
+              u_v;
+    }
+    for (Eigen::Index g = 0; g < n_loaded; ++g)
+      rhs_n_.segment<3>(3 * loaded_interface_[g]) += loaded_s_offset_n_.segment<3>(3 * g);
+    implicit_->solve(rhs_n_, next_m_);
+    implicit_->interface_rows(next_m_, loaded_rows_n_);
+    for (Eigen::Index g = 0; g < n_loaded; ++g)
+      loaded_push_n_.segment<3>(3 * g) = rhs_n_.segment<3>(3 * loaded_interface_[g]) -
+                                         loaded_s_offset_n_.segment<3>(3 * g) -
+                                         loaded_rows_n_.segment<3>(3 * g);
+    retimed_m_ = u;
+    model_.set_state(next_m_, retimed_m_);
+  }
+  // What the tips feel: the penalty at u⁺.
+  for (auto& f : tip_force_step_n_) f.setZero();
+  for (auto& m : tip_torque_step_nm_) m.setZero();
+  add_tip_forces(tips, true);
+  for (std::size_t t = 0; t < tip_force_n_.size(); ++t) {
+    const bool given = t < tips.size();
+    tip_force_n_[t] = given ? tip_force_step_n_[t] : Vector3d::Zero();
+    tip_torque_nm_[t] = given ? tip_torque_step_nm_[t] : Vector3d::Zero();
+  }
+  // f_Γ and u_Γ − u_Γ⁰ on the held Γ.
+  const Eigen::VectorXd& u = model_.displacement_m();
+  for (std::size_t k = 0; k < interface_.size(); ++k) {
+    const auto at = static_cast<Eigen::Index>(3 * k);
+    const auto slot = static_cast<Eigen::Index>(3 * held_slot_[k]);
+    interface_force_n_.segment<3>(at) = loaded_push_n_.segment<3>(slot);
+    gamma_u_m_.segment<3>(at) =
+        u.segment<3>(3 * interface_[k]) - loaded_offset_m_.segment<3>(slot);
+  }
 }
 
 // f_Γ = S (u_Γ − u_Γ⁰) from the displacement now, and −f_Γ on the region's
@@ -343,7 +461,21 @@ int HybridRegion::cut(const Blade& before, const Blade& after) {
 int HybridRegion::after_cut(int removed) {
   if (removed == 0) return 0;
   release_detached_interface();
+  if (implicit_) skin_before_.assign(on_skin_.begin(), on_skin_.end());
   update_after_topology_change();
+  if (implicit_) {
+    // A changed on the removed tetrahedra's vertices and where the skin did.
+    touched_.clear();
+    const Eigen::MatrixX4i& tets = model_.tetrahedra();
+    for (int t : removed_)
+      for (int c = 0; c < 4; ++c) touched_.push_back(tets(t, c));
+    for (std::size_t v = 0; v < on_skin_.size(); ++v)
+      if (on_skin_[v] != skin_before_[v]) touched_.push_back(static_cast<int>(v));
+    std::sort(touched_.begin(), touched_.end());
+    touched_.erase(std::unique(touched_.begin(), touched_.end()), touched_.end());
+    implicit_->update(touched_, on_skin_);
+    return removed;
+  }
   if (substep_bound_s_ < substep_s_) {
     // A lighter vertex needs a shorter step. The centred difference keeps
     // u⁻ = u(t − Δt): re-time it for the new Δt at the same velocity.
@@ -367,6 +499,24 @@ void HybridRegion::release_detached_interface() {
       (model_.is_detached(interface_[k]) ? drop : keep)
           .push_back(3 * static_cast<Eigen::Index>(k) + a);
   if (drop.empty()) return;
+  if (implicit_) {
+    // The implicit step keeps S as loaded: a released vertex's rows hold no
+    // region, which is this condensation solved with the rest (no mass
+    // there, so its row says S (u_Γ − u_Γ⁰) = 0 at that vertex).
+    std::vector<int> vertices, compliance, slots;
+    for (std::size_t k = 0; k < interface_.size(); ++k)
+      if (!model_.is_detached(interface_[k])) {
+        vertices.push_back(interface_[k]);
+        compliance.push_back(interface_compliance_[k]);
+        slots.push_back(held_slot_[k]);
+      }
+    interface_ = std::move(vertices);
+    interface_compliance_ = std::move(compliance);
+    held_slot_ = std::move(slots);
+    interface_force_n_ = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(3 * interface_.size()));
+    gamma_u_m_ = interface_force_n_;
+    return;
+  }
   const Eigen::MatrixXd s_ad = coupling_(keep, drop);
   const Eigen::MatrixXd s_dd = coupling_(drop, drop);
   Eigen::MatrixXd condensed = coupling_(keep, keep) - s_ad * s_dd.llt().solve(s_ad.transpose());

@@ -21,6 +21,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -29,9 +30,30 @@
 
 namespace palpate {
 
+namespace detail {
+class ImplicitRegionStep;  // lib/runtime/src/region_implicit_step.hpp
+}
+
+/// How the region's dynamics are integrated (docs/model.md, "The implicit
+/// step" and "Substeps").
+enum class RegionIntegrator {
+  /// One backward-Euler step of implicit_step_s per tick (stable whatever
+  /// the step; A factored once, cuts by low-rank updates).
+  kImplicit,
+  /// Explicit centred differences in substeps under the proven stable bound.
+  kExplicit,
+};
+
 /// How the served region is stepped and touched.
 struct HybridRegionSettings {
-  /// The substep is this fraction of the stable step's proven bound
+  RegionIntegrator integrator = RegionIntegrator::kImplicit;
+  /// The implicit step Δt (s): the haptic tick; a tick of another length
+  /// takes the whole steps nearest to it (the remainder carried over).
+  double implicit_step_s = 1e-3;
+  /// The implicit step's update rank (DOFs) at which A is factored again
+  /// on a worker thread (at twice it, at once).
+  int refactor_rank = 96;
+  /// The explicit substep is this fraction of the stable step's proven bound
   /// (docs/model.md: the element bound, the coupling and the contacts).
   double step_safety = 0.9;
   /// Stiffness of a tip's push on one region surface vertex (N/m): the
@@ -62,10 +84,14 @@ class HybridRegion {
   /// @throws InputError when the model has no cut region, G_ΓΓ is not
   ///         positive definite, or a setting is out of range (what is accepted).
   explicit HybridRegion(const SurfaceModel& model, const HybridRegionSettings& settings = {});
+  ~HybridRegion();
+  HybridRegion(const HybridRegion&) = delete;
+  HybridRegion& operator=(const HybridRegion&) = delete;
 
-  /// Steps the region over @p tick_s (> 0, at most 10 ms of it) in substeps
-  /// of substep_s(): as many whole ones as the tick and the last tick's
-  /// remainder hold (none when a tick is shorter than one: the last forces
+  /// Steps the region over @p tick_s (> 0, at most 10 ms of it) in steps
+  /// of substep_s(): implicit, the whole steps nearest to the tick and the
+  /// last tick's remainder; explicit, as many whole substeps as they hold
+  /// (none when a tick is shorter than one: the last forces
   /// stand), under the rest's loads (compliance indices and 3
   /// forces each, the tool on the organ: ToolContactEngine::contact_indices
   /// and contact_forces) and at most max_tips tips pressing the region.
@@ -101,12 +127,21 @@ class HybridRegion {
   /// one tick of a moving edge. The query allocates nothing. @returns how many.
   int cut(const Blade& before, const Blade& after);
 
-  /// The proven stable step now, step_safety × 2/ω bound (it can shrink
-  /// after a cut: docs/model.md); the substep (the bound as loaded, or as
-  /// shortened by a cut); the substeps the last advance() took.
+  /// The explicit step's proven stable bound now, step_safety × 2/ω bound
+  /// (it can shrink after a cut: docs/model.md); the step (implicit:
+  /// implicit_step_s; explicit: the bound as loaded, or as shortened by a
+  /// cut); the steps the last advance() took.
   double substep_bound_s() const { return substep_bound_s_; }
   double substep_s() const { return substep_s_; }
   int substeps() const { return substeps_; }
+  RegionIntegrator integrator() const { return settings_.integrator; }
+  /// The implicit step's Woodbury update rank now (DOFs; 0 explicit), and
+  /// how many times it factored A (the first time and the worker's included).
+  int update_rank() const;
+  int factorizations() const;
+  /// Waits for a factorization under way on the worker and adopts it (for
+  /// tests and benchmarks; the ticks adopt it when it is done).
+  void finish_background_work();
 
   const TensorMassModel& tensor_mass() const { return model_; }
   /// The Γ vertices the region still holds (region numbering; a cut that
@@ -150,13 +185,20 @@ class HybridRegion {
   void update_coupling_row_sums();
   bool is_interface_face(const std::array<int, 3>& triangle) const;
   void add_tip_forces(std::span<const RegionTip> tips, bool accumulate);
+  void advance_explicit(std::span<const RegionTip> tips);
+  void advance_implicit(std::span<const RegionTip> tips);
+  void offset_from_rest_loads(std::span<const int> rest_indices,
+                              std::span<const double> rest_forces_n);
 
   const SurfaceModel& model_ref_;
   HybridRegionSettings settings_;
   TensorMassModel model_;
   std::vector<int> interface_;             // region vertices, CutRegionData's order
   std::vector<int> interface_compliance_;  // their compliance indices
-  Eigen::MatrixXd coupling_;               // S = G_ΓΓ⁻¹
+  // Γ as loaded, and each held vertex's place in it (implicit: S stays the
+  // loaded one; a released vertex keeps its rows with no region behind).
+  std::vector<int> loaded_interface_, loaded_compliance_, held_slot_;
+  Eigen::MatrixXd coupling_;  // S = G_ΓΓ⁻¹ (explicit: condensed on the held Γ)
   double coupling_eigen_max_ = 0;          // λ_max(S)
   double element_omega2_ = 0;              // the element bound alone, 1/s²
 
@@ -172,6 +214,13 @@ class HybridRegion {
   Eigen::VectorXd offset_m_, interface_force_n_, gamma_u_m_;
   Eigen::VectorXd region_load_n_, step_force_n_, retimed_m_;
   Eigen::VectorXd coupling_row_sum_;  // Σ_w |S_vw| per Γ DOF
+  // The implicit step: the factored A, its right-hand side, u⁺, u_Γ⁰, S u_Γ⁰
+  // and the push on the loaded Γ, its rows of A − S.
+  std::unique_ptr<detail::ImplicitRegionStep> implicit_;
+  Eigen::VectorXd rhs_n_, next_m_, loaded_offset_m_, loaded_s_offset_n_, loaded_push_n_,
+      loaded_rows_n_;
+  std::vector<char> skin_before_;
+  std::vector<int> touched_;
   std::vector<Eigen::Vector3d> tip_force_n_, tip_force_step_n_, tip_torque_nm_, tip_torque_step_nm_;
 };
 

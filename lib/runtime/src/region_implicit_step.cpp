@@ -1,0 +1,301 @@
+#include "region_implicit_step.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <utility>
+
+#include "palpate/core/error.hpp"
+
+namespace palpate::detail {
+
+using Eigen::Index;
+using Eigen::Matrix3d;
+using Eigen::VectorXd;
+
+namespace {
+constexpr const char* kWhat = "cut region (implicit step)";
+}
+
+struct RegionFactorization {
+  SparseMatrixd a;  // A − S, ordered DOFs (interior, then Γ), both halves
+  Eigen::SparseMatrix<double, Eigen::RowMajor, int> gamma_rows;  // its Γ rows
+  SparseMatrixd a_ig;                                            // its block (interior, Γ)
+  Eigen::SimplicialLLT<SparseMatrixd, Eigen::Lower, Eigen::AMDOrdering<int>> interior;
+  Eigen::LLT<Eigen::MatrixXd> schur;  // of A_ΓΓ + S − A_ΓI A_II⁻¹ A_IΓ
+
+  // A with S on Γ, factored: the interior's sparse Cholesky, then the dense
+  // Schur complement on Γ. Reads only its arguments (a worker thread's).
+  static std::unique_ptr<RegionFactorization> make(SparseMatrixd a, const Eigen::MatrixXd& s,
+                                                   Index interior_dofs) {
+    auto f = std::make_unique<RegionFactorization>();
+    f->a = std::move(a);
+    const Index ni = interior_dofs, ng = f->a.rows() - interior_dofs;
+    f->gamma_rows = f->a.bottomRows(ng);
+    Eigen::MatrixXd z = s;
+    z += Eigen::MatrixXd(f->a.bottomRightCorner(ng, ng));
+    if (ni > 0) {
+      const SparseMatrixd a_ii = f->a.topLeftCorner(ni, ni);
+      f->interior.compute(a_ii);
+      if (f->interior.info() != Eigen::Success)
+        throw InputError(fmt::format(
+            "{}: the step matrix of the region's {} interior DOFs is not positive definite; "
+            "element stiffnesses precompute wrote (positive semi-definite) are accepted",
+            kWhat, ni));
+      f->a_ig = f->a.block(0, ni, ni, ng);
+      if (ng > 0) {
+        const Eigen::MatrixXd x = f->interior.solve(Eigen::MatrixXd(f->a_ig));
+        z.noalias() -= f->a_ig.transpose() * x;
+      }
+    }
+    z = 0.5 * (z + z.transpose()).eval();
+    f->schur.compute(z);
+    if (ng > 0 && f->schur.info() != Eigen::Success)
+      throw InputError(fmt::format(
+          "{}: the step matrix on the region's boundary Γ ({} DOFs) is not positive definite; a "
+          "compliance file precompute wrote and checked is accepted",
+          kWhat, ng));
+    return f;
+  }
+
+  // out = A_II⁻¹ in through the factor's permutation; allocates nothing
+  // (@p tmp and @p out sized, distinct from @p in).
+  void interior_solve(const VectorXd& in, VectorXd& tmp, VectorXd& out) const {
+    tmp.noalias() = interior.permutationP() * in;
+    interior.matrixL().solveInPlace(tmp);
+    interior.matrixU().solveInPlace(tmp);
+    out.noalias() = interior.permutationPinv() * tmp;
+  }
+};
+
+ImplicitRegionStep::ImplicitRegionStep(const TensorMassModel& model, std::span<const int> interface,
+                                       const Eigen::MatrixXd& coupling,
+                                       const ImplicitStepCoefficients& coefficients,
+                                       const std::vector<char>& on_skin, int refactor_rank)
+    : model_(model),
+      coupling_(coupling),
+      coefficients_(coefficients),
+      refactor_rank_(refactor_rank),
+      gamma_(interface.begin(), interface.end()) {
+  PALPATE_DEMAND(coupling.rows() == 3 * static_cast<Index>(gamma_.size()) &&
+                 coupling.cols() == coupling.rows() && refactor_rank >= 3);
+  const int nv = model.vertex_count();
+  on_gamma_.assign(static_cast<std::size_t>(nv), 0);
+  for (int v : gamma_) on_gamma_[v] = 1;
+  // Interior DOFs first (vertex order), then Γ (as loaded).
+  first_dof_.assign(static_cast<std::size_t>(nv), -1);
+  Index next = 0;
+  double mass = 0;
+  int moving = 0;
+  for (int v = 0; v < nv; ++v) {
+    if (model.is_fixed(v)) continue;
+    if (!model.is_detached(v)) {
+      mass += model.mass_kg(v);
+      ++moving;
+    }
+    if (on_gamma_[v] == 0) {
+      first_dof_[v] = static_cast<int>(next);
+      next += 3;
+    }
+  }
+  interior_dofs_ = next;
+  for (int v : gamma_) {
+    first_dof_[v] = static_cast<int>(next);
+    next += 3;
+  }
+  dofs_ = next;
+  // A held vertex weighs on A as a typical vertex's mass term does.
+  hold_n_per_m_ = coefficients.mass_coefficient() * (moving > 0 ? mass / moving : 1e-6);
+  dof_slot_.assign(static_cast<std::size_t>(dofs_), -1);
+  ordered_ = VectorXd::Zero(dofs_);
+  scratch_i_ = VectorXd::Zero(interior_dofs_);
+  scratch_g_ = VectorXd::Zero(dofs_ - interior_dofs_);
+  factor_ = RegionFactorization::make(assemble(on_skin), coupling_, interior_dofs_);
+  ++factorizations_;
+  refresh_capacitance(on_skin);
+}
+
+ImplicitRegionStep::~ImplicitRegionStep() {
+  if (pending_.valid()) pending_.wait();
+}
+
+Matrix3d ImplicitRegionStep::diagonal_block(int v, const std::vector<char>& on_skin) const {
+  const double diagonal = coefficients_.mass_coefficient() * model_.mass_kg(v) +
+                          (on_skin[v] != 0 ? coefficients_.skin_stiffness_n_per_m : 0.0) +
+                          (holds(v) ? hold_n_per_m_ : 0.0);
+  return model_.vertex_tensor(v) + diagonal * Matrix3d::Identity();
+}
+
+SparseMatrixd ImplicitRegionStep::assemble(const std::vector<char>& on_skin) const {
+  std::vector<Eigen::Triplet<double>> entries;
+  const auto add = [&](int i, int j, const Matrix3d& block) {
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b)
+        if (block(a, b) != 0) entries.emplace_back(first_dof_[i] + a, first_dof_[j] + b, block(a, b));
+  };
+  for (int v = 0; v < model_.vertex_count(); ++v)
+    if (first_dof_[v] >= 0) add(v, v, diagonal_block(v, on_skin));
+  Matrix3d k_ij;
+  for (const auto& [i, j] : model_.edges())
+    if (first_dof_[i] >= 0 && first_dof_[j] >= 0 && model_.edge_tensor(i, j, k_ij)) {
+      add(i, j, k_ij);
+      add(j, i, k_ij.transpose());
+    }
+  SparseMatrixd a(dofs_, dofs_);
+  a.setFromTriplets(entries.begin(), entries.end());
+  return a;
+}
+
+void ImplicitRegionStep::base_solve(Eigen::Ref<VectorXd> x) {
+  const Index ni = interior_dofs_, ng = dofs_ - ni;
+  const RegionFactorization& f = *factor_;
+  if (ni > 0) {
+    scratch_i_ = x.head(ni);
+    f.interior_solve(scratch_i_, picked_interior_, solved_interior_);
+    // Γ: the Schur complement's right-hand side, b_Γ − A_ΓI A_II⁻¹ b_I.
+    if (ng > 0) x.tail(ng).noalias() -= f.a_ig.transpose() * solved_interior_;
+  }
+  if (ng > 0) {
+    scratch_g_ = x.tail(ng);
+    f.schur.solveInPlace(scratch_g_);
+    x.tail(ng) = scratch_g_;
+  }
+  if (ni > 0) {
+    if (ng > 0) scratch_i_.noalias() -= f.a_ig * scratch_g_;
+    f.interior_solve(scratch_i_, picked_interior_, solved_interior_);
+    x.head(ni) = solved_interior_;
+  }
+}
+
+void ImplicitRegionStep::solve(CRef<VectorXd> b, Eigen::Ref<VectorXd> x) {
+  PALPATE_DEMAND(b.size() == 3 * model_.vertex_count() && x.size() == b.size());
+  const int nv = model_.vertex_count();
+  for (int v = 0; v < nv; ++v)
+    if (first_dof_[v] >= 0) ordered_.segment<3>(first_dof_[v]) = b.segment<3>(3 * v);
+  base_solve(ordered_);
+  if (rank_ > 0) {
+    // Woodbury: A⁻¹ b = A₀⁻¹ b − Y (I + D Eᵀ Y)⁻¹ D Eᵀ A₀⁻¹ b.
+    for (int k = 0; k < rank_; ++k) picked_[k] = ordered_[update_dofs_[k]];
+    weights_.noalias() = d_ * picked_;
+    picked_ = capacitance_.solve(weights_);
+    ordered_.noalias() -= y_.leftCols(rank_) * picked_;
+  }
+  for (int v = 0; v < nv; ++v)
+    x.segment<3>(3 * v) =
+        first_dof_[v] >= 0 ? Eigen::Vector3d(ordered_.segment<3>(first_dof_[v])) : Eigen::Vector3d::Zero();
+}
+
+void ImplicitRegionStep::interface_rows(CRef<VectorXd> x, Eigen::Ref<VectorXd> out) {
+  PALPATE_DEMAND(x.size() == 3 * model_.vertex_count() &&
+                 out.size() == dofs_ - interior_dofs_);
+  const int nv = model_.vertex_count();
+  for (int v = 0; v < nv; ++v)
+    if (first_dof_[v] >= 0) ordered_.segment<3>(first_dof_[v]) = x.segment<3>(3 * v);
+  out.noalias() = factor_->gamma_rows * ordered_;
+  if (rank_ > 0) {
+    for (int k = 0; k < rank_; ++k) picked_[k] = ordered_[update_dofs_[k]];
+    weights_.noalias() = d_ * picked_;
+    for (int k = 0; k < rank_; ++k)
+      if (update_dofs_[k] >= interior_dofs_) out[update_dofs_[k] - interior_dofs_] += weights_[k];
+  }
+}
+
+void ImplicitRegionStep::add_update_dofs(std::span<const int> touched) {
+  for (int v : touched) {
+    if (first_dof_[v] < 0 || dof_slot_[first_dof_[v]] >= 0) continue;
+    if (y_.cols() < rank_ + 3) y_.conservativeResize(dofs_, std::max<Index>(2 * y_.cols(), 48));
+    for (int a = 0; a < 3; ++a) {
+      const Index dof = first_dof_[v] + a;
+      ordered_.setZero();
+      ordered_[dof] = 1;
+      base_solve(ordered_);
+      y_.col(rank_) = ordered_;
+      dof_slot_[dof] = rank_++;
+      update_dofs_.push_back(dof);
+    }
+  }
+}
+
+// D = (A now − A₀) on the update's DOFs, which holds every change a cut
+// made (a removed tetrahedron changes only the blocks among its four
+// vertices, and the skin and hold flags of those); the capacitance
+// I + D Eᵀ Y factored.
+void ImplicitRegionStep::refresh_capacitance(const std::vector<char>& on_skin) {
+  d_.setZero(rank_, rank_);
+  picked_.setZero(rank_);
+  weights_.setZero(rank_);
+  picked_interior_.setZero(interior_dofs_);
+  solved_interior_.setZero(interior_dofs_);
+  if (rank_ == 0) return;
+  // The update's vertices: each enters with its three DOFs in a row.
+  std::vector<int> vertex_of(static_cast<std::size_t>(rank_ / 3));
+  std::vector<int> owner(static_cast<std::size_t>(dofs_), -1);
+  for (int v = 0; v < model_.vertex_count(); ++v)
+    if (first_dof_[v] >= 0) owner[static_cast<std::size_t>(first_dof_[v])] = v;
+  for (int k = 0; k < rank_; k += 3) vertex_of[k / 3] = owner[update_dofs_[k]];
+  Matrix3d now;
+  for (std::size_t p = 0; p < vertex_of.size(); ++p)
+    for (std::size_t q = 0; q < vertex_of.size(); ++q) {
+      const int vp = vertex_of[p], vq = vertex_of[q];
+      if (vp == vq)
+        now = diagonal_block(vp, on_skin);
+      else if (!model_.edge_tensor(vp, vq, now))
+        now.setZero();
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+          d_(3 * p + a, 3 * q + b) =
+              now(a, b) - factor_->a.coeff(first_dof_[vp] + a, first_dof_[vq] + b);
+    }
+  Eigen::MatrixXd c(rank_, rank_);
+  for (int k = 0; k < rank_; ++k) c.row(k) = y_.row(update_dofs_[k]).head(rank_);
+  capacitance_.compute(Eigen::MatrixXd::Identity(rank_, rank_) + d_ * c);
+}
+
+void ImplicitRegionStep::adopt(std::unique_ptr<RegionFactorization> factorization,
+                               const std::vector<char>& on_skin) {
+  factor_ = std::move(factorization);
+  ++factorizations_;
+  for (Index dof : update_dofs_) dof_slot_[dof] = -1;
+  update_dofs_.clear();
+  rank_ = 0;
+  // What cuts changed after the snapshot the factorization is of.
+  add_update_dofs(touched_since_snapshot_);
+  touched_since_snapshot_.clear();
+  refresh_capacitance(on_skin);
+}
+
+void ImplicitRegionStep::finish_background_work(const std::vector<char>& on_skin) {
+  if (!pending_.valid()) return;
+  ++background_factorizations_;
+  adopt(pending_.get(), on_skin);
+}
+
+void ImplicitRegionStep::update(std::span<const int> touched, const std::vector<char>& on_skin) {
+  using namespace std::chrono_literals;
+  if (pending_.valid() && pending_.wait_for(0s) == std::future_status::ready)
+    finish_background_work(on_skin);
+  if (pending_.valid()) touched_since_snapshot_.insert(touched_since_snapshot_.end(), touched.begin(),
+                                                       touched.end());
+  add_update_dofs(touched);
+  if (rank_ >= 2 * refactor_rank_) {
+    // Past twice the bound: the worker's, if under way, else factored now.
+    if (pending_.valid()) {
+      finish_background_work(on_skin);
+    } else {
+      for (Index dof : update_dofs_) dof_slot_[dof] = -1;
+      update_dofs_.clear();
+      rank_ = 0;
+      factor_ = RegionFactorization::make(assemble(on_skin), coupling_, interior_dofs_);
+      ++factorizations_;
+    }
+  } else if (rank_ >= refactor_rank_ && !pending_.valid()) {
+    touched_since_snapshot_.clear();
+    pending_ = std::async(std::launch::async,
+                          [a = assemble(on_skin), &s = coupling_, ni = interior_dofs_]() mutable {
+                            return RegionFactorization::make(std::move(a), s, ni);
+                          });
+  }
+  refresh_capacitance(on_skin);
+}
+
+}  // namespace palpate::detail
