@@ -63,6 +63,19 @@ class PartitionWatch {
     dds_get_subscription_matched_status(reader_.get(), &status);
     return status.current_count > 0;
   }
+  /// Takes what came until nothing more has come for 100 ms (at most 2 s):
+  /// a loaded machine (TSan) may still be delivering when the poses end.
+  std::map<std::string, int> drain() {
+    const auto deadline = std::chrono::steady_clock::now() + 2s;
+    int total = -1;
+    for (;;) {
+      int now = 0;
+      for (const auto& [tool, n] : take()) now += n;
+      if (now == total || std::chrono::steady_clock::now() > deadline) return counts_;
+      total = now;
+      std::this_thread::sleep_for(100ms);
+    }
+  }
   /// Takes what came; the tool id of each sample is its first field.
   std::map<std::string, int> take() {
     for (;;) {
@@ -130,16 +143,22 @@ TEST_F(ToolResponsesOverDds, AStationReadsItsOwnToolsAnswersAndOlderClientsStill
          std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(5ms);
 
-  // 200 poses; the tool topics are best effort, so a loaded machine may
-  // lose a few samples on the way: 90 % of them is the bound.
+  // 200 poses. The tool topics are best effort: a loaded machine loses
+  // samples on the way to each reader independently (under TSan one run
+  // delivered 173 of 200 to one watcher). What this test asserts is where
+  // the answers go, not the loss rate: each reader that should see the
+  // probe sees at least half of what the probe's own client was answered,
+  // and the readers that should not see it see none.
   Hand probe("probe", rest(top_vertex(75, 25)) + Vector3d(0, 0, 0.01));
   probe.hold(200);
-  ASSERT_GE(probe.answered, 180) << daemon_->log();
-  std::this_thread::sleep_for(50ms);
-  EXPECT_GE(probe_answers.take()["probe"], 180);
-  EXPECT_EQ(probe_answers.take().size(), 1u) << "the probe's partition carries the probe's only";
-  EXPECT_TRUE(right_answers.take().empty()) << "nothing of the probe in the right tool's";
-  EXPECT_GE(feedback.take()["probe"], 180) << "the unpartitioned feedback still flows";
+  ASSERT_GE(probe.answered, 100) << daemon_->log();
+  const auto in_partition = probe_answers.drain();
+  EXPECT_GE(in_partition.count("probe") ? in_partition.at("probe") : 0, probe.answered / 2);
+  EXPECT_EQ(in_partition.size(), 1u) << "the probe's partition carries the probe's only";
+  EXPECT_TRUE(right_answers.drain().empty()) << "nothing of the probe in the right tool's";
+  const auto unpartitioned = feedback.drain();
+  EXPECT_GE(unpartitioned.count("probe") ? unpartitioned.at("probe") : 0, probe.answered / 2)
+      << "the unpartitioned feedback still flows";
   EXPECT_TRUE(station.take_events().empty());
   EXPECT_EQ(station.foreign_feedback(), 0u);
 }
