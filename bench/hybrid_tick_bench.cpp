@@ -1,17 +1,21 @@
 // The hybrid model as served (issue 20): one haptic tick of the cuttable
 // region — HybridRegion::advance over 1 ms: u_Γ⁰ = G_ΓS f_S from eight loads
-// on the rest, the tensor-mass substeps with the coupling −S (u_Γ − u_Γ⁰)
-// and a tip pressing the region's surface, then f_Γ = S (u_Γ − u_Γ⁰) — and
-// one cut (HybridRegion::cut: the blade's query, the removals, the Γ
-// vertices released, the new step bound), on the sample organ with balls of
-// two radii at its lower front (BENCHMARKS.md, "The hybrid model as
-// served"). Targets: a tick p99 ≤ 500 µs at up to 2,000 tetrahedra, a cut
-// ≤ 10 ms. Same-run baseline: the same substeps of the uncoupled
-// TensorMassModel::step alone (what the coupling and the tip add). And the
-// contact tick of a probe on the rest next to the region, with the
-// region's push as background loads and without (what they cost).
+// on the rest, the region's step with the coupling and a tip pressing its
+// surface, then f_Γ = S (u_Γ − u_Γ⁰) — and one cut (HybridRegion::cut: the
+// blade's query, the removals, the Γ vertices released, and the step's
+// update), on the sample organ with balls of two radii at its lower front
+// (BENCHMARKS.md, "The hybrid model as served"). Targets: a tick p99 ≤
+// 500 µs at up to 2,000 tetrahedra, a cut ≤ 10 ms. The served step is the
+// implicit one (one backward-Euler step per tick); same-run baselines: the
+// explicit substeps it replaced, on the same loads, and those substeps of
+// the uncoupled TensorMassModel::step alone. Cuts are timed with a tick
+// after each (a blade moving through the region, one cut per tick: what
+// the Woodbury update adds to the tick, and when the worker's
+// refactorization lands). And the contact tick of a probe on the rest next
+// to the region, with the region's push as background loads and without
+// (what they cost).
 //
-//   build/bench/palpate_hybrid_tick_bench [mesh_size_m] [ticks]
+//   build/bench/palpate_hybrid_tick_bench [mesh_size_m] [ticks] [ball_radius_mm: 16 or 25]
 //
 // A small timed program: every tick and every cut is timed; the
 // percentiles are printed.
@@ -20,6 +24,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -66,7 +71,12 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
   job.write_xdmf = false;
   run_precompute(job, {});
   const SurfaceModel model = load_surface_model("organ", job.output);
+  auto construction = Clock::now();
   HybridRegion region(model);
+  const double construction_ms = microseconds(construction) / 1e3;
+  HybridRegionSettings explicit_settings;
+  explicit_settings.integrator = RegionIntegrator::kExplicit;
+  HybridRegion explicit_region(model, explicit_settings);
   const CutRegionData& data = *model.cut_region;
 
   // Eight loads on the rest (0.1 N inward), the compliance vertices nearest
@@ -102,20 +112,28 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
       std::vector<int>(data.fixed_vertices.begin(), data.fixed_vertices.end()));
   const Eigen::VectorXd no_load = Eigen::VectorXd::Zero(3 * data.vertices_m.rows());
 
-  std::vector<double> tick_us, baseline_us;
+  const auto tip_at = [&](int n) {
+    const double y = 0.005 * std::sin(2 * 3.14159265358979 * n * 1e-3);
+    return RegionTip{touch + Vector3d(0, y, r - 0.002), touch + Vector3d(0, y, r - 0.002), r};
+  };
+  std::vector<double> tick_us, explicit_us, baseline_us;
   long substeps = 0;
   for (int n = 0; n < ticks; ++n) {
-    const double y = 0.005 * std::sin(2 * 3.14159265358979 * n * 1e-3);
-    const RegionTip tip{touch + Vector3d(0, y, r - 0.002), touch + Vector3d(0, y, r - 0.002), r};
-    const auto start = Clock::now();
+    const RegionTip tip = tip_at(n);
+    auto start = Clock::now();
     region.advance(1e-3, rest_indices, rest_forces, {&tip, 1});
     tick_us.push_back(microseconds(start));
-    substeps += region.substeps();
+    start = Clock::now();
+    explicit_region.advance(1e-3, rest_indices, rest_forces, {&tip, 1});
+    explicit_us.push_back(microseconds(start));
+    substeps += explicit_region.substeps();
     const auto base = Clock::now();
-    for (int s = 0; s < region.substeps(); ++s) uncoupled.step(region.substep_s(), no_load);
+    for (int s = 0; s < explicit_region.substeps(); ++s)
+      uncoupled.step(explicit_region.substep_s(), no_load);
     baseline_us.push_back(microseconds(base));
   }
-  const Quantiles tick = quantiles(tick_us), base = quantiles(baseline_us);
+  const Quantiles tick = quantiles(tick_us), explicit_tick = quantiles(explicit_us),
+                  base = quantiles(baseline_us);
 
   // The contact tick next to the region: a 3 mm sphere 1.5 mm into the
   // rest's surface at its vertex off Γ nearest the ball, 3–8 mm outside it,
@@ -167,34 +185,82 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
   const Quantiles contact_with = quantiles(with_us), contact_without = quantiles(without_us);
   const int contacts = near >= 0 ? with.output(0).contacts : -1;
 
-  // Cuts: a vertical blade 30 mm long through the ball's centre, moved
-  // 0.5 mm along y per cut, from one side of the ball to the other.
-  std::vector<double> cut_us;
-  int removed = 0, cuts_that_removed = 0;
-  for (double y = -radius_m; y <= radius_m; y += 5e-4) {
+  // An incision at 20 mm/s (a brisk one): a vertical blade 30 mm long
+  // through the ball's centre swept 0.02 mm along y per 1 ms tick across
+  // the ball (HybridRegion::cut(before, after), as palpated cuts), each
+  // cut and each tick timed, the implicit region only (the served one).
+  std::vector<double> incision_cut_us, incision_tick_us;
+  {
+    HybridRegion incised(model);
+    const auto blade_at = [&](double y) {
+      return Blade{kCentre + Vector3d(0, y, 0.015), kCentre + Vector3d(0, y, -0.015)};
+    };
+    Blade before = blade_at(-radius_m);
+    int step = 0;
+    for (double y = -radius_m + 2e-5; y <= radius_m; y += 2e-5, ++step) {
+      const Blade after = blade_at(y);
+      auto start = Clock::now();
+      incised.cut(before, after);
+      incision_cut_us.push_back(microseconds(start));
+      before = after;
+      const RegionTip tip = tip_at(step);
+      start = Clock::now();
+      incised.advance(1e-3, rest_indices, rest_forces, {&tip, 1});
+      incision_tick_us.push_back(microseconds(start));
+    }
+  }
+  const Quantiles incision_cut = quantiles(incision_cut_us),
+                  incision_tick = quantiles(incision_tick_us);
+
+  // The stress case: the same blade 0.5 mm per cut (0.5 m/s), a tick of
+  // each region after each cut.
+  std::vector<double> cut_us, explicit_cut_us, cutting_tick_us;
+  int removed = 0, cuts_that_removed = 0, n = 0;
+  for (double y = -radius_m; y <= radius_m; y += 5e-4, ++n) {
     const Vector3d a = kCentre + Vector3d(0, y, 0.015), b = kCentre + Vector3d(0, y, -0.015);
-    const auto start = Clock::now();
+    auto start = Clock::now();
     const int k = region.cut(a, b);
     cut_us.push_back(microseconds(start));
+    start = Clock::now();
+    explicit_region.cut(a, b);
+    explicit_cut_us.push_back(microseconds(start));
     removed += k;
     cuts_that_removed += k > 0;
+    const RegionTip tip = tip_at(n);
+    start = Clock::now();
+    region.advance(1e-3, rest_indices, rest_forces, {&tip, 1});
+    cutting_tick_us.push_back(microseconds(start));
+    explicit_region.advance(1e-3, rest_indices, rest_forces, {&tip, 1});
   }
-  const Quantiles cut = quantiles(cut_us);
+  const Quantiles cut = quantiles(cut_us), explicit_cut = quantiles(explicit_cut_us),
+                  cutting_tick = quantiles(cutting_tick_us);
 
+  region.finish_background_work();
   std::printf(
-      "ball %.0f mm: %d tetrahedra, %d vertices, %zu on Γ; substep %.1f µs, %.2f per tick\n"
-      "  tick (advance 1 ms): p50 %.1f µs, p99 %.1f µs, max %.1f µs\n"
-      "  baseline (the same substeps, uncoupled step alone): p50 %.1f µs, p99 %.1f µs\n"
-      "  cut (%zu blades, %d removing, %d tetrahedra in all): p50 %.1f µs, p99 %.1f µs, "
-      "max %.1f µs; Γ vertices still held %zu; substep after %.1f µs\n"
+      "ball %.0f mm: %d tetrahedra, %d vertices, %zu on Γ; A factored in %.1f ms (with S)\n"
+      "  implicit tick (advance 1 ms, one step): p50 %.1f µs, p99 %.1f µs, max %.1f µs\n"
+      "  baseline, explicit (substep %.1f µs, %.2f per tick): p50 %.1f µs, p99 %.1f µs, max "
+      "%.1f µs\n"
+      "  baseline, the same substeps of the uncoupled step alone: p50 %.1f µs, p99 %.1f µs\n"
+      "  stress: cut (0.5 mm per cut, %zu blades, %d removing, %d tetrahedra in all), implicit: "
+      "p50 %.1f µs, p99 %.1f "
+      "µs, max %.1f µs; A factored %d times in all, update rank at the end %d; explicit: p50 "
+      "%.1f µs, p99 %.1f µs, max %.1f µs; Γ vertices still held %zu\n"
+      "  implicit tick after each cut: p50 %.1f µs, p99 %.1f µs, max %.1f µs\n"
+      "  an incision at 20 mm/s (%zu ticks): cut p50 %.1f µs, p99 %.1f µs, max %.1f µs; tick "
+      "p50 %.1f µs, p99 %.1f µs, max %.1f µs\n"
       "  contact tick next to the region (%d contacts): with its push as background loads p50 "
       "%.1f µs, p99 %.1f µs; without p50 %.1f µs, p99 %.1f µs\n",
       radius_m * 1e3, static_cast<int>(data.tetrahedra.rows()),
       static_cast<int>(data.vertices_m.rows()),
-      static_cast<std::size_t>(data.interface_vertices.size()), region.substep_s() * 1e6,
-      static_cast<double>(substeps) / ticks, tick.p50, tick.p99, tick.max, base.p50, base.p99,
-      cut_us.size(), cuts_that_removed, removed, cut.p50, cut.p99, cut.max,
-      region.interface_vertices().size(), region.substep_s() * 1e6, contacts, contact_with.p50,
+      static_cast<std::size_t>(data.interface_vertices.size()), construction_ms, tick.p50, tick.p99,
+      tick.max, explicit_region.substep_s() * 1e6, static_cast<double>(substeps) / ticks,
+      explicit_tick.p50, explicit_tick.p99, explicit_tick.max, base.p50, base.p99, cut_us.size(),
+      cuts_that_removed, removed, cut.p50, cut.p99, cut.max, region.factorizations(),
+      region.update_rank(), explicit_cut.p50, explicit_cut.p99, explicit_cut.max,
+      region.interface_vertices().size(), cutting_tick.p50, cutting_tick.p99, cutting_tick.max,
+      incision_cut_us.size(), incision_cut.p50, incision_cut.p99, incision_cut.max,
+      incision_tick.p50, incision_tick.p99, incision_tick.max, contacts, contact_with.p50,
       contact_with.p99, contact_without.p50, contact_without.p99);
 }
 
@@ -202,6 +268,7 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
 
 int main(int argc, char** argv) {
   palpate::ensure_optimized_blas(argv);
+  palpate::set_blas_threads(1);  // as palpated: the haptic tick's products on its own thread
   const double size_m = argc > 1 ? std::atof(argv[1]) : 0.004;
   const int ticks = argc > 2 ? std::atoi(argv[2]) : 5000;
   const std::filesystem::path dir =
@@ -209,6 +276,7 @@ int main(int argc, char** argv) {
   std::filesystem::create_directories(dir);
   write_sample_organ(dir / "organ.msh", size_m);
   std::printf("sample organ at %.1f mm, %s\n", size_m * 1e3, palpate::utc_timestamp().c_str());
-  for (const double radius_m : {0.016, 0.025}) run(dir, radius_m, ticks);
+  for (const double radius_m : {0.016, 0.025})
+    if (argc <= 3 || std::atof(argv[3]) * 1e-3 == radius_m) run(dir, radius_m, ticks);
   std::filesystem::remove_all(dir);
 }

@@ -61,8 +61,8 @@ TensorMassMaterial material_of(const CutRegionData& region, const HybridRegionSe
     throw InputError(fmt::format("{}: implicit step {} s; a step in (0, {}] s is accepted", kWhat,
                                  s.implicit_step_s, kMaxAdvanceS));
   if (s.refactor_rank < 3 || s.refactor_rank > 3000)
-    throw InputError(fmt::format("{}: refactor rank {}; 3 to 3000 DOFs are accepted", kWhat,
-                                 s.refactor_rank));
+    throw InputError(
+        fmt::format("{}: refactor rank {}; 3 to 3000 DOFs are accepted", kWhat, s.refactor_rank));
   if (!std::isfinite(s.damping_per_s))
     throw InputError(fmt::format(
         "{}: damping {} 1/s; a finite γ ≥ 0, or a negative value for the file's, is accepted",
@@ -326,7 +326,7 @@ void HybridRegion::offset_from_rest_loads(std::span<const int> rest_indices,
     if (rest_indices.empty())
       loaded_s_offset_n_.setZero();
     else
-      loaded_s_offset_n_.noalias() = coupling_.selfadjointView<Eigen::Lower>() * offset;
+      detail::symmetric_product(coupling_, offset, loaded_s_offset_n_);
   }
 }
 
@@ -402,8 +402,7 @@ void HybridRegion::advance_implicit(std::span<const RegionTip> tips) {
     const auto at = static_cast<Eigen::Index>(3 * k);
     const auto slot = static_cast<Eigen::Index>(3 * held_slot_[k]);
     interface_force_n_.segment<3>(at) = loaded_push_n_.segment<3>(slot);
-    gamma_u_m_.segment<3>(at) =
-        u.segment<3>(3 * interface_[k]) - loaded_offset_m_.segment<3>(slot);
+    gamma_u_m_.segment<3>(at) = u.segment<3>(3 * interface_[k]) - loaded_offset_m_.segment<3>(slot);
   }
 }
 

@@ -7,6 +7,11 @@
 
 #include "palpate/core/error.hpp"
 
+extern "C" {
+void dsymv_(const char* uplo, const int* n, const double* alpha, const double* a, const int* lda,
+            const double* x, const int* incx, const double* beta, double* y, const int* incy);
+}
+
 namespace palpate::detail {
 
 using Eigen::Index;
@@ -17,12 +22,23 @@ namespace {
 constexpr const char* kWhat = "cut region (implicit step)";
 }
 
+void symmetric_product(const Eigen::MatrixXd& a, CRef<VectorXd> x, Eigen::Ref<VectorXd> y) {
+  PALPATE_DEMAND(a.rows() == a.cols() && x.size() == a.rows() && y.size() == a.rows() &&
+                 x.innerStride() == 1 && y.innerStride() == 1);
+  const int n = static_cast<int>(a.rows()), one = 1;
+  const double alpha = 1, beta = 0;
+  if (n > 0) dsymv_("L", &n, &alpha, a.data(), &n, x.data(), &one, &beta, y.data(), &one);
+}
+
 struct RegionFactorization {
   SparseMatrixd a;  // A − S, ordered DOFs (interior, then Γ), both halves
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> gamma_rows;  // its Γ rows
   SparseMatrixd a_ig;                                            // its block (interior, Γ)
   Eigen::SimplicialLLT<SparseMatrixd, Eigen::Lower, Eigen::AMDOrdering<int>> interior;
-  Eigen::LLT<Eigen::MatrixXd> schur;  // of A_ΓΓ + S − A_ΓI A_II⁻¹ A_IΓ
+  // Z⁻¹, Z = A_ΓΓ + S − A_ΓI A_II⁻¹ A_IΓ: one symmetric product by it per
+  // tick (BLAS dsymv, its lower half) costs less than Z's two triangular
+  // solves (BENCHMARKS.md, "The implicit step").
+  Eigen::MatrixXd schur_inverse;
 
   // A with S on Γ, factored: the interior's sparse Cholesky, then the dense
   // Schur complement on Γ. Reads only its arguments (a worker thread's).
@@ -49,12 +65,13 @@ struct RegionFactorization {
       }
     }
     z = 0.5 * (z + z.transpose()).eval();
-    f->schur.compute(z);
-    if (ng > 0 && f->schur.info() != Eigen::Success)
+    const Eigen::LLT<Eigen::MatrixXd> schur(z);
+    if (ng > 0 && schur.info() != Eigen::Success)
       throw InputError(fmt::format(
           "{}: the step matrix on the region's boundary Γ ({} DOFs) is not positive definite; a "
           "compliance file precompute wrote and checked is accepted",
           kWhat, ng));
+    f->schur_inverse = schur.solve(Eigen::MatrixXd::Identity(ng, ng));
     return f;
   }
 
@@ -131,7 +148,8 @@ SparseMatrixd ImplicitRegionStep::assemble(const std::vector<char>& on_skin) con
   const auto add = [&](int i, int j, const Matrix3d& block) {
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b)
-        if (block(a, b) != 0) entries.emplace_back(first_dof_[i] + a, first_dof_[j] + b, block(a, b));
+        if (block(a, b) != 0)
+          entries.emplace_back(first_dof_[i] + a, first_dof_[j] + b, block(a, b));
   };
   for (int v = 0; v < model_.vertex_count(); ++v)
     if (first_dof_[v] >= 0) add(v, v, diagonal_block(v, on_skin));
@@ -156,8 +174,7 @@ void ImplicitRegionStep::base_solve(Eigen::Ref<VectorXd> x) {
     if (ng > 0) x.tail(ng).noalias() -= f.a_ig.transpose() * solved_interior_;
   }
   if (ng > 0) {
-    scratch_g_ = x.tail(ng);
-    f.schur.solveInPlace(scratch_g_);
+    symmetric_product(f.schur_inverse, x.tail(ng), scratch_g_);
     x.tail(ng) = scratch_g_;
   }
   if (ni > 0) {
@@ -181,13 +198,12 @@ void ImplicitRegionStep::solve(CRef<VectorXd> b, Eigen::Ref<VectorXd> x) {
     ordered_.noalias() -= y_.leftCols(rank_) * picked_;
   }
   for (int v = 0; v < nv; ++v)
-    x.segment<3>(3 * v) =
-        first_dof_[v] >= 0 ? Eigen::Vector3d(ordered_.segment<3>(first_dof_[v])) : Eigen::Vector3d::Zero();
+    x.segment<3>(3 * v) = first_dof_[v] >= 0 ? Eigen::Vector3d(ordered_.segment<3>(first_dof_[v]))
+                                             : Eigen::Vector3d::Zero();
 }
 
 void ImplicitRegionStep::interface_rows(CRef<VectorXd> x, Eigen::Ref<VectorXd> out) {
-  PALPATE_DEMAND(x.size() == 3 * model_.vertex_count() &&
-                 out.size() == dofs_ - interior_dofs_);
+  PALPATE_DEMAND(x.size() == 3 * model_.vertex_count() && out.size() == dofs_ - interior_dofs_);
   const int nv = model_.vertex_count();
   for (int v = 0; v < nv; ++v)
     if (first_dof_[v] >= 0) ordered_.segment<3>(first_dof_[v]) = x.segment<3>(3 * v);
@@ -274,8 +290,8 @@ void ImplicitRegionStep::update(std::span<const int> touched, const std::vector<
   using namespace std::chrono_literals;
   if (pending_.valid() && pending_.wait_for(0s) == std::future_status::ready)
     finish_background_work(on_skin);
-  if (pending_.valid()) touched_since_snapshot_.insert(touched_since_snapshot_.end(), touched.begin(),
-                                                       touched.end());
+  if (pending_.valid())
+    touched_since_snapshot_.insert(touched_since_snapshot_.end(), touched.begin(), touched.end());
   add_update_dofs(touched);
   if (rank_ >= 2 * refactor_rank_) {
     // Past twice the bound: the worker's, if under way, else factored now.

@@ -30,12 +30,17 @@
 
 namespace palpate::detail {
 
+/// y = A x for a symmetric @p a, reading its lower half (BLAS dsymv: several
+/// times Eigen's own on this machine). Allocates nothing.
+void symmetric_product(const Eigen::MatrixXd& a, CRef<Eigen::VectorXd> x,
+                       Eigen::Ref<Eigen::VectorXd> y);
+
 /// A's constant coefficients.
 struct ImplicitStepCoefficients {
-  double time_step_s = 1e-3;           ///< Δt
-  double damping_per_s = 0;            ///< γ
-  double skin_stiffness_n_per_m = 0;   ///< k_s on each touchable vertex
-  double mass_coefficient() const {    ///< c = 1/Δt² + γ/Δt
+  double time_step_s = 1e-3;          ///< Δt
+  double damping_per_s = 0;           ///< γ
+  double skin_stiffness_n_per_m = 0;  ///< k_s on each touchable vertex
+  double mass_coefficient() const {   ///< c = 1/Δt² + γ/Δt
     return 1 / (time_step_s * time_step_s) + damping_per_s / time_step_s;
   }
 };

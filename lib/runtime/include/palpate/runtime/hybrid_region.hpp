@@ -198,9 +198,9 @@ class HybridRegion {
   // Γ as loaded, and each held vertex's place in it (implicit: S stays the
   // loaded one; a released vertex keeps its rows with no region behind).
   std::vector<int> loaded_interface_, loaded_compliance_, held_slot_;
-  Eigen::MatrixXd coupling_;  // S = G_ΓΓ⁻¹ (explicit: condensed on the held Γ)
-  double coupling_eigen_max_ = 0;          // λ_max(S)
-  double element_omega2_ = 0;              // the element bound alone, 1/s²
+  Eigen::MatrixXd coupling_;       // S = G_ΓΓ⁻¹ (explicit: condensed on the held Γ)
+  double coupling_eigen_max_ = 0;  // λ_max(S)
+  double element_omega2_ = 0;      // the element bound alone, 1/s²
 
   std::vector<InterfaceFace> interface_faces_;  // sorted by region_sorted
   std::vector<int> rest_triangle_face_;         // per rest drawn triangle: interface face or −1
