@@ -1,6 +1,10 @@
 #include "region_implicit_step.hpp"
 
 #include <fmt/format.h>
+#include <pthread.h>
+#include <sched.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <utility>
@@ -21,6 +25,24 @@ using Eigen::VectorXd;
 namespace {
 constexpr const char* kWhat = "cut region (implicit step)";
 }
+
+namespace {
+// The worker thread inherits the haptic thread's scheduling: SCHED_FIFO
+// and its CPUs, where a factorization of hundreds of milliseconds would
+// starve the tick it serves. It runs as an ordinary thread instead, at
+// nice 10, on any CPU (docs/realtime.md).
+void become_background_thread() {
+  sched_param normal{};
+  normal.sched_priority = 0;
+  pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
+  cpu_set_t every;
+  CPU_ZERO(&every);
+  const long cpus = sysconf(_SC_NPROCESSORS_CONF);
+  for (long c = 0; c < cpus && c < CPU_SETSIZE; ++c) CPU_SET(static_cast<int>(c), &every);
+  pthread_setaffinity_np(pthread_self(), sizeof every, &every);
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 10);
+}
+}  // namespace
 
 void symmetric_product(const Eigen::MatrixXd& a, CRef<VectorXd> x, Eigen::Ref<VectorXd> y) {
   PALPATE_DEMAND(a.rows() == a.cols() && x.size() == a.rows() && y.size() == a.rows() &&
@@ -308,6 +330,7 @@ void ImplicitRegionStep::update(std::span<const int> touched, const std::vector<
     touched_since_snapshot_.clear();
     pending_ = std::async(std::launch::async,
                           [a = assemble(on_skin), &s = coupling_, ni = interior_dofs_]() mutable {
+                            become_background_thread();
                             return RegionFactorization::make(std::move(a), s, ni);
                           });
   }
