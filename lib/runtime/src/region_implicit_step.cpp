@@ -12,6 +12,13 @@
 #include "palpate/core/error.hpp"
 
 extern "C" {
+void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+void dpotri_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+void dtrsm_(const char* side, const char* uplo, const char* transa, const char* diag, const int* m,
+            const int* n, const double* alpha, const double* a, const int* lda, double* b,
+            const int* ldb);
+void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k, const double* alpha,
+            const double* a, const int* lda, const double* beta, double* c, const int* ldc);
 void dsymv_(const char* uplo, const int* n, const double* alpha, const double* a, const int* lda,
             const double* x, const int* incx, const double* beta, double* y, const int* incy);
 }
@@ -62,8 +69,10 @@ struct RegionFactorization {
   // solves (BENCHMARKS.md, "The implicit step").
   Eigen::MatrixXd schur_inverse;
 
-  // A with S on Γ, factored: the interior's sparse Cholesky, then the dense
-  // Schur complement on Γ. Reads only its arguments (a worker thread's).
+  // A with S on Γ, factored: the interior's sparse Cholesky (for the
+  // ticks), and Z⁻¹ from the same block dense, by LAPACK and BLAS-3:
+  // A_II = L Lᵀ, W = L⁻¹ A_IΓ, Z = A_ΓΓ + S − Wᵀ W, then Z⁻¹ (its lower
+  // half). Reads only its arguments (a worker thread's).
   static std::unique_ptr<RegionFactorization> make(SparseMatrixd a, const Eigen::MatrixXd& s,
                                                    Index interior_dofs) {
     auto f = std::make_unique<RegionFactorization>();
@@ -72,28 +81,36 @@ struct RegionFactorization {
     f->gamma_rows = f->a.bottomRows(ng);
     Eigen::MatrixXd z = s;
     z += Eigen::MatrixXd(f->a.bottomRightCorner(ng, ng));
+    const int n_i = static_cast<int>(ni), n_g = static_cast<int>(ng);
+    int info = 0;
     if (ni > 0) {
       const SparseMatrixd a_ii = f->a.topLeftCorner(ni, ni);
       f->interior.compute(a_ii);
-      if (f->interior.info() != Eigen::Success)
+      Eigen::MatrixXd l(a_ii);
+      dpotrf_("L", &n_i, l.data(), &n_i, &info);
+      if (f->interior.info() != Eigen::Success || info != 0)
         throw InputError(fmt::format(
             "{}: the step matrix of the region's {} interior DOFs is not positive definite; "
             "element stiffnesses precompute wrote (positive semi-definite) are accepted",
             kWhat, ni));
       f->a_ig = f->a.block(0, ni, ni, ng);
       if (ng > 0) {
-        const Eigen::MatrixXd x = f->interior.solve(Eigen::MatrixXd(f->a_ig));
-        z.noalias() -= f->a_ig.transpose() * x;
+        Eigen::MatrixXd w(f->a_ig);
+        const double one = 1, minus_one = -1;
+        dtrsm_("L", "L", "N", "N", &n_i, &n_g, &one, l.data(), &n_i, w.data(), &n_i);
+        dsyrk_("L", "T", &n_g, &n_i, &minus_one, w.data(), &n_i, &one, z.data(), &n_g);
       }
     }
-    z = 0.5 * (z + z.transpose()).eval();
-    const Eigen::LLT<Eigen::MatrixXd> schur(z);
-    if (ng > 0 && schur.info() != Eigen::Success)
-      throw InputError(fmt::format(
-          "{}: the step matrix on the region's boundary Γ ({} DOFs) is not positive definite; a "
-          "compliance file precompute wrote and checked is accepted",
-          kWhat, ng));
-    f->schur_inverse = schur.solve(Eigen::MatrixXd::Identity(ng, ng));
+    if (ng > 0) {
+      dpotrf_("L", &n_g, z.data(), &n_g, &info);
+      if (info == 0) dpotri_("L", &n_g, z.data(), &n_g, &info);
+      if (info != 0)
+        throw InputError(fmt::format(
+            "{}: the step matrix on the region's boundary Γ ({} DOFs) is not positive definite; "
+            "a compliance file precompute wrote and checked is accepted",
+            kWhat, ng));
+    }
+    f->schur_inverse = std::move(z);  // its lower half
     return f;
   }
 
