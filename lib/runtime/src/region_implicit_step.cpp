@@ -19,6 +19,9 @@ void dtrsm_(const char* side, const char* uplo, const char* transa, const char* 
             const int* ldb);
 void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k, const double* alpha,
             const double* a, const int* lda, const double* beta, double* c, const int* ldc);
+void dgemv_(const char* trans, const int* m, const int* n, const double* alpha, const double* a,
+            const int* lda, const double* x, const int* incx, const double* beta, double* y,
+            const int* incy);
 void dsymv_(const char* uplo, const int* n, const double* alpha, const double* a, const int* lda,
             const double* x, const int* incx, const double* beta, double* y, const int* incy);
 }
@@ -234,7 +237,12 @@ void ImplicitRegionStep::solve(CRef<VectorXd> b, Eigen::Ref<VectorXd> x) {
     for (int k = 0; k < rank_; ++k) picked_[k] = ordered_[update_dofs_[k]];
     weights_.noalias() = d_ * picked_;
     picked_ = capacitance_.solve(weights_);
-    ordered_.noalias() -= y_.leftCols(rank_) * picked_;
+    // ordered −= Y w (BLAS dgemv: about twice Eigen's own here).
+    const int rows = static_cast<int>(dofs_), columns = rank_, lda = static_cast<int>(y_.rows()),
+              one = 1;
+    const double minus_one = -1, keep = 1;
+    dgemv_("N", &rows, &columns, &minus_one, y_.data(), &lda, picked_.data(), &one, &keep,
+           ordered_.data(), &one);
   }
   for (int v = 0; v < nv; ++v)
     x.segment<3>(3 * v) = first_dof_[v] >= 0 ? Eigen::Vector3d(ordered_.segment<3>(first_dof_[v]))

@@ -59,7 +59,7 @@ class ImplicitRegionStep {
   /// Allocates; factors A (tens of ms at 2,000 tetrahedra).
   ImplicitRegionStep(const TensorMassModel& model, std::span<const int> interface,
                      const Eigen::MatrixXd& coupling, const ImplicitStepCoefficients& coefficients,
-                     const std::vector<char>& on_skin, int refactor_rank = 96);
+                     const std::vector<char>& on_skin, int refactor_rank = 48);
   ~ImplicitRegionStep();
   ImplicitRegionStep(const ImplicitRegionStep&) = delete;
   ImplicitRegionStep& operator=(const ImplicitRegionStep&) = delete;

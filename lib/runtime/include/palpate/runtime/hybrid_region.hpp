@@ -52,7 +52,7 @@ struct HybridRegionSettings {
   double implicit_step_s = 1e-3;
   /// The implicit step's update rank (DOFs) at which A is factored again
   /// on a worker thread (at twice it, at once).
-  int refactor_rank = 96;
+  int refactor_rank = 48;
   /// The explicit substep is this fraction of the stable step's proven bound
   /// (docs/model.md: the element bound, the coupling and the contacts).
   double step_safety = 0.9;
