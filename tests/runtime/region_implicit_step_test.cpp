@@ -168,7 +168,7 @@ TEST(ImplicitRegionStep, ACutIsALowRankUpdateOfTheFactor) {
 }
 
 // Past the bound the worker factors A again; what was cut meanwhile is an
-// update of its factor. Past twice the bound, A is factored at once.
+// update of its factor. Past four times the bound, A is factored at once.
 TEST(ImplicitRegionStep, PastTheBoundAIsFactoredAgain) {
   Fixture f;
   auto step = make_step(f, 18);
@@ -184,8 +184,8 @@ TEST(ImplicitRegionStep, PastTheBoundAIsFactoredAgain) {
   EXPECT_LE(rows, 1e-10);
 
   std::vector<int> many;
-  for (int t = 100; t < 130; ++t) many.push_back(t);
-  step.update(f.remove(many), f.on_skin);  // far past 36 DOFs at once
+  for (int t = 100; t < 160; ++t) many.push_back(t);
+  step.update(f.remove(many), f.on_skin);  // far past 4 × 18 DOFs at once
   step.finish_background_work(f.on_skin);
   EXPECT_GE(step.factorizations(), 3);
   EXPECT_LE(solve_error(f, step, &rows), 1e-10);

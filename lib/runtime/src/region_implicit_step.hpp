@@ -55,7 +55,7 @@ class ImplicitRegionStep {
   ///        it must outlive this object and not change).
   /// @param on_skin per region vertex: touchable (gets k_s).
   /// @param refactor_rank the update's rank at which A is factored again in
-  ///        the background; at twice it, factored at once.
+  ///        the background; at four times it, factored at once (or the worker waited for).
   /// Allocates; factors A (tens of ms at 2,000 tetrahedra).
   ImplicitRegionStep(const TensorMassModel& model, std::span<const int> interface,
                      const Eigen::MatrixXd& coupling, const ImplicitStepCoefficients& coefficients,

@@ -51,7 +51,7 @@ struct HybridRegionSettings {
   /// takes the whole steps nearest to it (the remainder carried over).
   double implicit_step_s = 1e-3;
   /// The implicit step's update rank (DOFs) at which A is factored again
-  /// on a worker thread (at twice it, at once).
+  /// on a worker thread (at four times it, at once).
   int refactor_rank = 48;
   /// The explicit substep is this fraction of the stable step's proven bound
   /// (docs/model.md: the element bound, the coupling and the contacts).
