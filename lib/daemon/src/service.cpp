@@ -170,9 +170,11 @@ void Service::Impl::load_models() {
     if (const HybridRegion* region = models.back()->region.get()) {
       spdlog::info(
           "event=cut_region_served model={} region=\"{}\" tetrahedra={} interface_vertices={} "
-          "substep_us={:.1f}",
+          "step={} step_us={:.1f}",
           entry.id, models.back()->model.cut_region_spec, region->tensor_mass().tetrahedron_count(),
-          region->interface_vertices().size(), region->substep_bound_s() * 1e6);
+          region->interface_vertices().size(),
+          region->integrator() == RegionIntegrator::kImplicit ? "implicit" : "explicit",
+          region->substep_s() * 1e6);
     }
     if (entry.warped)
       spdlog::info("event=model_warped model={} request_radius_m={:.4g} tool_radius_m={:.4g}",

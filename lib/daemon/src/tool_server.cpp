@@ -306,9 +306,9 @@ void ToolServer::step_region(ServedModel& served, int tool, double now_s) {
         engine.set_triangle_hidden(t, region.covers_rest_triangle(t));
       spdlog::info(
           "event=cut tool={} model={} tetrahedra={} remaining={} topology_version={} "
-          "substep_us={:.1f}",
+          "step_us={:.1f} update_rank={}",
           g.id, served.model.id, removed, region.tensor_mass().remaining_tetrahedra(),
-          region.topology_version(), region.substep_s() * 1e6);
+          region.topology_version(), region.substep_s() * 1e6, region.update_rank());
     }
   }
   tools.blade_live[slot] = live ? 1 : 0;

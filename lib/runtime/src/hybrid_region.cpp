@@ -185,6 +185,9 @@ HybridRegion::~HybridRegion() = default;
 
 int HybridRegion::update_rank() const { return implicit_ ? implicit_->update_rank() : 0; }
 int HybridRegion::factorizations() const { return implicit_ ? implicit_->factorizations() : 0; }
+double HybridRegion::last_factorization_s() const {
+  return implicit_ ? implicit_->last_factorization_s() : 0;
+}
 void HybridRegion::finish_background_work() {
   if (implicit_) implicit_->finish_background_work(on_skin_);
 }

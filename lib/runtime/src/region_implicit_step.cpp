@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <utility>
 
 #include "palpate/core/error.hpp"
@@ -75,6 +76,7 @@ struct RegionFactorization {
   // tick (BLAS dsymv, its lower half) costs less than Z's two triangular
   // solves (BENCHMARKS.md, "The implicit step").
   Eigen::MatrixXd schur_inverse;
+  double seconds = 0;  // what make() took
 
   // A with S on Γ, factored: the interior's sparse Cholesky (for the
   // ticks), and Z⁻¹ from the same block dense, by LAPACK and BLAS-3:
@@ -82,6 +84,7 @@ struct RegionFactorization {
   // half). Reads only its arguments (a worker thread's).
   static std::unique_ptr<RegionFactorization> make(SparseMatrixd a, const Eigen::MatrixXd& s,
                                                    Index interior_dofs) {
+    const auto start = std::chrono::steady_clock::now();
     auto f = std::make_unique<RegionFactorization>();
     f->a = std::move(a);
     const Index ni = interior_dofs, ng = f->a.rows() - interior_dofs;
@@ -118,6 +121,7 @@ struct RegionFactorization {
             kWhat, ng));
     }
     f->schur_inverse = std::move(z);  // its lower half
+    f->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return f;
   }
 
@@ -336,6 +340,8 @@ void ImplicitRegionStep::finish_background_work(const std::vector<char>& on_skin
   ++background_factorizations_;
   adopt(pending_.get(), on_skin);
 }
+
+double ImplicitRegionStep::last_factorization_s() const { return factor_->seconds; }
 
 void ImplicitRegionStep::update(std::span<const int> touched, const std::vector<char>& on_skin) {
   using namespace std::chrono_literals;

@@ -88,6 +88,8 @@ class ImplicitRegionStep {
   int update_rank() const { return rank_; }
   int factorizations() const { return factorizations_; }
   int background_factorizations() const { return background_factorizations_; }
+  /// How long the factorization in use took to compute (s), on whichever thread.
+  double last_factorization_s() const;
   /// Waits for a background factorization under way and adopts it (tests).
   void finish_background_work(const std::vector<char>& on_skin);
 

@@ -139,6 +139,8 @@ class HybridRegion {
   /// how many times it factored A (the first time and the worker's included).
   int update_rank() const;
   int factorizations() const;
+  /// How long the implicit step's factorization in use took (s; 0 explicit).
+  double last_factorization_s() const;
   /// Waits for a factorization under way on the worker and adopts it (for
   /// tests and benchmarks; the ticks adopt it when it is done).
   void finish_background_work();
