@@ -2,8 +2,9 @@
 // (scripts/demo.sh) on machines without a display: opens the page, prints
 // "capture: ready" once the organ is drawn, then takes a screenshot every
 // --interval seconds for --seconds seconds, and copies the one with the
-// most going on (largest displacement, most contacts; after a cut of a
-// served cut region, if there was one) to DIR/viewer.png.
+// most going on (largest displacement, most contacts; on a served cut
+// region, among those of its latest topology version: after the last cut)
+// to DIR/viewer.png.
 //
 //   node capture.mjs --url URL --out DIR [--seconds 8] [--interval 0.5] [--model ID]
 //
@@ -53,18 +54,17 @@ try {
     process.exit(0);
   }
   const shots = Math.max(1, Math.round(Number(args.seconds) / Number(args.interval)));
-  // A served cut region that was cut since the page was ready (its topology
-  // version moved) is what to show: such a frame beats any uncut one.
-  const uncut = await page.evaluate(() => window.palpateViewer.topologyVersion);
-  let best = { cut: false, score: -1, file: '' };
+  // A served cut region that was cut is what to show: a frame of a later
+  // topology version (more cut) beats any earlier one, then the liveliest.
+  let best = { version: -1, score: -1, file: '' };
   for (let i = 1; i <= shots; ++i) {
     await page.waitForTimeout(1000 * Number(args.interval));
     const v = await page.evaluate(() => ({ d: window.palpateViewer.maxDisplacement_m, c: window.palpateViewer.contacts,
                                            t: window.palpateViewer.topologyVersion }));
     const file = join(args.out, `viewer-${String(i).padStart(2, '0')}.png`);
     await page.screenshot({ path: file });
-    const score = v.d * (1 + v.c), cut = v.t !== uncut;
-    if ((cut && !best.cut) || (cut === best.cut && score > best.score)) best = { cut, score, file };
+    const score = v.d * (1 + v.c);
+    if (v.t > best.version || (v.t === best.version && score > best.score)) best = { version: v.t, score, file };
   }
   copyFileSync(best.file, join(args.out, 'viewer.png'));
   console.log(`capture: ${shots} screenshots in ${args.out}; the liveliest is viewer.png`);
