@@ -41,6 +41,7 @@
 #include "palpate/device.h"
 #include "palpate/runtime/gesture.hpp"
 #include "palpate/runtime/tool_state.hpp"
+#include "palpate/transport/client.hpp"
 #include "palpate/transport/dds.hpp"
 #include "palpate/transport/presence.hpp"
 #include "palpate/transport/realtime.hpp"
@@ -227,7 +228,24 @@ int run(int argc, char** argv) {
                                   description.rest_positions_m + 3 * description.vertex_count);
   surface.triangles.assign(description.triangles,
                            description.triangles + 3 * description.triangle_count);
-  const palpate::GesturePlayer player(gesture, palpate::place_gesture(gesture, surface));
+  // A served cut region: the rest's triangles it covers (one surface
+  // sample's hidden_triangles) mark its interface, where no anchor goes.
+  std::vector<std::uint32_t> covered;
+  if (description.cut_region != nullptr && description.cut_region[0] != '\0') {
+    palpate::Client viewer(palpate::ClientOptions{fmt::format("palpate-pliers-{}", first_sequence),
+                                                  o.domain, o.dds_config, true, false});
+    const auto sample = viewer.wait_surface(
+        o.model_id, 1, 0,
+        std::max(std::chrono::milliseconds(100),
+                 std::chrono::duration_cast<std::chrono::milliseconds>(give_up - Clock::now())));
+    if (!sample)
+      throw NoAnswer(fmt::format(
+          "model '{}' has a cut region ({}) but no surface sample came within --timeout: the "
+          "anchors need the triangles it covers",
+          o.model_id, description.cut_region));
+    covered = sample->hidden_triangles;
+  }
+  const palpate::GesturePlayer player(gesture, palpate::place_gesture(gesture, surface, covered));
 
   // Ticks at --rate, each of `steps` device steps. One clock in integer ns
   // for the ticks and the C API's pose rate, so that the pose of tick i is

@@ -7,13 +7,19 @@
 # and force summary, the recorded session's report and plots.
 #
 # Usage: scripts/demo.sh              the sample organ (config/sample-organ.toml)
+#        scripts/demo.sh config/sample-organ-cut.toml
+#                                     the cut demo: the sample organ with its cuttable
+#                                     region, served with config/palpated-cut.toml (pliers
+#                                     and a cutting hook), playing config/gestures/cut.toml
 #        scripts/demo.sh JOB.toml     a precompute job, e.g. config/openhelp-liver-h8.toml
 #        scripts/demo.sh MESH         a mesh (.msh .mesh .vtk .stl): the job in config/ that
 #                                     names it, else a default job (docs/viewer.md, "The demo")
 # Environment: PALPATE_DEMO_PORT     the viewer's port on 127.0.0.1 (default 8080)
-#              PALPATE_DEMO_REPEAT   times the gesture is played (default 2)
+#              PALPATE_DEMO_REPEAT   times the gesture is played (default 2; the cut demo 1)
 #              PALPATE_DEMO_GESTURE  the gesture file (default config/gestures/demo.toml;
-#                                    config/gestures/lift.toml grasps and lifts)
+#                                    config/gestures/lift.toml grasps and lifts;
+#                                    config/gestures/cut.toml, with no job given, runs
+#                                    the cut demo)
 #              PALPATE_DEMO_WARPING  "linear" (default) or "warped": the model's
 #                                    mechanics (palpated --warp, docs/model.md,
 #                                    "Large rotations: warped compliance")
@@ -36,8 +42,25 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 script_start_ns=$(date +%s%N)
 port=${PALPATE_DEMO_PORT:-8080}
-repeat=${PALPATE_DEMO_REPEAT:-2}
-gesture=${PALPATE_DEMO_GESTURE:-config/gestures/demo.toml}
+# The cut demo: its job, its palpated configuration (the tools: pliers and
+# a cutting hook) and its gesture, chosen together by the job or the gesture.
+cut_job=config/sample-organ-cut.toml
+cut_config=config/palpated-cut.toml
+cut_gesture=config/gestures/cut.toml
+input=${1:-}
+if [ -z "$input" ] && [ -n "${PALPATE_DEMO_GESTURE:-}" ] &&
+   [ "$(realpath -m "$PALPATE_DEMO_GESTURE")" = "$(realpath -m "$cut_gesture")" ]; then
+  input=$cut_job
+fi
+cut_demo=0
+[ -n "$input" ] && [ "$(realpath -m "$input")" = "$(realpath -m "$cut_job")" ] && cut_demo=1
+if [ "$cut_demo" = 1 ]; then
+  repeat=${PALPATE_DEMO_REPEAT:-1}
+  gesture=${PALPATE_DEMO_GESTURE:-$cut_gesture}
+else
+  repeat=${PALPATE_DEMO_REPEAT:-2}
+  gesture=${PALPATE_DEMO_GESTURE:-config/gestures/demo.toml}
+fi
 warping=${PALPATE_DEMO_WARPING:-linear}
 case $warping in linear | warped) ;; *)
   echo "demo: PALPATE_DEMO_WARPING=$warping: expected linear or warped" >&2; exit 2 ;;
@@ -104,11 +127,10 @@ for job in sorted(glob.glob("config/**/*.toml", recursive=True)):
         break' "$1"
 }
 
-input=${1:-}
-if [ -z "$input" ]; then
+if [ -z "$input" ] || [ "$cut_demo" = 1 ]; then
   say "the sample organ (about 1,900 vertices, the scale of the 1999 INRIA liver)"
   "$precompute" make-sample -o out/sample-organ.msh --size 0.008
-  input=config/sample-organ.toml
+  [ -n "$input" ] || input=config/sample-organ.toml
 fi
 if [ ! -f "$input" ]; then
   echo "demo: $input: no such file (expected a job .toml or a mesh .msh/.mesh/.vtk/.stl)" >&2
@@ -176,7 +198,15 @@ fi
 
 say "palpated serves $compliance as model '$model' (DDS: loopback only, network namespace: $netns_mode)"
 [ "$warping" = warped ] && warp_flags=(--warp "$model")
-"${in_netns[@]}" "$build/bin/palpated" --model "$model=$compliance" "${warp_flags[@]}" --record "$out/recordings" 2>"$out/palpated.log" &
+if [ "$cut_demo" = 1 ]; then
+  # Its configuration serves the job's file as this model, with the tools.
+  served=(--config "$cut_config")
+  viewer_tools=(-c "$cut_config")
+else
+  served=(--model "$model=$compliance")
+  viewer_tools=()
+fi
+"${in_netns[@]}" "$build/bin/palpated" "${served[@]}" "${warp_flags[@]}" --record "$out/recordings" 2>"$out/palpated.log" &
 daemon=$!
 pids+=("$daemon")
 started+=("$daemon")
@@ -185,7 +215,7 @@ if ! wait_for "$out/palpated.log" 'event=serving' "$daemon" 60; then
   tail -3 "$out/palpated.log" >&2
   exit 5
 fi
-"$build/bin/palpate-viewer" --listen "127.0.0.1:$port" "${viewer_netns[@]}" >"$out/viewer.log" 2>&1 &
+"$build/bin/palpate-viewer" --listen "127.0.0.1:$port" "${viewer_netns[@]}" "${viewer_tools[@]}" >"$out/viewer.log" 2>&1 &
 pids+=($!)
 started+=($!)
 wait_for "$out/viewer.log" 'http://[0-9.]*:[0-9]*/' "$!" 10 || true
@@ -204,7 +234,12 @@ say "palpate-client: requests and replies at 1 kHz (docs/dds.md)"
 
 # Headless Chromium takes screenshots while the gesture plays; it renders
 # in software, so it runs niced to leave the cores to palpated's 1 kHz loop.
-gesture_s=$((5 * repeat + 1))
+gesture_s=$(/usr/bin/python3 -c '
+import math, sys, tomllib
+with open(sys.argv[1], "rb") as f:
+    g = tomllib.load(f)
+end = max(k["t"] for t in g["tool"] for k in t["keyframe"])
+print(math.ceil(end * int(sys.argv[2])) + 1)' "$gesture" "$repeat")
 printf '#!/bin/sh\nexec nice -n 10 /usr/bin/chromium "$@"\n' > "$out/.chromium"
 chmod +x "$out/.chromium"
 PALPATE_CHROMIUM=$out/.chromium node viewer/test/capture.mjs --url "$url" --model "$model" \

@@ -1,6 +1,6 @@
 // The feel under regression tests (docs/tools.md, "The feel under regression
-// tests"): every gesture of config/gestures/ played in process on the sample
-// organ with palpated's default tools must feel as its reference trace in
+// tests"): every gesture of config/gestures/ for palpated's default tools,
+// played in process on the sample organ with those tools, must feel as its reference trace in
 // tests/feel/reference/, within FeelTolerance (feel_compare.hpp). And the
 // tolerance is shown to sit between round-off and physics: a compliance
 // perturbed far beyond round-off is accepted, a 2 % stiffer organ, a
@@ -47,11 +47,22 @@ class FeelTest : public ::testing::Test {
   }
   static const SurfaceModel& model() { return *model_; }
 
-  /// The gesture files' stems, sorted.
+  /// The stems of the gesture files for palpated's default tools, sorted. A
+  /// gesture for other tools (cut.toml's cutting hook, on a model served
+  /// with its cut region) is played where those are served
+  /// (tests/daemon/cut_gesture_dds_test.cpp).
   static std::vector<std::string> gestures() {
     std::set<std::string> names;
-    for (const auto& entry : fs::directory_iterator(kGestures))
-      if (entry.path().extension() == ".toml") names.insert(entry.path().stem().string());
+    const FeelSetup defaults = FeelSetup::palpated_defaults();
+    for (const auto& entry : fs::directory_iterator(kGestures)) {
+      if (entry.path().extension() != ".toml") continue;
+      const Gesture g = read_gesture_file(entry.path());
+      if (std::all_of(g.tools.begin(), g.tools.end(), [&](const GestureTool& t) {
+            return std::any_of(defaults.tools.begin(), defaults.tools.end(),
+                               [&](const ToolGeometry& d) { return d.id == t.id; });
+          }))
+        names.insert(entry.path().stem().string());
+    }
     return {names.begin(), names.end()};
   }
   static Gesture gesture(const std::string& name) {

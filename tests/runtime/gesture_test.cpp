@@ -228,6 +228,70 @@ TEST(Gesture, SecondToolIsAnchoredAtTheNearestVertexToTheOffset) {
   EXPECT_EQ(place_gesture(fixed, view(m))[0].vertex_id, 102u);
 }
 
+// A served cut region covers some of the rest's triangles (the stream's
+// hidden_triangles); their vertices are its interface Γ, which moves with
+// the region and is released when it is cut: no anchor goes there. Here the
+// region covers the two upper triangles at +x (top, +x, ±y): the top, +x,
+// +y and −y vertices are Γ, and only −x (drawn 3) is left to anchor on.
+TEST(Gesture, AnchorsAvoidTheCutRegionsInterface) {
+  const ModelInfo m = octahedron();
+  // Upper triangles i = 0 (0, 1, 2) and 3 (0, 4, 1): drawn triangles 0 and 6.
+  const std::vector<std::uint32_t> covered = {0, 6};
+  const Gesture g = parse_gesture(kTwoTools, "two.toml");
+
+  // Without the region: auto is the top (100), the offset tool +x (101).
+  const auto plain = place_gesture(g, view(m));
+  EXPECT_EQ(plain[0].vertex_id, 100u);
+  EXPECT_EQ(plain[1].vertex_id, 101u);
+  // With it: both land on −x, the only vertex off Γ; its normal is the
+  // area-weighted one of every triangle around it, covered or not.
+  const auto cut = place_gesture(g, view(m), covered);
+  EXPECT_EQ(cut[0].vertex_id, 103u);
+  EXPECT_EQ(cut[1].vertex_id, 103u);
+  expect_near(cut[0].normal, {-1, 0, 0});
+
+  // A point anchor: the vertex off Γ nearest to it. (9, 1, 0) mm is
+  // nearest to +x (101), which is on Γ once the region covers it.
+  Gesture at_point = g;
+  at_point.anchor_point_m = Eigen::Vector3d(0.009, 0.001, 0);
+  EXPECT_EQ(place_gesture(at_point, view(m))[0].vertex_id, 101u);
+  EXPECT_EQ(place_gesture(at_point, view(m), covered)[0].vertex_id, 103u);
+
+  // An explicit vertex on Γ is refused with the reason; a covered
+  // triangle that is not the model's is refused too.
+  Gesture on_gamma = g;
+  on_gamma.anchor_vertex_id = 101;
+  expect_error<InputError>([&] { place_gesture(on_gamma, view(m), covered); },
+                           {"two.toml", "anchor 101", "interface of the model's cut region"});
+  const std::vector<std::uint32_t> bad = {8};
+  expect_error<InputError>([&] { place_gesture(g, view(m), bad); },
+                           {"covered triangle 8", "there are 8"});
+  // Every compliance vertex on Γ: nowhere to anchor.
+  const std::vector<std::uint32_t> all = {0, 2, 4, 6};
+  expect_error<InputError>([&] { place_gesture(g, view(m), all); },
+                           {"every compliance vertex is on the cut region's interface"});
+}
+
+TEST(Gesture, AnchorMayBeAPointInMillimetres) {
+  const Gesture g = parse_gesture(
+      "anchor = [1, -2.5, 30]\n[[tool]]\nid = \"left\"\n[[tool.keyframe]]\nt = 0\n"
+      "position = [0, 0, 5]\n",
+      "point.toml");
+  ASSERT_TRUE(g.anchor_point_m.has_value());
+  expect_near(*g.anchor_point_m, {0.001, -0.0025, 0.03});
+  EXPECT_EQ(g.anchor_vertex_id, -1);
+  // Near the top of the octahedron (0, 0, 10) mm: the top vertex.
+  EXPECT_EQ(place_gesture(g, view(octahedron()))[0].vertex_id, 100u);
+  expect_error<InputError>(
+      [] {
+        parse_gesture(
+            "anchor = [1, 2]\n[[tool]]\nid = \"left\"\n[[tool.keyframe]]\nt = 0\n"
+            "position = [0, 0, 5]\n",
+            "g.toml");
+      },
+      {"g.toml:1", "anchor"});
+}
+
 TEST(Gesture, KeyframeOrientationPointsTheShaftIntoTheOrganAndTilts) {
   const Eigen::Quaterniond straight = keyframe_orientation({0, 0}, 0);
   expect_near(straight * Eigen::Vector3d::UnitZ(), {0, 0, -1});

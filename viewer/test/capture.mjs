@@ -2,7 +2,9 @@
 // (scripts/demo.sh) on machines without a display: opens the page, prints
 // "capture: ready" once the organ is drawn, then takes a screenshot every
 // --interval seconds for --seconds seconds, and copies the one with the
-// most going on (largest displacement, most contacts) to DIR/viewer.png.
+// most going on (largest displacement, most contacts; on a served cut
+// region, among those of its latest topology version: after the last cut)
+// to DIR/viewer.png.
 //
 //   node capture.mjs --url URL --out DIR [--seconds 8] [--interval 0.5] [--model ID]
 //
@@ -52,14 +54,17 @@ try {
     process.exit(0);
   }
   const shots = Math.max(1, Math.round(Number(args.seconds) / Number(args.interval)));
-  let best = { score: -1, file: '' };
+  // A served cut region that was cut is what to show: a frame of a later
+  // topology version (more cut) beats any earlier one, then the liveliest.
+  let best = { version: -1, score: -1, file: '' };
   for (let i = 1; i <= shots; ++i) {
     await page.waitForTimeout(1000 * Number(args.interval));
-    const v = await page.evaluate(() => ({ d: window.palpateViewer.maxDisplacement_m, c: window.palpateViewer.contacts }));
+    const v = await page.evaluate(() => ({ d: window.palpateViewer.maxDisplacement_m, c: window.palpateViewer.contacts,
+                                           t: window.palpateViewer.topologyVersion }));
     const file = join(args.out, `viewer-${String(i).padStart(2, '0')}.png`);
     await page.screenshot({ path: file });
     const score = v.d * (1 + v.c);
-    if (score > best.score) best = { score, file };
+    if (v.t > best.version || (v.t === best.version && score > best.score)) best = { version: v.t, score, file };
   }
   copyFileSync(best.file, join(args.out, 'viewer.png'));
   console.log(`capture: ${shots} screenshots in ${args.out}; the liveliest is viewer.png`);

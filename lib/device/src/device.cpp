@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdarg>
+#include <cstddef>
 #include <cstdio>
 #include <cstring>
 #include <memory>
@@ -97,7 +98,7 @@ void copy_out(const T& full, T* out, std::uint32_t caller_size) {
 constexpr std::uint32_t kStateV1 = sizeof(palpate_device_state);
 constexpr std::uint32_t kAnswerV1 = sizeof(palpate_device_answer);
 constexpr std::uint32_t kEventV1 = sizeof(palpate_device_event);
-constexpr std::uint32_t kModelV1 = sizeof(palpate_device_model);
+constexpr std::uint32_t kModelV1 = offsetof(palpate_device_model, cut_region);
 constexpr std::uint32_t kOptionsV1 = sizeof(palpate_device_options);
 
 }  // namespace
@@ -612,6 +613,7 @@ int palpate_device_get_model(palpate_device* tool, palpate_device_model* model, 
   out.vertex_ids = m.surface.vertex_ids.data();
   out.rest_positions_m = m.surface.rest_positions_m.data();
   out.triangles = m.surface.triangles.data();
+  out.cut_region = m.cut_region.c_str();
   copy_out(out, model, model->struct_size);
   return ok(error, error_size);
 }

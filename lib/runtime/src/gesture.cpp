@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <vector>
 
 #include "palpate/core/detail/toml_reader.hpp"
 #include "palpate/core/error.hpp"
@@ -131,14 +132,21 @@ Gesture read(const toml::table& root, const std::string& source) {
     if (n->is_string()) {
       if (r.string(*n, "anchor") != "auto")
         r.fail(n, "anchor",
-               fmt::format("'{}': expected \"auto\" or a mesh vertex id (an integer)",
-                           r.string(*n, "anchor")));
+               fmt::format(
+                   "'{}': expected \"auto\", a mesh vertex id (an integer) or a point [x, y, z] "
+                   "in mm",
+                   r.string(*n, "anchor")));
     } else if (const auto id = n->value_exact<std::int64_t>()) {
       if (*id < 0 || *id > std::numeric_limits<std::uint32_t>::max())
         r.fail(n, "anchor", fmt::format("{}: expected a mesh vertex id ≥ 0, or \"auto\"", *id));
       g.anchor_vertex_id = *id;
+    } else if (n->is_array()) {
+      const Eigen::Vector3d p = r.vec3(*n, "anchor");
+      if (!p.allFinite()) r.fail(n, "anchor", "expected finite numbers [x, y, z] in mm");
+      g.anchor_point_m = p * 1e-3;
     } else {
-      r.fail(n, "anchor", "expected \"auto\" or a mesh vertex id (an integer)");
+      r.fail(n, "anchor",
+             "expected \"auto\", a mesh vertex id (an integer) or a point [x, y, z] in mm");
     }
   }
   const toml::node* tools = root.get("tool");
@@ -163,16 +171,37 @@ double squared_distance(const DrawnSurface& s, int a, const Eigen::Vector3d& p) 
   return (s.rest_position(a) - p).squaredNorm();
 }
 
-/// The compliance vertex nearest to @p p (ties: the lowest index).
-int nearest_compliance_vertex(const DrawnSurface& s, const Eigen::Vector3d& p) {
-  int best = 0;
+/// The compliance vertex off the interface nearest to @p p (ties: the lowest index).
+int nearest_compliance_vertex(const DrawnSurface& s, const std::vector<bool>& on_interface,
+                              const Eigen::Vector3d& p) {
+  int best = -1;
   double best_d2 = std::numeric_limits<double>::infinity();
   for (int v = 0; v < s.compliance_vertex_count; ++v)
-    if (const double d2 = squared_distance(s, v, p); d2 < best_d2) {
+    if (const double d2 = squared_distance(s, v, p);
+        !on_interface[static_cast<std::size_t>(v)] && d2 < best_d2) {
       best = v;
       best_d2 = d2;
     }
+  if (best < 0)
+    throw InputError(
+        "model description: every compliance vertex is on the cut region's "
+        "interface; no place to anchor a gesture");
   return best;
+}
+
+/// Which drawn vertices are on a served cut region's interface Γ: the
+/// vertices of the rest's triangles the region covers.
+std::vector<bool> interface_vertices(const DrawnSurface& s,
+                                     std::span<const std::uint32_t> covered_triangles) {
+  std::vector<bool> on(static_cast<std::size_t>(s.vertex_count()), false);
+  for (const std::uint32_t t : covered_triangles) {
+    if (t >= static_cast<std::uint32_t>(s.triangle_count()))
+      throw InputError(fmt::format(
+          "cut region: covered triangle {} is not a triangle of the model (there are {})", t,
+          s.triangle_count()));
+    for (int c = 0; c < 3; ++c) on[s.triangles[3 * static_cast<std::size_t>(t) + c]] = true;
+  }
+  return on;
 }
 
 void check_surface(const DrawnSurface& s) {
@@ -244,15 +273,19 @@ AnchorFrame anchor_frame(const DrawnSurface& s, int v, const Eigen::Vector3d& x_
   return f;
 }
 
-AnchorFrame auto_anchor(const DrawnSurface& s) {
-  check_surface(s);
+namespace {
+
+/// auto_anchor() among the compliance vertices off the interface.
+AnchorFrame auto_anchor_off(const DrawnSurface& s, const std::vector<bool>& on_interface) {
   const int n = s.compliance_vertex_count;
   const int drawn = static_cast<int>(s.vertex_ids.size());
-  int best = 0;
+  int best = -1;
   double best_score = -1;
+  const auto eligible = [&](int v) { return !on_interface[static_cast<std::size_t>(v)]; };
   if (drawn > n) {
     // Largest distance to the nearest fixed vertex: the freest place.
     for (int v = 0; v < n; ++v) {
+      if (!eligible(v)) continue;
       double nearest = std::numeric_limits<double>::infinity();
       const Eigen::Vector3d p = s.rest_position(v);
       for (int f = n; f < drawn; ++f) nearest = std::min(nearest, squared_distance(s, f, p));
@@ -266,19 +299,38 @@ AnchorFrame auto_anchor(const DrawnSurface& s) {
     for (int v = 0; v < drawn; ++v) centroid += s.rest_position(v);
     centroid /= drawn;
     for (int v = 0; v < n; ++v)
-      if (const double d2 = squared_distance(s, v, centroid); d2 > best_score) {
+      if (const double d2 = squared_distance(s, v, centroid); eligible(v) && d2 > best_score) {
         best_score = d2;
         best = v;
       }
   }
+  if (best < 0)
+    throw InputError(
+        "model description: every compliance vertex is on the cut region's "
+        "interface; no place to anchor a gesture");
   return anchor_frame(s, best);
 }
 
-std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const DrawnSurface& s) {
+}  // namespace
+
+AnchorFrame auto_anchor(const DrawnSurface& s) {
   check_surface(s);
+  return auto_anchor_off(s, std::vector<bool>(static_cast<std::size_t>(s.vertex_count()), false));
+}
+
+std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const DrawnSurface& s,
+                                       std::span<const std::uint32_t> covered_triangles) {
+  check_surface(s);
+  // A vertex the region shares with the rest moves with the region's push
+  // and loses its rest triangles' support when the region is cut: tools
+  // are anchored on the rest proper. Normals still take every triangle of
+  // the description, the covered ones included (anchor_frame()).
+  const std::vector<bool> on_interface = interface_vertices(s, covered_triangles);
   AnchorFrame base;
-  if (gesture.anchor_vertex_id < 0) {
-    base = auto_anchor(s);
+  if (gesture.anchor_point_m) {
+    base = anchor_frame(s, nearest_compliance_vertex(s, on_interface, *gesture.anchor_point_m));
+  } else if (gesture.anchor_vertex_id < 0) {
+    base = auto_anchor_off(s, on_interface);
   } else {
     const auto id = static_cast<std::uint32_t>(gesture.anchor_vertex_id);
     const auto end = s.vertex_ids.begin() + s.compliance_vertex_count;
@@ -288,7 +340,13 @@ std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const DrawnSurfac
           "{}: anchor {}: not a compliance vertex of this model (a free surface vertex: "
           "ModelDescription.vertex_ids, first compliance_vertex_count); or use anchor = \"auto\"",
           gesture.source, id));
-    base = anchor_frame(s, static_cast<int>(it - s.vertex_ids.begin()));
+    const auto v = static_cast<int>(it - s.vertex_ids.begin());
+    if (on_interface[static_cast<std::size_t>(v)])
+      throw InputError(fmt::format(
+          "{}: anchor {}: on the interface of the model's cut region (a vertex the region shares "
+          "with the rest); anchor on the rest beside it, or use a point [x, y, z] in mm",
+          gesture.source, id));
+    base = anchor_frame(s, v);
   }
   std::vector<AnchorFrame> anchors;
   for (const auto& tool : gesture.tools) {
@@ -298,7 +356,7 @@ std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const DrawnSurfac
     }
     const Eigen::Vector3d target =
         base.origin_m + tool.offset_m[0] * base.x + tool.offset_m[1] * base.y;
-    anchors.push_back(anchor_frame(s, nearest_compliance_vertex(s, target), base.x));
+    anchors.push_back(anchor_frame(s, nearest_compliance_vertex(s, on_interface, target), base.x));
   }
   return anchors;
 }

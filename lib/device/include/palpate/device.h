@@ -233,6 +233,9 @@ typedef struct palpate_device_model {
   const uint32_t* vertex_ids;     /* vertex_count mesh vertex ids */
   const double* rest_positions_m; /* 3 per drawn vertex, model frame */
   const uint32_t* triangles;      /* 3 per triangle, into the drawn vertices, outward */
+  /* Appended 2026-11-26: the cut region palpated simulates on this model (its
+   * precompute spec, docs/dds.md "The cut region"); "" when none. */
+  const char* cut_region;
 } palpate_device_model;
 
 typedef struct palpate_device palpate_device; /* opaque: one tool on one model */

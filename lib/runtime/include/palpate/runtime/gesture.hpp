@@ -21,6 +21,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -62,6 +63,9 @@ struct Gesture {
   std::string source;       ///< the file it came from, for messages
   /// The first tool's anchor: -1 for "auto", else a mesh vertex id.
   std::int64_t anchor_vertex_id = -1;
+  /// Or (`anchor = [x, y, z]`, mm in the file): the compliance vertex
+  /// nearest to this point, model frame, m. Takes precedence when set.
+  std::optional<Eigen::Vector3d> anchor_point_m;
   std::vector<GestureTool> tools;  ///< at least one, distinct ids
 
   /// Time of the last keyframe of any tool, s.
@@ -104,9 +108,16 @@ AnchorFrame anchor_frame(const DrawnSurface& surface, int v,
 /// @throws InputError for a surface without compliance vertices.
 AnchorFrame auto_anchor(const DrawnSurface& surface);
 
-/// The anchors of every tool of @p gesture, in its tool order.
-/// @throws InputError when the anchor vertex id is not a compliance vertex.
-std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const DrawnSurface& surface);
+/// The anchors of every tool of @p gesture, in its tool order. On a model
+/// with a served cut region, @p covered_triangles are the rest's triangles
+/// the region covers (SurfaceSample::hidden_triangles): their vertices are
+/// the region's interface Γ, on which no anchor is placed (`auto`, a point
+/// and offsets take the nearest vertex off Γ); the normals still take
+/// every triangle of @p surface, the covered ones included.
+/// @throws InputError when the anchor vertex id is not a compliance vertex
+/// or is on Γ, or a covered triangle is not one of @p surface.
+std::vector<AnchorFrame> place_gesture(const Gesture& gesture, const DrawnSurface& surface,
+                                       std::span<const std::uint32_t> covered_triangles = {});
 
 /// A tool's pose at one instant, model frame.
 struct GesturePose {
