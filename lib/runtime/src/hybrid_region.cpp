@@ -60,6 +60,9 @@ TensorMassMaterial material_of(const CutRegionData& region, const HybridRegionSe
   if (!(s.implicit_step_s > 0 && s.implicit_step_s <= kMaxAdvanceS))
     throw InputError(fmt::format("{}: implicit step {} s; a step in (0, {}] s is accepted", kWhat,
                                  s.implicit_step_s, kMaxAdvanceS));
+  if (!(s.interface_damping >= 0) || !std::isfinite(s.interface_damping))
+    throw InputError(fmt::format("{}: interface damping κ = {}; a finite κ ≥ 0 is accepted", kWhat,
+                                 s.interface_damping));
   if (s.refactor_rank < 3 || s.refactor_rank > 3000)
     throw InputError(
         fmt::format("{}: refactor rank {}; 3 to 3000 DOFs are accepted", kWhat, s.refactor_rank));
@@ -167,7 +170,7 @@ HybridRegion::HybridRegion(const SurfaceModel& model, const HybridRegionSettings
     substep_s_ = settings_.implicit_step_s;
     const detail::ImplicitStepCoefficients coefficients{
         settings_.implicit_step_s, material_of(region, settings_).mass_damping_per_s,
-        settings_.contact_stiffness_n_per_m};
+        settings_.contact_stiffness_n_per_m, settings_.interface_damping};
     implicit_ = std::make_unique<detail::ImplicitRegionStep>(
         model_, loaded_interface_, coupling_, coefficients, on_skin_, settings_.refactor_rank);
     rhs_n_ = Eigen::VectorXd::Zero(3 * nv);
@@ -379,8 +382,11 @@ void HybridRegion::advance_implicit(std::span<const RegionTip> tips) {
            (implicit_->holds(v) ? implicit_->hold_stiffness() : 0.0)) *
               u_v;
     }
-    for (Eigen::Index g = 0; g < n_loaded; ++g)
-      rhs_n_.segment<3>(3 * loaded_interface_[g]) += loaded_s_offset_n_.segment<3>(3 * g);
+    for (Eigen::Index g = 0; g < n_loaded; ++g) {
+      const int v = loaded_interface_[g];
+      rhs_n_.segment<3>(3 * v) += loaded_s_offset_n_.segment<3>(3 * g) +
+                                  implicit_->interface_proximal(v) * u.segment<3>(3 * v);
+    }
     implicit_->solve(rhs_n_, next_m_);
     implicit_->interface_rows(next_m_, loaded_rows_n_);
     for (Eigen::Index g = 0; g < n_loaded; ++g)

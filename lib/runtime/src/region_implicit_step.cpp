@@ -149,6 +149,10 @@ ImplicitRegionStep::ImplicitRegionStep(const TensorMassModel& model, std::span<c
   const int nv = model.vertex_count();
   on_gamma_.assign(static_cast<std::size_t>(nv), 0);
   for (int v : gamma_) on_gamma_[v] = 1;
+  interface_proximal_.assign(static_cast<std::size_t>(nv), Matrix3d::Zero());
+  for (std::size_t k = 0; k < gamma_.size(); ++k)
+    interface_proximal_[gamma_[k]] =
+        coefficients.interface_damping * coupling.block<3, 3>(3 * k, 3 * k);
   // Interior DOFs first (vertex order), then Γ (as loaded).
   first_dof_.assign(static_cast<std::size_t>(nv), -1);
   Index next = 0;
@@ -190,7 +194,7 @@ Matrix3d ImplicitRegionStep::diagonal_block(int v, const std::vector<char>& on_s
   const double diagonal = coefficients_.mass_coefficient() * model_.mass_kg(v) +
                           (on_skin[v] != 0 ? coefficients_.skin_stiffness_n_per_m : 0.0) +
                           (holds(v) ? hold_n_per_m_ : 0.0);
-  return model_.vertex_tensor(v) + diagonal * Matrix3d::Identity();
+  return model_.vertex_tensor(v) + diagonal * Matrix3d::Identity() + interface_proximal_[v];
 }
 
 SparseMatrixd ImplicitRegionStep::assemble(const std::vector<char>& on_skin) const {

@@ -40,7 +40,10 @@ struct ImplicitStepCoefficients {
   double time_step_s = 1e-3;          ///< Δt
   double damping_per_s = 0;           ///< γ
   double skin_stiffness_n_per_m = 0;  ///< k_s on each touchable vertex
-  double mass_coefficient() const {   ///< c = 1/Δt² + γ/Δt
+  /// κ: each Γ vertex's 3 × 3 block of S, times κ, as a proximal term
+  /// κ S_vv (u⁺ − u) (a dashpot κ S_vv Δt at Γ; docs/model.md).
+  double interface_damping = 0;
+  double mass_coefficient() const {  ///< c = 1/Δt² + γ/Δt
     return 1 / (time_step_s * time_step_s) + damping_per_s / time_step_s;
   }
 };
@@ -69,6 +72,8 @@ class ImplicitRegionStep {
   double hold_stiffness() const { return hold_n_per_m_; }
   /// Whether A holds vertex @p v where it is (no tetrahedron left, off Γ).
   bool holds(int v) const { return model_.is_detached(v) && !on_gamma_[v]; }
+  /// κ S_vv for Γ vertex @p v (zero elsewhere), N/m.
+  const Eigen::Matrix3d& interface_proximal(int v) const { return interface_proximal_[v]; }
 
   /// Brings A to the model's state on the vertices @p touched (those of the
   /// tetrahedra a cut removed, and any whose skin flag changed): a Woodbury
@@ -109,6 +114,7 @@ class ImplicitRegionStep {
   std::vector<int> gamma_;      // Γ as loaded
   std::vector<char> on_gamma_;  // per region vertex
   std::vector<int> first_dof_;  // per region vertex: its first ordered DOF, −1 if fixed
+  std::vector<Eigen::Matrix3d> interface_proximal_;  // per region vertex: κ S_vv on Γ
   Eigen::Index interior_dofs_ = 0, dofs_ = 0;
 
   std::unique_ptr<RegionFactorization> factor_;

@@ -53,6 +53,10 @@ struct HybridRegionSettings {
   /// The implicit step's update rank (DOFs) at which A is factored again
   /// on a worker thread (at four times it, at once).
   int refactor_rank = 48;
+  /// κ ≥ 0: the implicit step's dashpot at Γ, κ S_vv Δt per Γ vertex (S_vv
+  /// its 3 × 3 block of S), against the negative damping of the rest's
+  /// one-tick-late view of the region's push (docs/model.md).
+  double interface_damping = 1;
   /// The explicit substep is this fraction of the stable step's proven bound
   /// (docs/model.md: the element bound, the coupling and the contacts).
   double step_safety = 0.9;
