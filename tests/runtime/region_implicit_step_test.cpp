@@ -192,5 +192,21 @@ TEST(ImplicitRegionStep, PastTheBoundAIsFactoredAgain) {
   EXPECT_LE(rows, 1e-10);
 }
 
+// Cut after cut while the worker factors, and when its factorization is
+// adopted with the cuts made since its snapshot as the update: every solve
+// stays exact, whichever update and factor it goes through.
+TEST(ImplicitRegionStep, CutsWhileTheWorkerFactorsStayExact) {
+  Fixture f;
+  auto step = make_step(f, 18);
+  for (int t = 150; t < 230; t += 2) {
+    step.update(f.remove({t, t + 1}), f.on_skin);
+    double rows = 0;
+    ASSERT_LE(solve_error(f, step, &rows), 1e-10) << "after tetrahedron " << t;
+    ASSERT_LE(rows, 1e-10);
+  }
+  EXPECT_GE(step.background_factorizations(), 1);
+  EXPECT_GE(step.factorizations(), 2);
+}
+
 }  // namespace
 }  // namespace palpate::tensor_mass_test
