@@ -487,8 +487,14 @@ int main(int argc, char** argv) {
           "  depth %d mm: force along the press %.5f N (last 100 ticks %.5f to %.5f), "
           "contacts %d\n",
           mm, sum_f / 100, lo, hi, engine.output(0).contacts);
-      json += (mm > 1 ? ", " : "") + std::to_string(mm);
-      forces += (mm > 1 ? ", " : "") + std::to_string(sum_f / 100);
+      // Appended piece by piece: GCC 12 warns (-Wrestrict, a false
+      // positive) on const char* + std::string here.
+      if (mm > 1) {
+        json += ", ";
+        forces += ", ";
+      }
+      json += std::to_string(mm);
+      forces += std::to_string(sum_f / 100);
     }
     json += forces + "]},\n";
   }
