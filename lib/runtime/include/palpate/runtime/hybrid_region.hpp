@@ -191,6 +191,9 @@ class HybridRegion {
   void update_coupling_row_sums();
   bool is_interface_face(const std::array<int, 3>& triangle) const;
   void add_tip_forces(std::span<const RegionTip> tips, bool accumulate);
+  // hybrid_region_step.cpp: the time stepping.
+  void update_explicit_bound();
+  void retime_explicit_step();
   void advance_explicit(std::span<const RegionTip> tips);
   void advance_implicit(std::span<const RegionTip> tips);
   void offset_from_rest_loads(std::span<const int> rest_indices,
