@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <mutex>
 #include <utility>
 
 #include "palpate/core/error.hpp"
@@ -135,6 +136,52 @@ struct RegionFactorization {
   }
 };
 
+void SolveScratch::size(Index interior_dofs, Index gamma_dofs) {
+  interior = VectorXd::Zero(interior_dofs);
+  permuted = interior;
+  solved = interior;
+  gamma = VectorXd::Zero(gamma_dofs);
+}
+
+namespace {
+
+// x = A₀⁻¹ x in place (ordered DOFs) with factorization @p f: y = A_II⁻¹ b_I,
+// x_Γ = Z⁻¹ (b_Γ − A_ΓI y), x_I = A_II⁻¹ (b_I − A_IΓ x_Γ). Allocates nothing.
+void base_solve(const RegionFactorization& f, Index ni, Eigen::Ref<VectorXd> x, SolveScratch& w) {
+  const Index ng = x.size() - ni;
+  if (ni > 0) {
+    w.interior = x.head(ni);
+    f.interior_solve(w.interior, w.permuted, w.solved);
+    if (ng > 0) x.tail(ng).noalias() -= f.a_ig.transpose() * w.solved;
+  }
+  if (ng > 0) {
+    symmetric_product(f.schur_inverse, x.tail(ng), w.gamma);
+    x.tail(ng) = w.gamma;
+  }
+  if (ni > 0) {
+    if (ng > 0) w.interior.noalias() -= f.a_ig * w.gamma;
+    f.interior_solve(w.interior, w.permuted, w.solved);
+    x.head(ni) = w.solved;
+  }
+}
+
+}  // namespace
+
+// The worker's queue: the vertices cut since its snapshot, until it closes it.
+struct RefactorQueue {
+  std::mutex mutex;
+  std::vector<int> vertices;
+  bool closed = false;
+};
+
+// What the worker hands over: the factorization and Y's columns for the
+// vertices it took from the queue (each vertex's three DOFs in a row).
+struct RegionRefactor {
+  std::unique_ptr<RegionFactorization> factor;
+  std::vector<Index> dofs;
+  Eigen::MatrixXd y;
+};
+
 ImplicitRegionStep::ImplicitRegionStep(const TensorMassModel& model, std::span<const int> interface,
                                        const Eigen::MatrixXd& coupling,
                                        const ImplicitStepCoefficients& coefficients,
@@ -179,8 +226,7 @@ ImplicitRegionStep::ImplicitRegionStep(const TensorMassModel& model, std::span<c
   hold_n_per_m_ = coefficients.mass_coefficient() * (moving > 0 ? mass / moving : 1e-6);
   dof_slot_.assign(static_cast<std::size_t>(dofs_), -1);
   ordered_ = VectorXd::Zero(dofs_);
-  scratch_i_ = VectorXd::Zero(interior_dofs_);
-  scratch_g_ = VectorXd::Zero(dofs_ - interior_dofs_);
+  scratch_.size(interior_dofs_, dofs_ - interior_dofs_);
   factor_ = RegionFactorization::make(assemble(on_skin), coupling_, interior_dofs_);
   ++factorizations_;
   refresh_capacitance(on_skin);
@@ -218,32 +264,12 @@ SparseMatrixd ImplicitRegionStep::assemble(const std::vector<char>& on_skin) con
   return a;
 }
 
-void ImplicitRegionStep::base_solve(Eigen::Ref<VectorXd> x) {
-  const Index ni = interior_dofs_, ng = dofs_ - ni;
-  const RegionFactorization& f = *factor_;
-  if (ni > 0) {
-    scratch_i_ = x.head(ni);
-    f.interior_solve(scratch_i_, picked_interior_, solved_interior_);
-    // Γ: the Schur complement's right-hand side, b_Γ − A_ΓI A_II⁻¹ b_I.
-    if (ng > 0) x.tail(ng).noalias() -= f.a_ig.transpose() * solved_interior_;
-  }
-  if (ng > 0) {
-    symmetric_product(f.schur_inverse, x.tail(ng), scratch_g_);
-    x.tail(ng) = scratch_g_;
-  }
-  if (ni > 0) {
-    if (ng > 0) scratch_i_.noalias() -= f.a_ig * scratch_g_;
-    f.interior_solve(scratch_i_, picked_interior_, solved_interior_);
-    x.head(ni) = solved_interior_;
-  }
-}
-
 void ImplicitRegionStep::solve(CRef<VectorXd> b, Eigen::Ref<VectorXd> x) {
   PALPATE_DEMAND(b.size() == 3 * model_.vertex_count() && x.size() == b.size());
   const int nv = model_.vertex_count();
   for (int v = 0; v < nv; ++v)
     if (first_dof_[v] >= 0) ordered_.segment<3>(first_dof_[v]) = b.segment<3>(3 * v);
-  base_solve(ordered_);
+  base_solve(*factor_, interior_dofs_, ordered_, scratch_);
   if (rank_ > 0) {
     // Woodbury: A⁻¹ b = A₀⁻¹ b − Y (I + D Eᵀ Y)⁻¹ D Eᵀ A₀⁻¹ b.
     for (int k = 0; k < rank_; ++k) picked_[k] = ordered_[update_dofs_[k]];
@@ -283,7 +309,7 @@ void ImplicitRegionStep::add_update_dofs(std::span<const int> touched) {
       const Index dof = first_dof_[v] + a;
       ordered_.setZero();
       ordered_[dof] = 1;
-      base_solve(ordered_);
+      base_solve(*factor_, interior_dofs_, ordered_, scratch_);
       y_.col(rank_) = ordered_;
       dof_slot_[dof] = rank_++;
       update_dofs_.push_back(dof);
@@ -299,8 +325,6 @@ void ImplicitRegionStep::refresh_capacitance(const std::vector<char>& on_skin) {
   d_.setZero(rank_, rank_);
   picked_.setZero(rank_);
   weights_.setZero(rank_);
-  picked_interior_.setZero(interior_dofs_);
-  solved_interior_.setZero(interior_dofs_);
   if (rank_ == 0) return;
   // The update's vertices: each enters with its three DOFs in a row.
   std::vector<int> vertex_of(static_cast<std::size_t>(rank_ / 3));
@@ -326,33 +350,85 @@ void ImplicitRegionStep::refresh_capacitance(const std::vector<char>& on_skin) {
   capacitance_.compute(Eigen::MatrixXd::Identity(rank_, rank_) + d_ * c);
 }
 
-void ImplicitRegionStep::adopt(std::unique_ptr<RegionFactorization> factorization,
+void ImplicitRegionStep::adopt(std::unique_ptr<RegionRefactor> refactor,
                                const std::vector<char>& on_skin) {
-  factor_ = std::move(factorization);
+  factor_ = std::move(refactor->factor);
   ++factorizations_;
+  ++background_factorizations_;
+  // The update starts again from the worker's columns: the vertices cut
+  // since its snapshot, then those cut after it closed its queue.
   for (Index dof : update_dofs_) dof_slot_[dof] = -1;
-  update_dofs_.clear();
-  rank_ = 0;
-  // What cuts changed after the snapshot the factorization is of.
-  add_update_dofs(touched_since_snapshot_);
-  touched_since_snapshot_.clear();
+  update_dofs_ = std::move(refactor->dofs);
+  rank_ = static_cast<int>(update_dofs_.size());
+  for (int k = 0; k < rank_; ++k) dof_slot_[update_dofs_[k]] = k;
+  y_ = std::move(refactor->y);
+  add_update_dofs(after_worker_);
+  after_worker_.clear();
+  queue_.reset();
   refresh_capacitance(on_skin);
 }
 
 void ImplicitRegionStep::finish_background_work(const std::vector<char>& on_skin) {
-  if (!pending_.valid()) return;
-  ++background_factorizations_;
-  adopt(pending_.get(), on_skin);
+  if (pending_.valid()) adopt(pending_.get(), on_skin);
 }
 
 double ImplicitRegionStep::last_factorization_s() const { return factor_->seconds; }
 
+// A snapshot of A now, factored on a worker thread, which then computes
+// Y's columns for the vertices the ticks cut meanwhile (queue_) until none
+// is left, and closes the queue: the cut that adopts it has only those cut
+// after that to compute.
+void ImplicitRegionStep::launch_refactor(const std::vector<char>& on_skin) {
+  queue_ = std::make_shared<RefactorQueue>();
+  after_worker_.clear();
+  pending_ =
+      std::async(std::launch::async, [a = assemble(on_skin), &s = coupling_, ni = interior_dofs_,
+                                      first_dof = first_dof_, queue = queue_]() mutable {
+        become_background_thread();
+        auto out = std::make_unique<RegionRefactor>();
+        out->factor = RegionFactorization::make(std::move(a), s, ni);
+        const Index n = out->factor->a.rows();
+        SolveScratch scratch;
+        scratch.size(ni, n - ni);
+        std::vector<char> done(first_dof.size(), 0);
+        VectorXd x(n);
+        for (;;) {
+          std::vector<int> batch;
+          {
+            const std::lock_guard lock(queue->mutex);
+            if (queue->vertices.empty()) {
+              queue->closed = true;
+              return out;
+            }
+            batch.swap(queue->vertices);
+          }
+          for (int v : batch) {
+            if (first_dof[v] < 0 || done[v] != 0) continue;
+            done[v] = 1;
+            const auto k = static_cast<Index>(out->dofs.size());
+            out->y.conservativeResize(n, k + 3);
+            for (int axis = 0; axis < 3; ++axis) {
+              x.setZero();
+              x[first_dof[v] + axis] = 1;
+              base_solve(*out->factor, ni, x, scratch);
+              out->y.col(k + axis) = x;
+              out->dofs.push_back(first_dof[v] + axis);
+            }
+          }
+        }
+      });
+}
+
 void ImplicitRegionStep::update(std::span<const int> touched, const std::vector<char>& on_skin) {
   using namespace std::chrono_literals;
+  if (pending_.valid()) {
+    // The worker takes these vertices if its queue is still open.
+    const std::lock_guard lock(queue_->mutex);
+    auto& to = queue_->closed ? after_worker_ : queue_->vertices;
+    to.insert(to.end(), touched.begin(), touched.end());
+  }
   if (pending_.valid() && pending_.wait_for(0s) == std::future_status::ready)
     finish_background_work(on_skin);
-  if (pending_.valid())
-    touched_since_snapshot_.insert(touched_since_snapshot_.end(), touched.begin(), touched.end());
   add_update_dofs(touched);
   if (rank_ >= kWaitFactor * refactor_rank_) {
     // Past kWaitFactor times the bound: the worker's, if under way, else factored now.
@@ -366,12 +442,7 @@ void ImplicitRegionStep::update(std::span<const int> touched, const std::vector<
       ++factorizations_;
     }
   } else if (rank_ >= refactor_rank_ && !pending_.valid()) {
-    touched_since_snapshot_.clear();
-    pending_ = std::async(std::launch::async,
-                          [a = assemble(on_skin), &s = coupling_, ni = interior_dofs_]() mutable {
-                            become_background_thread();
-                            return RegionFactorization::make(std::move(a), s, ni);
-                          });
+    launch_refactor(on_skin);
   }
   refresh_capacitance(on_skin);
 }

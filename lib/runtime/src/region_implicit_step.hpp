@@ -50,6 +50,16 @@ struct ImplicitStepCoefficients {
 
 /// A factored once: the matrix it is of, and its two Cholesky factors.
 struct RegionFactorization;
+/// A factorization the worker thread makes, and the columns of Y it adds
+/// for the cuts made meanwhile (region_implicit_step.cpp).
+struct RegionRefactor;
+struct RefactorQueue;
+
+/// Work vectors of one solve with a factorization (one set per thread).
+struct SolveScratch {
+  Eigen::VectorXd interior, gamma, permuted, solved;
+  void size(Eigen::Index interior_dofs, Eigen::Index gamma_dofs);
+};
 
 class ImplicitRegionStep {
  public:
@@ -101,10 +111,10 @@ class ImplicitRegionStep {
  private:
   Eigen::Matrix3d diagonal_block(int v, const std::vector<char>& on_skin) const;
   SparseMatrixd assemble(const std::vector<char>& on_skin) const;
-  void adopt(std::unique_ptr<RegionFactorization> factorization, const std::vector<char>& on_skin);
+  void adopt(std::unique_ptr<RegionRefactor> refactor, const std::vector<char>& on_skin);
   void add_update_dofs(std::span<const int> touched);
   void refresh_capacitance(const std::vector<char>& on_skin);
-  void base_solve(Eigen::Ref<Eigen::VectorXd> x);  // in place, ordered DOFs
+  void launch_refactor(const std::vector<char>& on_skin);
 
   const TensorMassModel& model_;
   const Eigen::MatrixXd& coupling_;
@@ -118,8 +128,12 @@ class ImplicitRegionStep {
   Eigen::Index interior_dofs_ = 0, dofs_ = 0;
 
   std::unique_ptr<RegionFactorization> factor_;
-  std::future<std::unique_ptr<RegionFactorization>> pending_;
-  std::vector<int> touched_since_snapshot_;  // vertices a cut changed since the worker's snapshot
+  // The worker: its result, and the queue of the vertices cut since its
+  // snapshot, whose columns it computes once it has factored; those cut
+  // after it has emptied the queue and closed it wait in after_worker_.
+  std::future<std::unique_ptr<RegionRefactor>> pending_;
+  std::shared_ptr<RefactorQueue> queue_;
+  std::vector<int> after_worker_;
   int factorizations_ = 0, background_factorizations_ = 0;
 
   // A = A₀ + E D Eᵀ: E the update's DOFs (ordered), Y = A₀⁻¹ E, the
@@ -129,8 +143,8 @@ class ImplicitRegionStep {
   int rank_ = 0;
   Eigen::MatrixXd y_, d_;
   Eigen::PartialPivLU<Eigen::MatrixXd> capacitance_;
-  Eigen::VectorXd ordered_, picked_, weights_, scratch_i_, scratch_g_;
-  Eigen::VectorXd picked_interior_, solved_interior_;
+  Eigen::VectorXd ordered_, picked_, weights_;
+  SolveScratch scratch_;
 };
 
 }  // namespace palpate::detail
