@@ -7,16 +7,9 @@
 #include <cmath>
 #include <limits>
 
+#include "lapack.hpp"
 #include "palpate/core/error.hpp"
 #include "request_failure.hpp"
-
-extern "C" {
-void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
-void dpotrs_(const char* uplo, const int* n, const int* nrhs, const double* a, const int* lda,
-             double* b, const int* ldb, int* info);
-void dpocon_(const char* uplo, const int* n, const double* a, const int* lda, const double* anorm,
-             double* rcond, double* work, int* iwork, int* info);
-}
 
 namespace palpate {
 
