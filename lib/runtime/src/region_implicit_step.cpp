@@ -208,6 +208,9 @@ ImplicitRegionStep::ImplicitRegionStep(const TensorMassModel& model, std::span<c
     next += 3;
   }
   dofs_ = next;
+  vertex_at_dof_.assign(static_cast<std::size_t>(dofs_), -1);
+  for (int v = 0; v < nv; ++v)
+    if (first_dof_[v] >= 0) vertex_at_dof_[static_cast<std::size_t>(first_dof_[v])] = v;
   // A held vertex weighs on A as a typical vertex's mass term does.
   hold_n_per_m_ = coefficients.mass_coefficient() * (moving > 0 ? mass / moving : 1e-6);
   dof_slot_.assign(static_cast<std::size_t>(dofs_), -1);
@@ -314,10 +317,8 @@ void ImplicitRegionStep::refresh_capacitance(const std::vector<char>& on_skin) {
   if (rank_ == 0) return;
   // The update's vertices: each enters with its three DOFs in a row.
   std::vector<int> vertex_of(static_cast<std::size_t>(rank_ / 3));
-  std::vector<int> owner(static_cast<std::size_t>(dofs_), -1);
-  for (int v = 0; v < model_.vertex_count(); ++v)
-    if (first_dof_[v] >= 0) owner[static_cast<std::size_t>(first_dof_[v])] = v;
-  for (int k = 0; k < rank_; k += 3) vertex_of[k / 3] = owner[update_dofs_[k]];
+  for (int k = 0; k < rank_; k += 3)
+    vertex_of[k / 3] = vertex_at_dof_[static_cast<std::size_t>(update_dofs_[k])];
   Matrix3d now;
   for (std::size_t p = 0; p < vertex_of.size(); ++p)
     for (std::size_t q = 0; q < vertex_of.size(); ++q) {

@@ -121,9 +121,10 @@ class ImplicitRegionStep {
   ImplicitStepCoefficients coefficients_;
   double hold_n_per_m_ = 0;
   int refactor_rank_ = 0;
-  std::vector<int> gamma_;      // Γ as loaded
-  std::vector<char> on_gamma_;  // per region vertex
-  std::vector<int> first_dof_;  // per region vertex: its first ordered DOF, −1 if fixed
+  std::vector<int> gamma_;          // Γ as loaded
+  std::vector<char> on_gamma_;      // per region vertex
+  std::vector<int> first_dof_;      // per region vertex: its first ordered DOF, −1 if fixed
+  std::vector<int> vertex_at_dof_;  // per ordered DOF: the vertex it is the first of, or −1
   std::vector<Eigen::Matrix3d> interface_proximal_;  // per region vertex: κ S_vv on Γ
   Eigen::Index interior_dofs_ = 0, dofs_ = 0;
 
