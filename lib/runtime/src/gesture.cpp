@@ -171,6 +171,14 @@ double squared_distance(const DrawnSurface& s, int a, const Eigen::Vector3d& p) 
   return (s.rest_position(a) - p).squaredNorm();
 }
 
+/// A model whose every compliance vertex is on the cut region's interface
+/// offers no anchor off it.
+[[noreturn]] void refuse_every_vertex_on_interface() {
+  throw InputError(
+      "model description: every compliance vertex is on the cut region's "
+      "interface; no place to anchor a gesture");
+}
+
 /// The compliance vertex off the interface nearest to @p p (ties: the lowest index).
 int nearest_compliance_vertex(const DrawnSurface& s, const std::vector<bool>& on_interface,
                               const Eigen::Vector3d& p) {
@@ -182,10 +190,7 @@ int nearest_compliance_vertex(const DrawnSurface& s, const std::vector<bool>& on
       best = v;
       best_d2 = d2;
     }
-  if (best < 0)
-    throw InputError(
-        "model description: every compliance vertex is on the cut region's "
-        "interface; no place to anchor a gesture");
+  if (best < 0) refuse_every_vertex_on_interface();
   return best;
 }
 
@@ -304,10 +309,7 @@ AnchorFrame auto_anchor_off(const DrawnSurface& s, const std::vector<bool>& on_i
         best = v;
       }
   }
-  if (best < 0)
-    throw InputError(
-        "model description: every compliance vertex is on the cut region's "
-        "interface; no place to anchor a gesture");
+  if (best < 0) refuse_every_vertex_on_interface();
   return anchor_frame(s, best);
 }
 
