@@ -6,6 +6,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <Eigen/OrderingMethods>
 #include <algorithm>
 #include <chrono>
 #include <mutex>
@@ -13,6 +14,7 @@
 
 #include "lapack.hpp"
 #include "palpate/core/error.hpp"
+#include "vertex_block_factor.hpp"
 
 namespace palpate::detail {
 
@@ -58,7 +60,9 @@ struct RegionFactorization {
   SparseMatrixd a;  // A − S, ordered DOFs (interior, then Γ), both halves
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> gamma_rows;  // its Γ rows
   SparseMatrixd a_ig;                                            // its block (interior, Γ)
-  Eigen::SimplicialLLT<SparseMatrixd, Eigen::Lower, Eigen::AMDOrdering<int>> interior;
+  // A_II's Cholesky factor by vertex blocks: the interior DOFs are in a
+  // fill-reducing order already (the constructor's), so it is sparse.
+  VertexBlockFactor interior;
   // Z⁻¹, Z = A_ΓΓ + S − A_ΓI A_II⁻¹ A_IΓ: one symmetric product by it per
   // tick (BLAS dsymv, its lower half) costs less than Z's two triangular
   // solves (BENCHMARKS.md, "The implicit step").
@@ -81,15 +85,14 @@ struct RegionFactorization {
     const int n_i = static_cast<int>(ni), n_g = static_cast<int>(ng);
     int info = 0;
     if (ni > 0) {
-      const SparseMatrixd a_ii = f->a.topLeftCorner(ni, ni);
-      f->interior.compute(a_ii);
-      Eigen::MatrixXd l(a_ii);
+      Eigen::MatrixXd l(f->a.topLeftCorner(ni, ni));
       dpotrf_("L", &n_i, l.data(), &n_i, &info);
-      if (f->interior.info() != Eigen::Success || info != 0)
+      if (info != 0)
         throw InputError(fmt::format(
             "{}: the step matrix of the region's {} interior DOFs is not positive definite; "
             "element stiffnesses precompute wrote (positive semi-definite) are accepted",
             kWhat, ni));
+      f->interior = VertexBlockFactor(l);
       f->a_ig = f->a.block(0, ni, ni, ng);
       if (ng > 0) {
         Eigen::MatrixXd w(f->a_ig);
@@ -111,21 +114,10 @@ struct RegionFactorization {
     f->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return f;
   }
-
-  // out = A_II⁻¹ in through the factor's permutation; allocates nothing
-  // (@p tmp and @p out sized, distinct from @p in).
-  void interior_solve(const VectorXd& in, VectorXd& tmp, VectorXd& out) const {
-    tmp.noalias() = interior.permutationP() * in;
-    interior.matrixL().solveInPlace(tmp);
-    interior.matrixU().solveInPlace(tmp);
-    out.noalias() = interior.permutationPinv() * tmp;
-  }
 };
 
 void SolveScratch::size(Index interior_dofs, Index gamma_dofs) {
   interior = VectorXd::Zero(interior_dofs);
-  permuted = interior;
-  solved = interior;
   gamma = VectorXd::Zero(gamma_dofs);
 }
 
@@ -137,17 +129,18 @@ void base_solve(const RegionFactorization& f, Index ni, Eigen::Ref<VectorXd> x, 
   const Index ng = x.size() - ni;
   if (ni > 0) {
     w.interior = x.head(ni);
-    f.interior_solve(w.interior, w.permuted, w.solved);
-    if (ng > 0) x.tail(ng).noalias() -= f.a_ig.transpose() * w.solved;
+    f.interior.solve_in_place(w.interior);
+    if (ng > 0) x.tail(ng).noalias() -= f.a_ig.transpose() * w.interior;
   }
   if (ng > 0) {
     symmetric_product(f.schur_inverse, x.tail(ng), w.gamma);
     x.tail(ng) = w.gamma;
   }
   if (ni > 0) {
+    w.interior = x.head(ni);
     if (ng > 0) w.interior.noalias() -= f.a_ig * w.gamma;
-    f.interior_solve(w.interior, w.permuted, w.solved);
-    x.head(ni) = w.solved;
+    f.interior.solve_in_place(w.interior);
+    x.head(ni) = w.interior;
   }
 }
 
@@ -168,6 +161,35 @@ struct RegionRefactor {
   Eigen::MatrixXd y;
 };
 
+namespace {
+// The interior's vertices (neither fixed nor on Γ) in a minimum-degree
+// order of their graph (AMD), which keeps A_II's Cholesky factor sparse.
+// The order is the mesh's: a cut removes edges only, so fill never grows.
+std::vector<int> interior_elimination_order(const TensorMassModel& model,
+                                            const std::vector<char>& on_gamma) {
+  const int nv = model.vertex_count();
+  std::vector<int> slot(static_cast<std::size_t>(nv), -1), vertex;
+  for (int v = 0; v < nv; ++v)
+    if (!model.is_fixed(v) && on_gamma[v] == 0) {
+      slot[v] = static_cast<int>(vertex.size());
+      vertex.push_back(v);
+    }
+  const auto n = static_cast<Index>(vertex.size());
+  std::vector<Eigen::Triplet<double>> pattern;
+  for (Index k = 0; k < n; ++k) pattern.emplace_back(k, k, 1.0);
+  for (const auto& [i, j] : model.edges())
+    if (slot[i] >= 0 && slot[j] >= 0) pattern.emplace_back(slot[i], slot[j], 1.0);
+  SparseMatrixd graph(n, n);
+  graph.setFromTriplets(pattern.begin(), pattern.end());
+  // AMD of graph + graphᵀ; indices()[k] is the k-th vertex to eliminate.
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> order;
+  Eigen::AMDOrdering<int>()(graph, order);
+  std::vector<int> ordered(vertex.size());
+  for (Index k = 0; k < n; ++k) ordered[static_cast<std::size_t>(k)] = vertex[order.indices()[k]];
+  return ordered;
+}
+}  // namespace
+
 ImplicitRegionStep::ImplicitRegionStep(const TensorMassModel& model, std::span<const int> interface,
                                        const Eigen::MatrixXd& coupling,
                                        const ImplicitStepCoefficients& coefficients,
@@ -186,7 +208,7 @@ ImplicitRegionStep::ImplicitRegionStep(const TensorMassModel& model, std::span<c
   for (std::size_t k = 0; k < gamma_.size(); ++k)
     interface_proximal_[gamma_[k]] =
         coefficients.interface_damping * coupling.block<3, 3>(3 * k, 3 * k);
-  // Interior DOFs first (vertex order), then Γ (as loaded).
+  // Interior DOFs first, in the fill-reducing order, then Γ (as loaded).
   first_dof_.assign(static_cast<std::size_t>(nv), -1);
   Index next = 0;
   double mass = 0;
@@ -197,10 +219,10 @@ ImplicitRegionStep::ImplicitRegionStep(const TensorMassModel& model, std::span<c
       mass += model.mass_kg(v);
       ++moving;
     }
-    if (on_gamma_[v] == 0) {
-      first_dof_[v] = static_cast<int>(next);
-      next += 3;
-    }
+  }
+  for (int v : interior_elimination_order(model, on_gamma_)) {
+    first_dof_[v] = static_cast<int>(next);
+    next += 3;
   }
   interior_dofs_ = next;
   for (int v : gamma_) {

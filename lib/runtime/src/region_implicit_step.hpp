@@ -19,7 +19,6 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/LU>
-#include <Eigen/SparseCholesky>
 #include <future>
 #include <memory>
 #include <span>
@@ -57,7 +56,7 @@ struct RefactorQueue;
 
 /// Work vectors of one solve with a factorization (one set per thread).
 struct SolveScratch {
-  Eigen::VectorXd interior, gamma, permuted, solved;
+  Eigen::VectorXd interior, gamma;
   void size(Eigen::Index interior_dofs, Eigen::Index gamma_dofs);
 };
 
