@@ -179,9 +179,11 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
       with_us.push_back(microseconds(start));
       region.advance(1e-3, with.contact_indices(), with.contact_forces(), {});
       const Eigen::VectorXd& push = region.interface_force_n();
-      with.set_background_loads(region.interface_compliance_indices(),
-                                {push.data(), static_cast<std::size_t>(push.size())},
-                                region.interface_energy_j());
+      with.set_background_loads(
+          region.interface_compliance_indices(),
+          {push.data(), static_cast<std::size_t>(push.size())},
+          {region.interface_displacement_m().data(),
+           static_cast<std::size_t>(region.interface_displacement_m().size())});
       without.check(0, pose);
       start = Clock::now();
       without.update(0, pose, 1e-3 * step);

@@ -199,9 +199,11 @@ std::pair<double, double> grasp_next_to_region(const SurfaceModel& model, Hybrid
         late = std::numeric_limits<double>::infinity();
         return;
       }
-      engine.set_background_loads(region.interface_compliance_indices(),
-                                  {push.data(), static_cast<std::size_t>(push.size())},
-                                  region.interface_energy_j());
+      engine.set_background_loads(
+          region.interface_compliance_indices(),
+          {push.data(), static_cast<std::size_t>(push.size())},
+          {region.interface_displacement_m().data(),
+           static_cast<std::size_t>(region.interface_displacement_m().size())});
       if (i < hold) early = std::max(early, push.norm());
       if (i >= ticks - hold) late = std::max(late, push.norm());
     }

@@ -329,7 +329,8 @@ void ToolServer::step_region(ServedModel& served, int tool, double now_s) {
   const Eigen::VectorXd& push = region.interface_force_n();
   engine.set_background_loads(region.interface_compliance_indices(),
                               {push.data(), static_cast<std::size_t>(push.size())},
-                              region.interface_energy_j());
+                              {region.interface_displacement_m().data(),
+                               static_cast<std::size_t>(region.interface_displacement_m().size())});
   served.shown.show_region(region);
 }
 

@@ -2,8 +2,11 @@
 // Private to palpate_runtime: loads on the surface the tools do not make
 // (a served cut region's push on the rest, docs/model.md "The hybrid model
 // as served"), as the contact engine takes them: the displacement
-// u_b = G f_b they give a compliance vertex (memoized per set), the surface
-// loads with the tools' ones, and the bound on how far they move a vertex.
+// u_b = G f_b they give a compliance vertex (memoized per set), and two
+// bounds on how far they move a vertex: from their energy (any vertex), and
+// from the u_b last computed there plus the bound on the loads' changes
+// since (the vertices near a tool, which the engine deforms every tick, are
+// the only ones it computes u_b for: the others' bounds leave them out).
 
 #include <Eigen/Core>
 #include <cmath>
@@ -17,13 +20,28 @@ namespace palpate::detail {
 
 class BackgroundLoads {
  public:
-  /// Room for @p count loads on a model of @p compliance_count vertices,
-  /// merged after at most @p tool_loads loads of the tools (allocates).
-  void reserve(int count, int compliance_count, std::size_t tool_loads);
+  /// Room for @p count loads on @p model's compliance vertices (allocates;
+  /// @p model must outlive it).
+  void reserve(const SurfaceModel& model, int count);
   /// Replaces the loads (3 forces each, N) and their energy f_bᵀ G f_b (J).
+  /// On the same vertices as the last call, the change's bound grows by
+  /// Σ_j √‖G^{jj}‖ |f_j − f_j⁻| (last_known's drift); on others, what was
+  /// known of every vertex is forgotten.
   /// @throws InputError beyond the reserved count, for a vertex out of
   ///         range or a force count other than 3 per load. Allocates nothing.
   void set(std::span<const int> indices, std::span<const double> forces_n, double energy_j);
+  /// The same with u_b = G_bb f_b at the loaded vertices (3 each, m): the
+  /// energy is f_b · u_b, and on the same vertices as the last call the
+  /// bound grows by √((f − f⁻) · (u_b − u_b⁻)) instead (the change's energy),
+  /// when the last call gave u_b too.
+  /// @throws InputError as set(), and for a displacement count other than
+  ///         3 per load.
+  void set(std::span<const int> indices, std::span<const double> forces_n,
+           std::span<const double> displacements_m);
+
+  /// Takes @p other's loads as set() would (an engine's surface takes the
+  /// loads so once per solve). Allocates nothing; @p other reserved no more.
+  void copy_from(const BackgroundLoads& other);
 
   int count() const { return count_; }
   double energy_j() const { return energy_j_; }
@@ -32,35 +50,51 @@ class BackgroundLoads {
   double reach_m(double max_softness) const {
     return count_ > 0 ? max_softness * std::sqrt(energy_j_) : 0.0;
   }
-  /// u_b = Σ_j G^{v b_j} f_j at compliance vertex @p v.
-  const Eigen::Vector3d& at(const SurfaceModel& model, int v);
+  /// (1 + 1e-6) √(f_bᵀ G f_b): with a vertex's √‖G^{vv}‖, the bound on its u_b.
+  double spread() const { return (1 + 1e-6) * std::sqrt(energy_j_); }
+  /// u_b = Σ_j G^{v b_j} f_j at compliance vertex @p v (memoized per set).
+  const Eigen::Vector3d& at(int v);
+  /// The u_b compliance vertex @p v had when at() last computed it under
+  /// loads on these vertices, and @p drift: it has moved since by at most
+  /// √‖G^{vv}‖ · drift (m). False when never computed since the loaded
+  /// vertices changed.
+  bool last_known(int v, const Eigen::Vector3d*& u, double& drift) const {
+    const auto slot = static_cast<std::size_t>(v);
+    if (u_epoch_[slot] == 0) return false;
+    u = &u_[slot];
+    drift = drift_ - u_drift_[slot];
+    return true;
+  }
   /// H u_b at a point given by vertices and weights (fixed vertices, index
   /// ≥ @p compliance_count, do not move).
   template <typename Point>
-  Eigen::Vector3d at_point(const SurfaceModel& model, const Point& point, int compliance_count) {
+  Eigen::Vector3d at_point(const Point& point, int compliance_count) {
     Eigen::Vector3d u = Eigen::Vector3d::Zero();
     for (int i = 0; i < point.count; ++i) {
       const int v = point.vertices[static_cast<std::size_t>(i)];
-      if (v < compliance_count) u += point.weights[static_cast<std::size_t>(i)] * at(model, v);
+      if (v < compliance_count) u += point.weights[static_cast<std::size_t>(i)] * at(v);
     }
     return u;
   }
-  /// The tools' @p tool_count loads followed by these, into arrays that
-  /// stay as they are until the next call (what DeformedSurface::set_loads
-  /// views), and the bound on the energy of the sum: √ of it ≤ the sum of
-  /// the √ (the G-norm's triangle inequality). @returns the loads' count.
-  int merge(int tool_count, const int* tool_index, const double* tool_force, double tool_energy,
-            const int*& index, const double*& force, double& energy);
 
  private:
+  void forget_all();
+  void replace(std::span<const int> indices, std::span<const double> forces_n, double energy_j,
+               std::span<const double> displacements_m);
+
+  const SurfaceModel* model_ = nullptr;
   int count_ = 0;
   std::vector<int> index_;
   std::vector<double> force_;
+  std::vector<double> displacement_;  // u_b at the loads, when given (has_displacement_)
+  bool has_displacement_ = false;
   double energy_j_ = 0;
-  std::vector<int> merged_index_;
-  std::vector<double> merged_force_;
-  std::vector<Eigen::Vector3d> u_;  // per compliance vertex, valid when u_epoch_ = epoch_
-  std::vector<std::uint32_t> u_epoch_;
+  std::vector<double> softness_;  // per compliance vertex: √‖G^{vv}‖ (Frobenius ≥ spectral)
+  // Σ over the sets on these vertices of Σ_j √‖G^{jj}‖ |f_j − f_j⁻| (N·√(m/N)).
+  double drift_ = 0;
+  std::vector<Eigen::Vector3d> u_;      // per compliance vertex, current when u_epoch_ = epoch_
+  std::vector<std::uint32_t> u_epoch_;  // 0: never computed on these vertices
+  std::vector<double> u_drift_;         // drift_ when u_ was computed
   std::uint32_t epoch_ = 1;
 };
 

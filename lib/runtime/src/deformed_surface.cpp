@@ -1,6 +1,7 @@
 #include "deformed_surface.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -128,7 +129,9 @@ const Vector3d& DeformedSurface::deformed(int v) {
   if (v >= compliance_count_)
     position_[vv] = rest_[vv];
   else if (warping_ == nullptr)
-    position_[vv] = rest_[vv] + load_displacement(v);
+    position_[vv] = rest_[vv] + (background_ != nullptr && background_->count() > 0
+                                     ? Vector3d(load_displacement(v) + background_->at(v))
+                                     : load_displacement(v));
   else
     position_[vv] =
         rest_[vv] + integrated_rotation(rotation_vector(v)) *
@@ -179,6 +182,8 @@ void DeformedSurface::deform_corners(std::span<const int> triangles) {
                             columns + 3 * v[j], 3, 3, Eigen::OuterStride<>(ld)) *
                         f;
   }
+  if (background_ != nullptr && background_->count() > 0)
+    for (std::size_t j = 0; j < wanted_n; ++j) wanted_u_[j] += background_->at(wanted_[j]);
   for (std::size_t j = 0; j < wanted_n; ++j) {
     const auto v = static_cast<std::size_t>(wanted_[j]);
     position_[v] = rest_[v] + wanted_u_[j];
@@ -198,13 +203,53 @@ double DeformedSurface::spread() const {
 // the reach) are far above round-off and G's asymmetry (1e-15): nothing the
 // closest points would find near is dropped. Linear model only (the warped
 // one meets its vertices' rotations in the order deformed() asks for them).
+//
+// The background's u_b adds to that bound. Where every compliance corner
+// has a last known u_b (BackgroundLoads::last_known), the triangle is
+// moved by their mean ū: a corner is then within the rest radius plus
+// |u_i − ū| of the moved centre, and each has drifted since by at most
+// √‖G^{vv}‖ times its drift; else it is bounded by its energy, as the
+// loads' (the triangle inequality of the G-norm adds the two spreads).
+// The known u_b carry the round-off of their sums (≪ 1e-6 of them).
 bool DeformedSurface::far_from(int tri, const Vector3d& hinge, const Vector3d& axis, double length,
                                double reach, double spread) const {
   if (warping_ != nullptr) return false;
   const auto tt = static_cast<std::size_t>(tri);
   const Vector3d& c = triangle_centre_[tt];
   const double beyond = (1 + 1e-6) * reach + triangle_radius_[tt] + triangle_softness_[tt] * spread;
-  return (c - closest_on_segment(hinge, axis, length, c)).squaredNorm() >= beyond * beyond;
+  const auto far = [&](const Vector3d& centre, double distance) {
+    return (centre - closest_on_segment(hinge, axis, length, centre)).squaredNorm() >=
+           distance * distance;
+  };
+  if (background_ == nullptr || background_->count() == 0) return far(c, beyond);
+  // Either bound suffices: the energy's, from the triangle at rest, or the
+  // last known u_b's, from the moved triangle.
+  if (far(c, beyond + triangle_softness_[tt] * background_->spread())) return true;
+  {
+    const int* corner = corners(tri);
+    std::array<const Vector3d*, 3> u{};
+    const Vector3d zero = Vector3d::Zero();
+    double drift = 0;
+    bool known = true;
+    for (int i = 0; i < 3 && known; ++i) {
+      const auto ii = static_cast<std::size_t>(i);
+      double d = 0;
+      if (corner[i] >= compliance_count_)
+        u[ii] = &zero;
+      else
+        known = background_->last_known(corner[i], u[ii], d);
+      drift = std::max(drift, d);
+    }
+    if (!known) return false;
+    const Vector3d mean = (*u[0] + *u[1] + *u[2]) / 3;
+    double apart = 0, largest = 0;
+    for (const Vector3d* ui : u) {
+      apart = std::max(apart, (*ui - mean).norm());
+      largest = std::max(largest, ui->norm());
+    }
+    return far(c + mean,
+               beyond + apart + 1e-6 * largest + (1 + 1e-6) * triangle_softness_[tt] * drift);
+  }
 }
 
 std::span<const int> DeformedSurface::vertices_near(const Vector3d& hinge, const Vector3d& axis,

@@ -22,6 +22,7 @@
 #include <span>
 #include <vector>
 
+#include "background_loads.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/surface_model.hpp"
@@ -63,6 +64,10 @@ class DeformedSurface {
   /// @p index and their forces @p force (3 each, N, material when warped),
   /// and fᵀ G f (J), which bounds every vertex's displacement.
   void set_loads(int count, const int* index, const double* force, double energy);
+  /// Loads that are not the tools' (the engine's background loads, linear
+  /// model only), read as they are when a position is computed; null: none.
+  /// They move every vertex by u_b (BackgroundLoads::at) besides the loads'.
+  void set_background(BackgroundLoads* background) { background_ = background; }
   /// Forgets the deformed positions (the loads changed).
   void next_epoch();
   /// A new tick of a warped engine (its rotation memo's clock).
@@ -70,7 +75,8 @@ class DeformedSurface {
     if (rotations_) rotations_->next_tick();
   }
 
-  /// u_v = Σ_l G^{v l} f_l of compliance vertex @p v (û when warped).
+  /// u_v = Σ_l G^{v l} f_l of compliance vertex @p v (û when warped), the
+  /// background's u_b not included.
   Eigen::Vector3d load_displacement(int v) const;
   /// Deformed position of drawn vertex @p v, once per epoch.
   const Eigen::Vector3d& deformed(int v);
@@ -107,14 +113,16 @@ class DeformedSurface {
     triangle_hidden_.at(static_cast<std::size_t>(triangle)) = hidden ? 1 : 0;
   }
 
-  /// (1 + 1e-6) √(fᵀ G f): far_from()'s spread of the displacements.
+  /// (1 + 1e-6) √(fᵀ G f): far_from()'s spread of the loads' displacements.
   double spread() const;
   /// The largest √‖G^{vv}‖ over every triangle's compliance corners, √(m/N).
   double max_softness() const { return max_softness_; }
   /// True when no point of triangle @p tri, deformed under the loads, can
   /// come within @p reach of the segment [hinge, hinge + length·axis]; from
   /// the triangle at rest and @p spread (spread()): a vertex moves at most
-  /// √(‖G^{vv}‖ fᵀ G f) (docs/tools.md, "One tick"). Linear model only
+  /// √(‖G^{vv}‖ fᵀ G f) (docs/tools.md, "One tick"). The background's u_b
+  /// is bounded from each corner's last known u_b and its drift since when
+  /// every corner has one, else from its energy likewise. Linear model only
   /// (false on a warped one).
   bool far_from(int tri, const Eigen::Vector3d& hinge, const Eigen::Vector3d& axis, double length,
                 double reach, double spread) const;
@@ -133,6 +141,7 @@ class DeformedSurface {
   double max_softness_ = 0;
   Eigen::Vector3d box_min_, box_max_;
   VertexGrid grid_;
+  BackgroundLoads* background_ = nullptr;
   // The loads (views) and the deformed positions of this epoch.
   int load_count_ = 0;
   const int* load_index_ = nullptr;

@@ -100,6 +100,13 @@ struct ToolContactEngine::Impl {
   // the surface with the tools' loads and every row's imposed displacement
   // discounts them.
   detail::BackgroundLoads background;
+  // The background as the surface has it: taken at each solve's end with
+  // the tools' loads, so the surface the next tick's contacts are found on
+  // is the one the last solve left (as the rows discount the latest
+  // background). The surface reading the latest one instead made a tool
+  // pressing the rest beside a served region wander (1–4 contacts, never
+  // settling, in bench/hybrid_tick_bench's contact loop at the 16 mm ball).
+  detail::BackgroundLoads surface_background;
   char message[256] = {};
   mutable char problem[256] = {};  // why check() refused the last pose it refused
 
@@ -313,7 +320,7 @@ struct ToolContactEngine::Impl {
       // The background loads move the point by H u_b already: the tools'
       // forces make the rest (linear engines only: set_background_loads).
       if (background.count() > 0) {
-        const Vector3d moved = background.at_point(model, point, compliance_count);
+        const Vector3d moved = background.at_point(point, compliance_count);
         if (kind == ConstraintKind::kDisplacement) value -= moved;
         if (kind == ConstraintKind::kNormalDisplacement) value.x() -= normal.dot(moved);
       }
@@ -462,9 +469,9 @@ struct ToolContactEngine::Impl {
       point.position_m = at_rest + displacement;
       if (background.count() > 0)
         point.position_m +=
-            point.held ? background.at_point(model, tool.held[static_cast<std::size_t>(b_held[bb])],
+            point.held ? background.at_point(tool.held[static_cast<std::size_t>(b_held[bb])],
                                              compliance_count)
-                       : background.at_point(model, tool.tips[static_cast<std::size_t>(b_tip[bb])],
+                       : background.at_point(tool.tips[static_cast<std::size_t>(b_tip[bb])],
                                              compliance_count);
       point.normal =
           row.kind == ConstraintKind::kNormalDisplacement ? row_world_normal[bb] : Vector3d::Zero();
@@ -513,17 +520,10 @@ struct ToolContactEngine::Impl {
     }
     for (int l = 0; l < load_count; ++l)
       load_slot[static_cast<std::size_t>(load_index[static_cast<std::size_t>(l)])] = -1;
-    if (background.count() == 0) {
-      surface.set_loads(load_count, load_index.data(), load_force.data(), load_energy);
-      return;
-    }
-    // The surface moves under both: the tools' loads, then the background's.
-    const int* index = nullptr;
-    const double* force = nullptr;
-    double energy = 0;
-    const int loads = background.merge(load_count, load_index.data(), load_force.data(),
-                                       load_energy, index, force, energy);
-    surface.set_loads(loads, index, force, energy);
+    // The surface moves under these and the background's (set_background).
+    surface.set_loads(load_count, load_index.data(), load_force.data(), load_energy);
+    if (background.count() > 0 || surface_background.count() > 0)
+      surface_background.copy_from(background);
   }
 
   /// Tool @p t's contact wrench linearized about its pose (LocalContactModel,
@@ -759,12 +759,20 @@ void ToolContactEngine::reserve_background_loads(int count) {
   Impl& m = *impl_;
   if (m.warping != nullptr)
     throw InputError("a warped contact engine takes no background loads (they are linear)");
-  m.background.reserve(count, m.compliance_count, m.load_index.size());
+  m.background.reserve(m.model, count);
+  m.surface_background.reserve(m.model, count);
+  m.surface.set_background(&m.surface_background);
 }
 
 void ToolContactEngine::set_background_loads(std::span<const int> indices,
                                              std::span<const double> forces_n, double energy_j) {
   impl_->background.set(indices, forces_n, energy_j);
+}
+
+void ToolContactEngine::set_background_loads(std::span<const int> indices,
+                                             std::span<const double> forces_n,
+                                             std::span<const double> displacements_m) {
+  impl_->background.set(indices, forces_n, displacements_m);
 }
 
 void ToolContactEngine::set_triangle_hidden(int triangle, bool hidden) {

@@ -117,6 +117,10 @@ class HybridRegion {
   /// f_Γᵀ G_ΓΓ f_Γ = f_Γ · (u_Γ − u_Γ⁰) (J, ≥ 0 to round-off): the energy
   /// ToolContactEngine::set_background_loads takes with f_Γ.
   double interface_energy_j() const { return std::max(0.0, interface_force_n_.dot(gamma_u_m_)); }
+  /// u_Γ − u_Γ⁰ = G_ΓΓ f_Γ (3n_Γ, m): what the push alone moves Γ by, in
+  /// the order of interface_force_n() (ToolContactEngine::set_background_loads
+  /// takes it to bound how far the push's changes move the surface).
+  const Eigen::VectorXd& interface_displacement_m() const { return gamma_u_m_; }
   /// u += G_SΓ f_Γ: what the region's push adds to a displacement field of
   /// the rest's compliance vertices (3N_S, compliance order).
   void add_rest_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const;

@@ -150,6 +150,14 @@ class ToolContactEngine {
   ///         a force count other than 3 per load.
   void set_background_loads(std::span<const int> indices, std::span<const double> forces_n,
                             double energy_j);
+  /// The same with u_b = G_bb f_b at the loaded vertices (3 each, m): the
+  /// energy is f_b · u_b, and from one call to the next on the same
+  /// vertices, √((f_b − f_b⁻) · (u_b − u_b⁻)) bounds how far the change
+  /// moves any vertex (per √‖G^{vv}‖), so a vertex far from the tools whose
+  /// u_b was computed once needs no new one while it stays far. Without
+  /// u_b, a looser bound from the forces alone is taken.
+  void set_background_loads(std::span<const int> indices, std::span<const double> forces_n,
+                            std::span<const double> displacements_m);
 
   /// The contact points of the last solve, all tools.
   std::span<const ContactPoint> contact_points() const;
