@@ -141,10 +141,11 @@ class ToolContactEngine {
   void reserve_background_loads(int count);
   /// Known loads on compliance vertices that are not the tools' (3 forces
   /// each, N, on the organ; e.g. a served cut region's push f_Γ on the
-  /// rest), with their energy f_bᵀ G f_b (J). From the next solve on they
-  /// move the surface the tools meet, u = G (Hᵀ f_C + f_b), and every
+  /// rest), with their energy f_bᵀ G f_b (J). From the next solve on every
   /// contact row's imposed displacement discounts H G f_b: the tools feel
-  /// the organ as these loads have it. Replaces the previous ones; none at
+  /// the organ as these loads have it. The surface the tools' contacts are
+  /// found on is the one the last solve left, u = G (Hᵀ f_C + f_b) with the
+  /// f_b of that solve: it takes these from the solve after the next. Replaces the previous ones; none at
   /// first. Allocates nothing.
   /// @throws InputError for more than reserved, a vertex out of range, or
   ///         a force count other than 3 per load.
