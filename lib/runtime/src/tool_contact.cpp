@@ -102,8 +102,9 @@ struct ToolContactEngine::Impl {
   detail::BackgroundLoads background;
   // The background as the surface has it: taken at each solve's end with
   // the tools' loads, so the surface the next tick's contacts are found on
-  // is the one the last solve left (as the rows discount the latest
-  // background). The surface reading the latest one instead made a tool
+  // is the one the last solve left: its tools' forces balance the
+  // background it discounted. The latest background with those forces is
+  // a surface no solve produced; finding contacts on it made a tool
   // pressing the rest beside a served region wander (1–4 contacts, never
   // settling, in bench/hybrid_tick_bench's contact loop at the 16 mm ball).
   detail::BackgroundLoads surface_background;
