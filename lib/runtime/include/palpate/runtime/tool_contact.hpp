@@ -145,8 +145,8 @@ class ToolContactEngine {
   /// contact row's imposed displacement discounts H G f_b: the tools feel
   /// the organ as these loads have it. The surface the tools' contacts are
   /// found on is the one the last solve left, u = G (Hᵀ f_C + f_b) with the
-  /// f_b of that solve: it takes these from the solve after the next. Replaces the previous ones; none at
-  /// first. Allocates nothing.
+  /// f_b of that solve: it takes these from the solve after the next.
+  /// Replaces the previous ones; none at first. Allocates nothing.
   /// @throws InputError for more than reserved, a vertex out of range, or
   ///         a force count other than 3 per load.
   void set_background_loads(std::span<const int> indices, std::span<const double> forces_n,
