@@ -24,9 +24,9 @@ class BackgroundLoads {
   /// @p model must outlive it).
   void reserve(const SurfaceModel& model, int count);
   /// Replaces the loads (3 forces each, N) and their energy f_bᵀ G f_b (J).
-  /// On the same vertices as the last call, the change's bound grows by
-  /// Σ_j √‖G^{jj}‖ |f_j − f_j⁻| (last_known's drift); on others, what was
-  /// known of every vertex is forgotten.
+  /// On the same vertices as the last call, the change's bound (last_known's
+  /// drift) grows by Σ_j √‖G^{jj}‖ |f_j − f_j⁻|; on others, what was known of
+  /// every vertex is forgotten.
   /// @throws InputError beyond the reserved count, for a vertex out of
   ///         range or a force count other than 3 per load. Allocates nothing.
   void set(std::span<const int> indices, std::span<const double> forces_n, double energy_j);
@@ -90,7 +90,8 @@ class BackgroundLoads {
   bool has_displacement_ = false;
   double energy_j_ = 0;
   std::vector<double> softness_;  // per compliance vertex: √‖G^{vv}‖ (Frobenius ≥ spectral)
-  // Σ over the sets on these vertices of Σ_j √‖G^{jj}‖ |f_j − f_j⁻| (N·√(m/N)).
+  // Σ over the sets on these vertices of each change's bound (√(m·N)):
+  // √(Δf · Δu_b) when both sets gave u_b, else Σ_j √‖G^{jj}‖ |Δf_j|.
   double drift_ = 0;
   std::vector<Eigen::Vector3d> u_;      // per compliance vertex, current when u_epoch_ = epoch_
   std::vector<std::uint32_t> u_epoch_;  // 0: never computed on these vertices

@@ -225,31 +225,27 @@ bool DeformedSurface::far_from(int tri, const Vector3d& hinge, const Vector3d& a
   // Either bound suffices: the energy's, from the triangle at rest, or the
   // last known u_b's, from the moved triangle.
   if (far(c, beyond + triangle_softness_[tt] * background_->spread())) return true;
-  {
-    const int* corner = corners(tri);
-    std::array<const Vector3d*, 3> u{};
-    const Vector3d zero = Vector3d::Zero();
-    double drift = 0;
-    bool known = true;
-    for (int i = 0; i < 3 && known; ++i) {
-      const auto ii = static_cast<std::size_t>(i);
-      double d = 0;
-      if (corner[i] >= compliance_count_)
-        u[ii] = &zero;
-      else
-        known = background_->last_known(corner[i], u[ii], d);
-      drift = std::max(drift, d);
-    }
-    if (!known) return false;
-    const Vector3d mean = (*u[0] + *u[1] + *u[2]) / 3;
-    double apart = 0, largest = 0;
-    for (const Vector3d* ui : u) {
-      apart = std::max(apart, (*ui - mean).norm());
-      largest = std::max(largest, ui->norm());
-    }
-    return far(c + mean,
-               beyond + apart + 1e-6 * largest + (1 + 1e-6) * triangle_softness_[tt] * drift);
+  const int* corner = corners(tri);
+  std::array<const Vector3d*, 3> u{};
+  const Vector3d zero = Vector3d::Zero();
+  double drift = 0;
+  for (int i = 0; i < 3; ++i) {
+    const auto ii = static_cast<std::size_t>(i);
+    double d = 0;
+    if (corner[i] >= compliance_count_)
+      u[ii] = &zero;
+    else if (!background_->last_known(corner[i], u[ii], d))
+      return false;  // never computed: the energy's bound is all there is
+    drift = std::max(drift, d);
   }
+  const Vector3d mean = (*u[0] + *u[1] + *u[2]) / 3;
+  double apart = 0, largest = 0;
+  for (const Vector3d* ui : u) {
+    apart = std::max(apart, (*ui - mean).norm());
+    largest = std::max(largest, ui->norm());
+  }
+  return far(c + mean,
+             beyond + apart + 1e-6 * largest + (1 + 1e-6) * triangle_softness_[tt] * drift);
 }
 
 std::span<const int> DeformedSurface::vertices_near(const Vector3d& hinge, const Vector3d& axis,
