@@ -100,9 +100,14 @@ TEST(JawGrasp, AFlapBetweenTheJawsIsHeldByBothFacesAndLiftsWithThePliers) {
                                                 dir.path(), "flap", 85e3));
   const int n = flap.compliance_vertex_count();
 
-  ToolGeometry g;  // a fine grasper: its 1 mm tip stays clear of the flap while open
+  // A fine grasper: its 1 mm tip, 2 mm shorter than the jaws, stays clear
+  // of the flap while open. (A tip reaching past the jaws meets the flap's
+  // edge face head on, and with friction the face sticks to it and is
+  // pushed along.)
+  ToolGeometry g;
   g.id = "grasper";
   g.tip_radius_m = 0.001;
+  g.tip_length_m = 0.012;
   g.force_limit_n = 100;
   g.max_force_rate_n_per_s = 1e6;
   ToolContactEngine engine(flap, {g}, {}, {});

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -66,6 +68,9 @@ ActiveSet::ActiveSet(const SurfaceModel& model, const SolverLimits& limits)
   const auto columns = index(ConstraintSolver::kMaxResponseColumns);
   response_in_.resize(3 * k * columns);
   response_out_.resize(std::max(3 * k, m) * columns);
+  slip_in_.assign(3 * k * columns, 0.0);
+  slip_out_.resize(3 * k * columns);
+  slips_.resize(k);
 }
 
 ActiveSet::~ActiveSet() = default;
@@ -146,23 +151,17 @@ RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
     // set now would pair each force with another point).
     if (iteration + 1 == iterations) break;
     // Adhesion: a tip contact whose force pulls the tissue towards the
-    // tool lets go. Friction: a sticking one whose tangential force
-    // exceeds friction × normal force slides.
+    // tool lets go; a sticking one slides first.
     bool any = false;
     for (int r = 0; r < n; ++r) {
       ActiveRow& row = rows_[index(r)];
       if (row.state != ActiveRow::kActive || !row.tip) continue;
-      const Vector3d f = force(r);
-      const double normal_force = f.dot(row.normal);
-      if (row.kind == Kind::kDisplacement &&
-          (normal_force < 0 ||
-           (f - normal_force * row.normal).norm() > row.friction * normal_force)) {
-        slide(row);  // outside the friction cone (a pull included): it slides first
-        any = true;
-      } else if (normal_force < 0) {
-        row.state = ActiveRow::kReleased;  // a sliding contact that pulls: adhesion, let go
-        any = true;
-      }
+      if (force(r).dot(row.normal) >= 0) continue;
+      if (row.kind == Kind::kDisplacement)
+        slide(row);
+      else
+        row.state = ActiveRow::kReleased;
+      any = true;
     }
     // Signorini on the watched triangles: one the solve pushed into the
     // tip (its linearized gap now negative) joins the set.
@@ -176,11 +175,80 @@ RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
         any = true;
       }
     }
+    // Friction, once the set stands: a sticking point's tangential force
+    // is set, its target moving in its tangent plane (the set stays):
+    // carried on from the last solve's contact, or back onto its cone's
+    // edge when outside it.
+    if (!any) {
+      last_incremental_ = incremental;
+      last_ok_ = true;
+      any = slip_onto_cones();
+    }
     if (!any) break;
   }
   last_incremental_ = incremental;
   last_ok_ = status == RequestStatus::kOk;
   return status;
+}
+
+bool ActiveSet::slip_onto_cones() {
+  const int n = static_cast<int>(rows_.size());
+  // The sticking points outside their cones beyond 0.1 % of the edge (a
+  // point put on the edge is there but for its neighbours' coupling).
+  int count = 0;
+  for (int r = 0; r < n; ++r) {
+    const ActiveRow& row = rows_[index(r)];
+    if (row.state != ActiveRow::kActive || !row.tip || row.kind != Kind::kDisplacement) continue;
+    const Vector3d f = force(r);
+    const double normal_force = f.dot(row.normal);
+    const Vector3d tangential = f - normal_force * row.normal;
+    const double edge = row.friction * normal_force;
+    const double magnitude = tangential.norm();
+    if (!(magnitude > edge + 1e-3 * edge + 1e-12)) continue;
+    Slip& slip = slips_[index(count++)];
+    slip.row = r;
+    slip.t = tangential / magnitude;
+    slip.s = row.normal.cross(slip.t);
+  }
+  if (count == 0) return false;
+  // The response of each one's force to its own target moved along t and
+  // along s (the others' staying), two columns each from the factor.
+  const int per_batch = ConstraintSolver::kMaxResponseColumns / 2;
+  for (int first = 0; first < count; first += per_batch) {
+    const int in_batch = std::min(per_batch, count - first);
+    for (int k = 0; k < in_batch; ++k) {
+      const Slip& slip = slips_[index(first + k)];
+      Eigen::Map<Vector3d>{&slip_in_[3 * index(2 * k * n + slip.row)]} = slip.t;
+      Eigen::Map<Vector3d>{&slip_in_[3 * index((2 * k + 1) * n + slip.row)]} = slip.s;
+    }
+    force_response(slip_in_.data(), slip_out_.data(), 2 * in_batch);
+    for (int k = 0; k < in_batch; ++k) {
+      Slip& slip = slips_[index(first + k)];
+      Eigen::Map<Vector3d>{&slip_in_[3 * index(2 * k * n + slip.row)]}.setZero();
+      Eigen::Map<Vector3d>{&slip_in_[3 * index((2 * k + 1) * n + slip.row)]}.setZero();
+      slip.dt = Eigen::Map<const Vector3d>(&slip_out_[3 * index(2 * k * n + slip.row)]);
+      slip.ds = Eigen::Map<const Vector3d>(&slip_out_[3 * index((2 * k + 1) * n + slip.row)]);
+    }
+  }
+  // Coulomb's return: the target moves in the tangent plane by a t + b s
+  // so that the force is on the cone's edge along t, to first order,
+  //   (t − μ n)ᵀ(f + a δf_t + b δf_s) = 0,   sᵀ(f + a δf_t + b δf_s) = 0.
+  for (int k = 0; k < count; ++k) {
+    const Slip& slip = slips_[index(k)];
+    ActiveRow& row = rows_[index(slip.row)];
+    const Vector3d f = force(slip.row);
+    const Vector3d along = slip.t - row.friction * row.normal;
+    Eigen::Matrix2d A;
+    A << along.dot(slip.dt), along.dot(slip.ds), slip.s.dot(slip.dt), slip.s.dot(slip.ds);
+    const Eigen::Vector2d rhs(-along.dot(f), -slip.s.dot(f));
+    if (std::abs(A.determinant()) > 1e-12 * A.squaredNorm()) {
+      const Eigen::Vector2d step = A.inverse() * rhs;
+      row.value += step(0) * slip.t + step(1) * slip.s;
+    } else {
+      slide(row);  // no such target (never met): it slides, its tangential force zero
+    }
+  }
+  return true;
 }
 
 void ActiveSet::force_response(const double* dvalue, double* dforce, int columns) {

@@ -18,9 +18,15 @@
 ///  - Signorini: a sliding tip point whose normal force pulls (nᵀf < 0)
 ///    leaves; a watched (dormant) point whose linearized gap the solve made
 ///    negative, nᵀu_p < b_n − tol, joins;
-///  - Coulomb: a sticking tip point outside the cone,
-///    |f − (nᵀf) n| > μ nᵀf or nᵀf < 0, slides (its three rows become the
-///    normal row);
+///  - Coulomb, once the set stands (no point joined or left at the last
+///    solve): a sticking tip point outside the cone, |f_t| > μ nᵀf with
+///    f_t = f − (nᵀf) n, slips: its imposed displacement moves in its
+///    tangent plane, by a t + b s (t = f_t/|f_t|, s = n × t), so that its
+///    force is on the cone's edge along t to first order in the response
+///    of its force to its own target moved along t and s (force_response;
+///    the others' targets staying): kinetic friction, the tissue following
+///    the tool as far as the cone allows (Coulomb's return). One that
+///    pulls, nᵀf < 0, slides (its three rows become the normal row);
 ///  - a singular W first makes every sticking tip point slide, then drops
 ///    the shallowest tip point until it solves.
 ///
@@ -125,6 +131,7 @@ class ActiveSet {
   RequestStatus check_condition();
   RequestStatus check_values();
   RequestStatus finish_incremental();
+  bool slip_onto_cones();
   Eigen::Vector3d displacement_from_solver_loads(const ActiveRow& row) const;
 
   const SurfaceModel& model_;
@@ -164,6 +171,16 @@ class ActiveSet {
   bool last_incremental_ = false;
   bool last_ok_ = false;
   std::vector<double> response_in_, response_out_;  // 3 per active row × columns
+  // slip_onto_cones: the sticking points outside their cones (row, the
+  // direction t of their tangential force, s = n × t) and the responses
+  // of their force to their target moved along t and s.
+  struct Slip {
+    int row = 0;
+    Eigen::Vector3d t = Eigen::Vector3d::Zero(), s = Eigen::Vector3d::Zero();
+    Eigen::Vector3d dt = Eigen::Vector3d::Zero(), ds = Eigen::Vector3d::Zero();
+  };
+  std::vector<Slip> slips_;
+  std::vector<double> slip_in_, slip_out_;  // 3 per row × columns
 };
 
 }  // namespace palpate::detail

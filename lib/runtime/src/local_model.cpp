@@ -110,7 +110,12 @@ LocalModel::Matrix6d LocalModel::stiffness(std::span<const ActiveRow> rows,
       if (row.count == 2 && edge.squaredNorm() > 0) dp = edge * (edge.dot(dc) / edge.squaredNorm());
       const Vector3d dn = l.distance > 1e-9 * l.radius ? Vector3d(across * (dp - dc) / l.distance)
                                                        : Vector3d::Zero();
-      const Vector3d dtarget = dc + l.radius * dn;
+      // A sticking point is also taken along with the tool's motion at it,
+      // in its tangent plane (the drag, docs/tools.md "Friction").
+      const Vector3d drag = sliding(row)
+                                ? Vector3d::Zero()
+                                : Vector3d(across * motion(c, l.lever + l.radius * l.normal));
+      const Vector3d dtarget = dc + l.radius * dn + drag;
       moved_point_[rr].col(c) = dp;
       turned_normal_[rr].col(c) = dn;
       moved_target_[rr].col(c) = dtarget;

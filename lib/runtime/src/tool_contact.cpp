@@ -48,6 +48,12 @@ struct ToolContactEngine::Impl {
     ToolPoseInput pose;
     Matrix3d rotation = Matrix3d::Identity();
     double last_pose_s = 0;
+    // The pose the stored solution was solved at, while the tool has taken
+    // part in every solve since (friction: a sticking contact is dragged by
+    // the tool's motion since).
+    bool has_solved_pose = false;
+    Vector3d solved_hinge = Vector3d::Zero();
+    Matrix3d solved_rotation = Matrix3d::Identity();
     bool has_sequence = false;
     double previous_jaw = 0;
     bool has_previous_jaw = false;
@@ -385,7 +391,19 @@ struct ToolContactEngine::Impl {
       if (!tool.alive) continue;
       for (int c = 0; c < tool.tip_count; ++c) {
         const TipCandidate& tip = tool.tips[static_cast<std::size_t>(c)];
-        const Vector3d u = tool.scale * (tip.target - tip.rest);
+        Vector3d u = tool.scale * (tip.target - tip.rest);
+        // Friction: the tissue sticks to the tip, so the point found where
+        // the surface is now is taken along with the tool's motion at it
+        // since the last solve, in the contact's plane (along the normal the
+        // tip's push decides); the active set lets it slip back onto the
+        // cone's edge (docs/tools.md, "Friction").
+        if (tool.geometry.friction > 0 && tool.has_solved_pose && !tool.in_watchdog) {
+          const Vector3d was =
+              tool.solved_hinge + tool.solved_rotation * (tool.rotation.transpose() *
+                                                          (tip.target - tool.pose.position_m));
+          const Vector3d moved = tip.target - was;
+          u += moved - tip.normal * tip.normal.dot(moved);
+        }
         // The tip's surface point moves as the point of the axis it is
         // pushed from (its normal frozen).
         const Vector3d lever =
@@ -432,6 +450,11 @@ struct ToolContactEngine::Impl {
     count = 0;
     max_displacement = 0;
     load_energy = 0;
+    for (auto& tool : tools) {
+      tool.has_solved_pose = tool.alive && !tool.in_watchdog;
+      tool.solved_hinge = tool.pose.position_m;
+      tool.solved_rotation = tool.rotation;
+    }
     for (auto& tool : tools) {
       tool.raw_force.setZero();
       tool.raw_torque.setZero();
@@ -675,6 +698,7 @@ RequestStatus ToolContactEngine::update(int t, const ToolPoseInput& pose, double
   ToolOutput out;
   if (tool.in_watchdog || !tool.alive) {
     if (tool.in_watchdog || tool.has_sequence) Impl::push_event(out, ToolEventKind::kResumed);
+    tool.has_solved_pose = false;  // no drag from before
     tool.in_watchdog = false;
     tool.scale = 1;
   }
@@ -734,6 +758,7 @@ bool ToolContactEngine::end(int t, double now_s) {
   tool.in_watchdog = false;
   tool.scale = 1;
   tool.has_sequence = false;  // its next pose starts a new session, not a resumed one
+  tool.has_solved_pose = false;
   tool.has_previous_jaw = false;
   tool.widest_jaw = 0;
   tool.tip_count = 0;
