@@ -3,14 +3,16 @@
 // time, with the measures of issue 17 computed from outside the engine (its
 // own closest-point code is not used here):
 //
-//   glide   a frictionless capsule (r = --radius-mm, 15 mm long) pressed
-//           --depth-mm below the rest surface at the auto anchor and glided
-//           36 mm along it at 20 mm/s: ticks with zero force while the tip
+//   glide   a capsule (r = --radius-mm, 15 mm long, friction --friction,
+//           default 0) pressed --depth-mm below the rest surface at the
+//           auto anchor and glided 36 mm along it at 20 mm/s, played at
+//           --rate-hz (default 1000): ticks with zero force while the tip
 //           is more than 1 mm into the rest surface ("free inside"), their
 //           longest stretch, the deepest penetration of the tip into the
-//           deformed triangles after each tick's solve (% of r), and the
+//           deformed triangles after each tick's solve (% of r), the
 //           largest tick-to-tick force change (% of the mean force, the
-//           middle 80 % of the glide).
+//           middle 80 % of the glide) and the mean force against the
+//           motion there (friction).
 //   press   palpated's default grasper (capsule r = 4 mm, friction 0.3)
 //           tilted 20°, pressed 8 mm at --press-vertex (or the auto anchor),
 //           held 1 s, moved 10 mm sideways at 5 mm/s, held 1 s: touch and
@@ -32,7 +34,8 @@
 // palpated runs OpenBLAS on one thread (set_blas_threads(1)); run this the
 // same way: OPENBLAS_NUM_THREADS=1.
 //
-// Usage: palpate_contact_feel MODEL.h5 [--radius-mm 2] [--depth-mm 2]
+// Usage: palpate_contact_feel MODEL.h5 [--radius-mm 2] [--depth-mm 2] [--friction 0]
+//            [--rate-hz 1000]
 //            [--press-vertex ID] [--curve-point X,Y,Z,NX,NY,NZ (m)] [--json FILE]
 
 #include <Eigen/Geometry>
@@ -174,16 +177,16 @@ using PoseAt = std::function<palpate::GesturePose(double)>;
 /// Plays poses from @p pose_at for @p duration_s with tool @p g on the model
 /// at 1 kHz; measures penetrations when @p measure is set.
 TickLog play(const Scene& scene, const PoseAt& pose_at, double duration_s, const ToolGeometry& g,
-             bool measure, int max_contacts = 24) {
+             bool measure, int max_contacts = 24, double rate_hz = 1000) {
   palpate::ContactSettings settings;
   settings.max_contacts_per_tool = max_contacts;
   palpate::SolverLimits limits;
   limits.max_constraints = std::max(64, max_contacts);
   ToolContactEngine engine(scene.model, {g}, settings, limits);
   TickLog log;
-  const int ticks = static_cast<int>(std::ceil(duration_s * 1000)) + 1;
+  const int ticks = static_cast<int>(std::ceil(duration_s * rate_hz)) + 1;
   for (int i = 0; i < ticks; ++i) {
-    const double t = i * 1e-3;
+    const double t = i / rate_hz;
     const palpate::GesturePose p = pose_at(t);
     palpate::ToolPoseInput pose;
     pose.sequence = static_cast<std::uint64_t>(i + 1);
@@ -238,7 +241,7 @@ std::string anchor_line(long long vertex) {
 
 int main(int argc, char** argv) {
   std::string model_path, json_path;
-  double radius_mm = 2, depth_mm = 2;
+  double radius_mm = 2, depth_mm = 2, friction = 0, rate_hz = 1000;
   long long press_vertex = -1;
   std::vector<double> curve_point;
   for (int a = 1; a < argc; ++a) {
@@ -254,6 +257,10 @@ int main(int argc, char** argv) {
       radius_mm = std::stod(next());
     else if (arg == "--depth-mm")
       depth_mm = std::stod(next());
+    else if (arg == "--friction")
+      friction = std::stod(next());
+    else if (arg == "--rate-hz")
+      rate_hz = std::stod(next());
     else if (arg == "--press-vertex")
       press_vertex = std::stoll(next());
     else if (arg == "--json")
@@ -324,9 +331,9 @@ int main(int argc, char** argv) {
     pose.orientation = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -n);
     return pose;
   };
-  const TickLog g = play(scene, glide_pose, 3.0, capsule(r, length, 0), true);
+  const TickLog g = play(scene, glide_pose, 3.0, capsule(r, length, friction), true, 24, rate_hz);
   int free_inside = 0, stretch = 0, longest = 0, glide_ticks = 0;
-  double mean = 0, worst_change = 0, worst_pen = 0;
+  double mean = 0, worst_change = 0, worst_pen = 0, against = 0;
   std::vector<double> middle;
   for (std::size_t i = 0; i < g.time_s.size(); ++i) {
     const double t = g.time_s[i];
@@ -340,8 +347,12 @@ int main(int argc, char** argv) {
       stretch = 0;
     }
     worst_pen = std::max(worst_pen, g.deformed_depth_m[i]);
-    if (t >= 0.6 + 0.18 && t <= 2.4 - 0.18) middle.push_back(g.force_n[i]);
+    if (t >= 0.6 + 0.18 && t <= 2.4 - 0.18) {
+      middle.push_back(g.force_n[i]);
+      against -= g.force[i].dot(anchor.x);  // the tool moves along x: friction pulls it back
+    }
   }
+  against /= std::max<std::size_t>(1, middle.size());
   for (double f : middle) mean += f;
   mean /= std::max<std::size_t>(1, middle.size());
   for (std::size_t i = 0; i < g.time_s.size(); ++i) {
@@ -349,14 +360,17 @@ int main(int argc, char** argv) {
     if (i == 0 || t < 0.6 + 0.18 || t > 2.4 - 0.18) continue;
     worst_change = std::max(worst_change, (g.force[i] - g.force[i - 1]).norm());
   }
-  std::printf("glide (capsule r %.3g mm, %.3g mm deep, 36 mm at 20 mm/s, %d ticks):\n", radius_mm,
-              depth_mm, glide_ticks);
+  std::printf(
+      "glide (capsule r %.3g mm, friction %.3g, %.3g mm deep, 36 mm at 20 mm/s, %.0f Hz, %d "
+      "ticks):\n",
+      radius_mm, friction, depth_mm, rate_hz, glide_ticks);
   std::printf("  free inside the rest surface (>1 mm): %d ticks, longest %d ms\n", free_inside,
               longest);
   std::printf("  deepest penetration into the deformed triangles: %.3f mm (%.1f %% of r)\n",
               worst_pen * 1e3, 100 * worst_pen / r);
   std::printf("  mean force (middle 80 %%) %.4f N; largest tick-to-tick change %.4f N (%.1f %%)\n",
               mean, worst_change, 100 * worst_change / std::max(mean, 1e-300));
+  std::printf("  mean force against the motion (middle 80 %%) %.4f N\n", against);
   std::printf("  tick p50 %.1f µs, p99 %.1f µs, mean contacts %.2f\n", percentile(g.tick_us, 0.5),
               percentile(g.tick_us, 0.99), [&] {
                 double s = 0;
@@ -365,13 +379,15 @@ int main(int argc, char** argv) {
               }());
   char buffer[1024];
   std::snprintf(buffer, sizeof buffer,
-                "  \"glide\": {\"radius_mm\": %g, \"depth_mm\": %g, \"ticks\": %d, "
+                "  \"glide\": {\"radius_mm\": %g, \"friction\": %g, \"rate_hz\": %g, "
+                "\"depth_mm\": %g, \"ticks\": %d, "
                 "\"free_inside_ticks\": %d, \"longest_free_ms\": %d, \"max_penetration_mm\": %.6g, "
                 "\"max_penetration_pct_r\": %.4g, \"mean_force_n\": %.6g, \"max_change_n\": %.6g, "
-                "\"max_change_pct\": %.4g, \"tick_p50_us\": %.4g, \"tick_p99_us\": %.4g},\n",
-                radius_mm, depth_mm, glide_ticks, free_inside, longest, worst_pen * 1e3,
-                100 * worst_pen / r, mean, worst_change,
-                100 * worst_change / std::max(mean, 1e-300), percentile(g.tick_us, 0.5),
+                "\"max_change_pct\": %.4g, \"against_motion_n\": %.6g, \"tick_p50_us\": %.4g, "
+                "\"tick_p99_us\": %.4g},\n",
+                radius_mm, friction, rate_hz, depth_mm, glide_ticks, free_inside, longest,
+                worst_pen * 1e3, 100 * worst_pen / r, mean, worst_change,
+                100 * worst_change / std::max(mean, 1e-300), against, percentile(g.tick_us, 0.5),
                 percentile(g.tick_us, 0.99));
   json += buffer;
 

@@ -99,12 +99,14 @@ TEST_F(FeelTest, EveryGestureHasAReferenceTrace) {
 
 // Where round-off alone changes a trace beyond the tolerance, its reference
 // stops being compared (its horizon, find_horizon()). With the current
-// engine that is right after the first touch in demo (friction stick/slide
-// switches of the right tool's glide) and steady-press (the right tool's
-// press losing its contact 3-5 mm deep, for a round-off dependent time):
-// what they feel after that differs between two BLAS kernels by up to
-// 1.6 N. A regeneration that cuts another gesture, or no longer cuts these,
-// fails here: look at it, then update the list.
+// engine no gesture is cut: every trace is compared to its end. (Until
+// friction slid onto its cone's edge, 2026-11-27, demo and steady-press
+// were cut right after the first touch: a sticking contact left its cone
+// and lost its whole tangential force on a decision whose margin was
+// round-off, and steady-press's right tool lost its contact 3-5 mm deep
+// for a round-off dependent time; what they felt after that differed
+// between two BLAS kernels by up to 1.6 N.) A regeneration that cuts a
+// gesture fails here: look at it, then update the list.
 TEST_F(FeelTest, OnlyTheKnownGesturesAreCutByRoundOff) {
   std::vector<std::string> cut;
   for (const auto& name : gestures()) {
@@ -118,7 +120,7 @@ TEST_F(FeelTest, OnlyTheKnownGesturesAreCutByRoundOff) {
       }
   }
   cut.erase(std::unique(cut.begin(), cut.end()), cut.end());
-  EXPECT_EQ(cut, (std::vector<std::string>{"demo", "steady-press"}));
+  EXPECT_EQ(cut, std::vector<std::string>{});
 }
 
 TEST_F(FeelTest, EveryGestureFeelsAsItsReference) {
