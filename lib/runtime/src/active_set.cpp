@@ -71,6 +71,9 @@ ActiveSet::ActiveSet(const SurfaceModel& model, const SolverLimits& limits)
   slip_in_.assign(3 * k * columns, 0.0);
   slip_out_.resize(3 * k * columns);
   slips_.resize(k);
+  slip_matrix_.resize(4 * k * k);
+  slip_step_.resize(2 * k);
+  slip_pivots_.resize(2 * k);
 }
 
 ActiveSet::~ActiveSet() = default;
@@ -194,7 +197,7 @@ RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
 bool ActiveSet::slip_onto_cones() {
   const int n = static_cast<int>(rows_.size());
   // The sticking points outside their cones beyond 0.1 % of the edge (a
-  // point put on the edge is there but for its neighbours' coupling).
+  // point put on the edge is there but for the round-off of its return).
   int count = 0;
   for (int r = 0; r < n; ++r) {
     const ActiveRow& row = rows_[index(r)];
@@ -211,42 +214,55 @@ bool ActiveSet::slip_onto_cones() {
     slip.s = row.normal.cross(slip.t);
   }
   if (count == 0) return false;
-  // The response of each one's force to its own target moved along t and
-  // along s (the others' staying), two columns each from the factor.
-  const int per_batch = ConstraintSolver::kMaxResponseColumns / 2;
-  for (int first = 0; first < count; first += per_batch) {
-    const int in_batch = std::min(per_batch, count - first);
-    for (int k = 0; k < in_batch; ++k) {
-      const Slip& slip = slips_[index(first + k)];
-      Eigen::Map<Vector3d>{&slip_in_[3 * index(2 * k * n + slip.row)]} = slip.t;
-      Eigen::Map<Vector3d>{&slip_in_[3 * index((2 * k + 1) * n + slip.row)]} = slip.s;
+  // Coulomb's return, for all of them together: each one's target moves
+  // in its tangent plane by a_j t_j + b_j s_j (the other rows' targets
+  // staying), which changes every force by Σ_j a_j δf^{t_j} + b_j δf^{s_j}
+  // (the responses B W⁻¹ Bᵀ e, two columns a point from the solve's
+  // factor), so that each is on its cone's edge along its t:
+  //   (t_i − μ n_i)ᵀ (f_i + Σ_j …) = 0,   s_iᵀ (f_i + Σ_j …) = 0.
+  // Exact for the set (the normal forces' change included); t_i stays.
+  const int unknowns = 2 * count;
+  const int batch = ConstraintSolver::kMaxResponseColumns;
+  for (int first = 0; first < unknowns; first += batch) {
+    const int columns = std::min(batch, unknowns - first);
+    for (int c = 0; c < columns; ++c) {
+      const Slip& slip = slips_[index((first + c) / 2)];
+      Eigen::Map<Vector3d>{&slip_in_[3 * index(c * n + slip.row)]} =
+          (first + c) % 2 == 0 ? slip.t : slip.s;
     }
-    force_response(slip_in_.data(), slip_out_.data(), 2 * in_batch);
-    for (int k = 0; k < in_batch; ++k) {
-      Slip& slip = slips_[index(first + k)];
-      Eigen::Map<Vector3d>{&slip_in_[3 * index(2 * k * n + slip.row)]}.setZero();
-      Eigen::Map<Vector3d>{&slip_in_[3 * index((2 * k + 1) * n + slip.row)]}.setZero();
-      slip.dt = Eigen::Map<const Vector3d>(&slip_out_[3 * index(2 * k * n + slip.row)]);
-      slip.ds = Eigen::Map<const Vector3d>(&slip_out_[3 * index((2 * k + 1) * n + slip.row)]);
+    force_response(slip_in_.data(), slip_out_.data(), columns);
+    for (int c = 0; c < columns; ++c) {
+      Eigen::Map<Vector3d>{&slip_in_[3 * index(c * n + slips_[index((first + c) / 2)].row)]}
+          .setZero();
+      for (int i = 0; i < count; ++i) {
+        const Slip& slip = slips_[index(i)];
+        const ActiveRow& row = rows_[index(slip.row)];
+        const Eigen::Map<const Vector3d> df(&slip_out_[3 * index(c * n + slip.row)]);
+        double* column = &slip_matrix_[index(first + c) * index(unknowns)];
+        column[2 * i] = (slip.t - row.friction * row.normal).dot(df);
+        column[2 * i + 1] = slip.s.dot(df);
+      }
     }
   }
-  // Coulomb's return: the target moves in the tangent plane by a t + b s
-  // so that the force is on the cone's edge along t, to first order,
-  //   (t − μ n)ᵀ(f + a δf_t + b δf_s) = 0,   sᵀ(f + a δf_t + b δf_s) = 0.
-  for (int k = 0; k < count; ++k) {
-    const Slip& slip = slips_[index(k)];
-    ActiveRow& row = rows_[index(slip.row)];
+  for (int i = 0; i < count; ++i) {
+    const Slip& slip = slips_[index(i)];
+    const ActiveRow& row = rows_[index(slip.row)];
     const Vector3d f = force(slip.row);
-    const Vector3d along = slip.t - row.friction * row.normal;
-    Eigen::Matrix2d A;
-    A << along.dot(slip.dt), along.dot(slip.ds), slip.s.dot(slip.dt), slip.s.dot(slip.ds);
-    const Eigen::Vector2d rhs(-along.dot(f), -slip.s.dot(f));
-    if (std::abs(A.determinant()) > 1e-12 * A.squaredNorm()) {
-      const Eigen::Vector2d step = A.inverse() * rhs;
-      row.value += step(0) * slip.t + step(1) * slip.s;
-    } else {
-      slide(row);  // no such target (never met): it slides, its tangential force zero
-    }
+    slip_step_[index(2 * i)] = -(slip.t - row.friction * row.normal).dot(f);
+    slip_step_[index(2 * i + 1)] = -slip.s.dot(f);
+  }
+  int info = 0;
+  const int one = 1;
+  dgesv_(&unknowns, &one, slip_matrix_.data(), &unknowns, slip_pivots_.data(), slip_step_.data(),
+         &unknowns, &info);
+  for (int i = 0; i < count; ++i) {
+    const Slip& slip = slips_[index(i)];
+    ActiveRow& row = rows_[index(slip.row)];
+    const double a = slip_step_[index(2 * i)], b = slip_step_[index(2 * i + 1)];
+    if (info == 0 && std::isfinite(a) && std::isfinite(b))
+      row.value += a * slip.t + b * slip.s;
+    else
+      slide(row);  // no such targets (never met): they slide, their tangential force zero
   }
   return true;
 }

@@ -22,11 +22,12 @@
 ///    solve): a sticking tip point outside the cone, |f_t| > μ nᵀf with
 ///    f_t = f − (nᵀf) n, slips: its imposed displacement moves in its
 ///    tangent plane, by a t + b s (t = f_t/|f_t|, s = n × t), so that its
-///    force is on the cone's edge along t to first order in the response
-///    of its force to its own target moved along t and s (force_response;
-///    the others' targets staying): kinetic friction, the tissue following
-///    the tool as far as the cone allows (Coulomb's return). One that
-///    pulls, nᵀf < 0, slides (its three rows become the normal row);
+///    force is on the cone's edge along t, all such points together from
+///    the responses of the forces to their targets moved along t and s
+///    (force_response, two columns a point; one small LU): kinetic
+///    friction, the tissue following the tool as far as the cone allows
+///    (Coulomb's return). One that pulls, nᵀf < 0, slides (its three rows
+///    become the normal row);
 ///  - a singular W first makes every sticking tip point slide, then drops
 ///    the shallowest tip point until it solves.
 ///
@@ -172,15 +173,17 @@ class ActiveSet {
   bool last_ok_ = false;
   std::vector<double> response_in_, response_out_;  // 3 per active row × columns
   // slip_onto_cones: the sticking points outside their cones (row, the
-  // direction t of their tangential force, s = n × t) and the responses
-  // of their force to their target moved along t and s.
+  // direction t of their tangential force, s = n × t), the responses to
+  // their targets moved along t and s, and the system of their return
+  // (2 per point, column-major), its right-hand side then solution, pivots.
   struct Slip {
     int row = 0;
     Eigen::Vector3d t = Eigen::Vector3d::Zero(), s = Eigen::Vector3d::Zero();
-    Eigen::Vector3d dt = Eigen::Vector3d::Zero(), ds = Eigen::Vector3d::Zero();
   };
   std::vector<Slip> slips_;
   std::vector<double> slip_in_, slip_out_;  // 3 per row × columns
+  std::vector<double> slip_matrix_, slip_step_;
+  std::vector<int> slip_pivots_;
 };
 
 }  // namespace palpate::detail

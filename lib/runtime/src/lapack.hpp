@@ -11,6 +11,9 @@ void dpotrs_(const char* uplo, const int* n, const int* nrhs, const double* a, c
 void dpocon_(const char* uplo, const int* n, const double* a, const int* lda, const double* anorm,
              double* rcond, double* work, int* iwork, int* info);
 void dpotri_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+// LAPACK: a general system by LU with partial pivoting.
+void dgesv_(const int* n, const int* nrhs, double* a, const int* lda, int* ipiv, double* b,
+            const int* ldb, int* info);
 // BLAS: triangular solve with many right-hand sides, symmetric rank-k
 // update, general and symmetric matrix-vector products.
 void dtrsm_(const char* side, const char* uplo, const char* transa, const char* diag, const int* m,
