@@ -17,7 +17,9 @@
 ///    the plane; along its edge; not at all on a vertex), the normal from
 ///    the axis to it turns by δn = P_n (δp − δc) / d (d its distance to the
 ///    axis; zero inside a triangle), its target c + r n moves by
-///    δc + r δn, and its barycentric weights change by the δw that move the
+///    δc + r δn (a sticking one's also by the drag, P_n (δx + δθ × (lever +
+///    r n)): the tissue goes along with the tool in the contact's plane,
+///    docs/tools.md "Friction"), and its barycentric weights change by the δw that move the
 ///    deformed point by δp: what is imposed on it changes by
 ///    δvalue = δc + r δn − δp, and the place where its force loads the
 ///    surface moves, so every row's displacement changes by
