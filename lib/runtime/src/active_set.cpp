@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
-#include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -178,10 +177,10 @@ RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
         any = true;
       }
     }
-    // Friction, once the set stands: a sticking point's tangential force
-    // is set, its target moving in its tangent plane (the set stays):
-    // carried on from the last solve's contact, or back onto its cone's
-    // edge when outside it.
+    // Friction, once the set stands (no point joined or left: a set in
+    // the middle of changing can have forces that mean nothing yet): the
+    // sticking points outside their cones slip back onto the edges, their
+    // targets moving in their tangent planes (the set stays).
     if (!any) {
       last_incremental_ = incremental;
       last_ok_ = true;

@@ -454,8 +454,6 @@ struct ToolContactEngine::Impl {
       tool.has_solved_pose = tool.alive && !tool.in_watchdog;
       tool.solved_hinge = tool.pose.position_m;
       tool.solved_rotation = tool.rotation;
-    }
-    for (auto& tool : tools) {
       tool.raw_force.setZero();
       tool.raw_torque.setZero();
       tool.raw_grip = 0;
