@@ -211,6 +211,7 @@ bool ActiveSet::slip_onto_cones() {
     slip.row = r;
     slip.t = tangential / magnitude;
     slip.s = row.normal.cross(slip.t);
+    slip.along = slip.t - row.friction * row.normal;
   }
   if (count == 0) return false;
   // Coulomb's return, for all of them together: each one's target moves
@@ -233,22 +234,19 @@ bool ActiveSet::slip_onto_cones() {
     for (int c = 0; c < columns; ++c) {
       Eigen::Map<Vector3d>{&slip_in_[3 * index(c * n + slips_[index((first + c) / 2)].row)]}
           .setZero();
+      double* column = &slip_matrix_[index(first + c) * index(unknowns)];
       for (int i = 0; i < count; ++i) {
         const Slip& slip = slips_[index(i)];
-        const ActiveRow& row = rows_[index(slip.row)];
         const Eigen::Map<const Vector3d> df(&slip_out_[3 * index(c * n + slip.row)]);
-        double* column = &slip_matrix_[index(first + c) * index(unknowns)];
-        column[2 * i] = (slip.t - row.friction * row.normal).dot(df);
+        column[2 * i] = slip.along.dot(df);
         column[2 * i + 1] = slip.s.dot(df);
       }
     }
   }
   for (int i = 0; i < count; ++i) {
     const Slip& slip = slips_[index(i)];
-    const ActiveRow& row = rows_[index(slip.row)];
-    const Vector3d f = force(slip.row);
-    slip_step_[index(2 * i)] = -(slip.t - row.friction * row.normal).dot(f);
-    slip_step_[index(2 * i + 1)] = -slip.s.dot(f);
+    slip_step_[index(2 * i)] = -slip.along.dot(force(slip.row));
+    slip_step_[index(2 * i + 1)] = -slip.s.dot(force(slip.row));
   }
   int info = 0;
   const int one = 1;

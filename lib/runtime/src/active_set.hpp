@@ -173,12 +173,15 @@ class ActiveSet {
   bool last_ok_ = false;
   std::vector<double> response_in_, response_out_;  // 3 per active row × columns
   // slip_onto_cones: the sticking points outside their cones (row, the
-  // direction t of their tangential force, s = n × t), the responses to
-  // their targets moved along t and s, and the system of their return
-  // (2 per point, column-major), its right-hand side then solution, pivots.
+  // direction t of their tangential force, s = n × t, and t − μ n, whose
+  // product with the force is zero on the cone's edge along t), the
+  // responses to their targets moved along t and s, and the system of
+  // their return (2 per point, column-major), its right-hand side then
+  // solution, pivots.
   struct Slip {
     int row = 0;
     Eigen::Vector3d t = Eigen::Vector3d::Zero(), s = Eigen::Vector3d::Zero();
+    Eigen::Vector3d along = Eigen::Vector3d::Zero();
   };
   std::vector<Slip> slips_;
   std::vector<double> slip_in_, slip_out_;  // 3 per row × columns
