@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 #include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/surface_model.hpp"
@@ -24,10 +25,13 @@ using Eigen::Vector3d;
 
 double degrees(double d) { return d * M_PI / 180; }
 
-// A tip pressed 2 mm into the box's top face: rotations of order 1e-2 rad,
-// so the warped force is the linear one within a few percent (measured
-// 0.8 %; the difference is first order in ω).
-TEST(WarpedTools, ASmallPressFeelsAsInTheLinearModel) {
+/// A 4 mm probe of friction @p friction played on the box (8 mm cells)
+/// through a linear and a warped engine, at @p hinge_at(i) for ticks
+/// i = 0 … @p ticks (1 ms apart), pointing up its tool z; @returns the two
+/// forces at the end, linear then warped, printed with @p what.
+template <typename HingeAt>
+std::pair<Vector3d, Vector3d> linear_and_warped(double friction, int ticks, const HingeAt& hinge_at,
+                                                const char* what) {
   testing::TempDir dir;
   const SurfaceModel box =
       load_surface_model("box", testing::write_box_compliance(dir.path(), "box", 8));
@@ -35,7 +39,7 @@ TEST(WarpedTools, ASmallPressFeelsAsInTheLinearModel) {
   ToolGeometry g;
   g.id = "probe";
   g.tip_radius_m = 0.004;
-  g.friction = 0;
+  g.friction = friction;
   g.force_limit_n = 100;
   g.max_force_rate_n_per_s = 1e6;
   g.jaw_length_m = 0;
@@ -44,20 +48,30 @@ TEST(WarpedTools, ASmallPressFeelsAsInTheLinearModel) {
   ToolPoseInput pose;
   pose.orientation = Eigen::Quaterniond::Identity();
   double now = 0;
-  for (int i = 0; i <= 500; ++i) {
+  for (int i = 0; i <= ticks; ++i) {
     ++pose.sequence;
-    // From 2 mm above the top face (z = 40 mm) to 2 mm into it, then held.
-    pose.position_m = Vector3d(0.075, 0.025, 0.046 - 1e-5 * std::min(i, 400));
+    pose.position_m = hinge_at(i);
     for (ToolContactEngine* engine : {&linear, &warped}) {
       ToolPoseInput checked = pose;
-      ASSERT_EQ(engine->check(0, checked), PoseProblem::kNone);
-      ASSERT_EQ(engine->update(0, checked, now), RequestStatus::kOk) << engine->solver_message();
+      EXPECT_EQ(engine->check(0, checked), PoseProblem::kNone);
+      EXPECT_EQ(engine->update(0, checked, now), RequestStatus::kOk) << engine->solver_message();
     }
     now += 1e-3;
   }
   const Vector3d fl = linear.output(0).force_n, fw = warped.output(0).force_n;
-  std::printf("press: linear (%.5f, %.5f, %.5f) N, warped (%.5f, %.5f, %.5f) N\n", fl.x(), fl.y(),
-              fl.z(), fw.x(), fw.y(), fw.z());
+  std::printf("%s: linear (%.5f, %.5f, %.5f) N, warped (%.5f, %.5f, %.5f) N\n", what, fl.x(),
+              fl.y(), fl.z(), fw.x(), fw.y(), fw.z());
+  return {fl, fw};
+}
+
+// A tip pressed 2 mm into the box's top face: rotations of order 1e-2 rad,
+// so the warped force is the linear one within a few percent (measured
+// 0.8 %; the difference is first order in ω).
+TEST(WarpedTools, ASmallPressFeelsAsInTheLinearModel) {
+  // From 2 mm above the top face (z = 40 mm) to 2 mm into it, then held.
+  const auto [fl, fw] = linear_and_warped(
+      0, 500, [](int i) { return Vector3d(0.075, 0.025, 0.046 - 1e-5 * std::min(i, 400)); },
+      "press");
   ASSERT_GT(fl.norm(), 0.1);
   EXPECT_LT((fw - fl).norm(), 0.03 * fl.norm());
 }
@@ -67,37 +81,14 @@ TEST(WarpedTools, ASmallPressFeelsAsInTheLinearModel) {
 // in each point's frame, and with rotations this small the warped engine
 // feels the linear one's friction (3 %; measured below 1 %).
 TEST(WarpedTools, ASmallDragWithFrictionFeelsAsInTheLinearModel) {
-  testing::TempDir dir;
-  const SurfaceModel box =
-      load_surface_model("box", testing::write_box_compliance(dir.path(), "box", 8));
-  const RotationField field(box.surface, default_smoothing_radius(box.surface, kToolEdges));
-  ToolGeometry g;
-  g.id = "probe";
-  g.tip_radius_m = 0.004;
-  g.friction = 0.3;
-  g.force_limit_n = 100;
-  g.max_force_rate_n_per_s = 1e6;
-  g.jaw_length_m = 0;
-  ToolContactEngine linear(box, {g}, {}, {});
-  ToolContactEngine warped(box, {g}, {}, {}, &field);
-  ToolPoseInput pose;
-  pose.orientation = Eigen::Quaterniond::Identity();
-  double now = 0;
-  for (int i = 0; i <= 700; ++i) {
-    ++pose.sequence;
-    // 2 mm into the top face (z = 40 mm), then 3 mm along +x.
-    pose.position_m =
-        Vector3d(0.075 + 1e-5 * std::max(0, i - 400), 0.025, 0.046 - 1e-5 * std::min(i, 400));
-    for (ToolContactEngine* engine : {&linear, &warped}) {
-      ToolPoseInput checked = pose;
-      ASSERT_EQ(engine->check(0, checked), PoseProblem::kNone);
-      ASSERT_EQ(engine->update(0, checked, now), RequestStatus::kOk) << engine->solver_message();
-    }
-    now += 1e-3;
-  }
-  const Vector3d fl = linear.output(0).force_n, fw = warped.output(0).force_n;
-  std::printf("drag: linear (%.5f, %.5f, %.5f) N, warped (%.5f, %.5f, %.5f) N\n", fl.x(), fl.y(),
-              fl.z(), fw.x(), fw.y(), fw.z());
+  // 2 mm into the top face (z = 40 mm), then 3 mm along +x.
+  const auto [fl, fw] = linear_and_warped(
+      0.3, 700,
+      [](int i) {
+        return Vector3d(0.075 + 1e-5 * std::max(0, i - 400), 0.025,
+                        0.046 - 1e-5 * std::min(i, 400));
+      },
+      "drag");
   ASSERT_GT(fl.norm(), 0.1);
   EXPECT_LT(fl.x(), -0.1 * fl.z()) << "the drag is felt against the motion";
   EXPECT_LT((fw - fl).norm(), 0.03 * fl.norm());
