@@ -4,11 +4,13 @@
 // under the loads as they are now, whether it was judged by the loads'
 // energy or by its corners' last known u_b and the bound on the change
 // since (with the loads' displacements given, and from the forces alone);
-// and the known u_b must leave out more than the energy alone does.
+// and the known u_b must leave out more than the energy alone does. And
+// u_b itself, read from the columns two backgrounds share, is G f.
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstdio>
 #include <random>
 #include <vector>
@@ -44,8 +46,10 @@ class BackgroundBound : public testing::BoxModelSuite<4> {
     for (int v = 0; v < n; v += 7) index.push_back(v);  // spread over the box
     const auto loads = static_cast<Eigen::Index>(index.size());
     DeformedSurface surface(m, nullptr);
+    LoadColumns columns;
+    columns.reserve(m, static_cast<int>(index.size()));
     BackgroundLoads background;
-    background.reserve(m, static_cast<int>(index.size()));
+    background.reserve(m, static_cast<int>(index.size()), columns);
     surface.set_background(&background);
     const int no_index = 0;
     const double no_force[3] = {0, 0, 0};
@@ -113,6 +117,41 @@ TEST_F(BackgroundBound, FromTheForcesAloneNoTriangleLeftOutIsNear) {
   EXPECT_GT(by_energy, 0);
   std::printf("left out: by energy %ld, with the known u_b %ld\n", by_energy, with_known);
   EXPECT_GE(with_known, by_energy);  // never looser: either bound leaves a triangle out
+}
+
+// Two backgrounds share one LoadColumns (as an engine's own and its
+// surface's do): on different loaded vertices, taking turns, each one's u_b
+// is still G f to round-off (G is symmetric to about 1e-15: the columns
+// read G^{b v} transposed where the sum above reads G^{v b}).
+TEST_F(BackgroundBound, SharedColumnsGiveGTimesFOnEitherSetOfLoads) {
+  const SurfaceModel& m = model();
+  const int n = m.compliance_vertex_count();
+  std::vector<int> first, second;
+  // As many loads on each, one vertex apart: only the vertices differ.
+  for (int v = 0; v + 1 < n; v += 5) first.push_back(v), second.push_back(v + 1);
+  LoadColumns columns;
+  columns.reserve(m, static_cast<int>(std::max(first.size(), second.size())));
+  BackgroundLoads a, b;
+  a.reserve(m, static_cast<int>(first.size()), columns);
+  b.reserve(m, static_cast<int>(second.size()), columns);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> normal;
+  VectorXd fa(3 * static_cast<Eigen::Index>(first.size())),
+      fb(3 * static_cast<Eigen::Index>(second.size()));
+  double largest = 0, worst = 0;
+  for (int set = 0; set < 3; ++set) {
+    for (auto& e : fa) e = 0.3 * normal(rng);
+    for (auto& e : fb) e = 0.3 * normal(rng);
+    a.set(first, {fa.data(), static_cast<std::size_t>(fa.size())}, 1.0);
+    b.set(second, {fb.data(), static_cast<std::size_t>(fb.size())}, 1.0);
+    for (int v = 0; v < n; ++v) {
+      const Vector3d want_a = exact_u(v, first, fa), want_b = exact_u(v, second, fb);
+      worst = std::max({worst, (a.at(v) - want_a).norm(), (b.at(v) - want_b).norm()});
+      largest = std::max({largest, want_a.norm(), want_b.norm()});
+    }
+  }
+  EXPECT_GT(largest, 1e-4);  // loads that move the box
+  EXPECT_LE(worst, 1e-12 * largest) << "u_b off by " << worst << " m of " << largest;
 }
 
 }  // namespace

@@ -8,8 +8,42 @@
 
 namespace palpate::detail {
 
-void BackgroundLoads::reserve(const SurfaceModel& model, int count) {
+void LoadColumns::reserve(const SurfaceModel& model, int count) {
   model_ = &model;
+  capacity_ = std::max(count, 0);
+  const auto n = static_cast<std::size_t>(model.compliance_vertex_count());
+  index_.resize(static_cast<std::size_t>(capacity_));
+  count_ = 0;
+  rows_.resize(9 * static_cast<std::size_t>(capacity_) * n);
+  epoch_.assign(n, 0);
+  epoch_now_ = 1;
+}
+
+Eigen::Map<const Eigen::MatrixX3d> LoadColumns::at(int v, std::span<const int> indices) {
+  const auto count = static_cast<Eigen::Index>(indices.size());
+  if (count != count_ || !std::equal(indices.begin(), indices.end(), index_.begin())) {
+    count_ = static_cast<int>(count);
+    std::copy(indices.begin(), indices.end(), index_.begin());
+    if (++epoch_now_ == 0) {  // after 2³² sets: every vertex is gathered again
+      std::fill(epoch_.begin(), epoch_.end(), 0);
+      epoch_now_ = 1;
+    }
+  }
+  const auto slot = static_cast<std::size_t>(v);
+  double* column = rows_.data() + 9 * static_cast<std::size_t>(capacity_) * slot;
+  Eigen::Map<Eigen::MatrixX3d> block(column, 3 * count, 3);
+  if (epoch_[slot] != epoch_now_) {
+    // G^{b v} down the columns of v, the loads' rows in their order.
+    for (Eigen::Index j = 0; j < count; ++j)
+      block.middleRows<3>(3 * j) = model_->G_block(indices[static_cast<std::size_t>(j)], v);
+    epoch_[slot] = epoch_now_;
+  }
+  return {column, 3 * count, 3};
+}
+
+void BackgroundLoads::reserve(const SurfaceModel& model, int count, LoadColumns& columns) {
+  model_ = &model;
+  columns_ = &columns;
   const int n = model.compliance_vertex_count();
   const auto loads = static_cast<std::size_t>(std::max(count, 0));
   index_.resize(loads);
@@ -102,11 +136,10 @@ void BackgroundLoads::copy_from(const BackgroundLoads& other) {
 const Eigen::Vector3d& BackgroundLoads::at(int v) {
   const auto slot = static_cast<std::size_t>(v);
   if (u_epoch_[slot] != epoch_) {
-    Eigen::Vector3d u = Eigen::Vector3d::Zero();
-    for (int j = 0; j < count_; ++j)
-      u += model_->G_block(v, index_[static_cast<std::size_t>(j)]) *
-           Eigen::Map<const Eigen::Vector3d>(&force_[3 * static_cast<std::size_t>(j)]);
-    u_[slot] = u;
+    // u_b = Σ_j G^{v b_j} f_j = (G^{b v})ᵀ f_b.
+    u_[slot].noalias() =
+        columns_->at(v, {index_.data(), static_cast<std::size_t>(count_)}).transpose() *
+        Eigen::Map<const Eigen::VectorXd>(force_.data(), 3 * static_cast<Eigen::Index>(count_));
     u_epoch_[slot] = epoch_;
     u_drift_[slot] = drift_;
   }

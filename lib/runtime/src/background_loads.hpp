@@ -18,11 +18,37 @@
 
 namespace palpate::detail {
 
+/// G's block rows at a set of loaded vertices b, gathered per compliance
+/// vertex v the first time it is asked for and kept while the loaded
+/// vertices stay: (G^{b v}), 3·count × 3, contiguous, so that u_b at v is
+/// one product (G^{b v})ᵀ f_b (G symmetric) read down three short
+/// columns, not count 3 × 3 blocks from 3·count columns of G far apart. The
+/// background loads of one engine share one (its own and its surface's).
+class LoadColumns {
+ public:
+  /// Room for @p count loads on @p model's compliance vertices: 9·count
+  /// doubles per compliance vertex (allocates; @p model must outlive it).
+  void reserve(const SurfaceModel& model, int count);
+  /// The block column of compliance vertex @p v for loads on @p indices
+  /// (at most the reserved count): 3·indices.size() rows, 3 columns. Other
+  /// indices than the last call's forget every vertex's. Allocates nothing.
+  Eigen::Map<const Eigen::MatrixX3d> at(int v, std::span<const int> indices);
+
+ private:
+  const SurfaceModel* model_ = nullptr;
+  int capacity_ = 0;
+  std::vector<int> index_;  // the loaded vertices the columns are for
+  int count_ = 0;
+  std::vector<double> rows_;          // per compliance vertex, 9·capacity_
+  std::vector<std::uint32_t> epoch_;  // per compliance vertex: current when = epoch_now_
+  std::uint32_t epoch_now_ = 1;
+};
+
 class BackgroundLoads {
  public:
   /// Room for @p count loads on @p model's compliance vertices (allocates;
-  /// @p model must outlive it).
-  void reserve(const SurfaceModel& model, int count);
+  /// @p model and @p columns, reserved for as many, must outlive it).
+  void reserve(const SurfaceModel& model, int count, LoadColumns& columns);
   /// Replaces the loads (3 forces each, N) and their energy f_bᵀ G f_b (J).
   /// On the same vertices as the last call, the change's bound (last_known's
   /// drift) grows by Σ_j √‖G^{jj}‖ |f_j − f_j⁻|; on others, what was known of
@@ -83,6 +109,7 @@ class BackgroundLoads {
                std::span<const double> displacements_m);
 
   const SurfaceModel* model_ = nullptr;
+  LoadColumns* columns_ = nullptr;
   int count_ = 0;
   std::vector<int> index_;
   std::vector<double> force_;

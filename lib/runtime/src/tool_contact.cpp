@@ -114,6 +114,7 @@ struct ToolContactEngine::Impl {
   // pressing the rest beside a served region wander (1–4 contacts, never
   // settling, in bench/hybrid_tick_bench's contact loop at the 16 mm ball).
   detail::BackgroundLoads surface_background;
+  detail::LoadColumns background_columns;  // both backgrounds' G^{b v}
   char message[256] = {};
   mutable char problem[256] = {};  // why check() refused the last pose it refused
 
@@ -783,8 +784,9 @@ void ToolContactEngine::reserve_background_loads(int count) {
   Impl& m = *impl_;
   if (m.warping != nullptr)
     throw InputError("a warped contact engine takes no background loads (they are linear)");
-  m.background.reserve(m.model, count);
-  m.surface_background.reserve(m.model, count);
+  m.background_columns.reserve(m.model, count);
+  m.background.reserve(m.model, count, m.background_columns);
+  m.surface_background.reserve(m.model, count, m.background_columns);
   m.surface.set_background(&m.surface_background);
 }
 
