@@ -14,7 +14,7 @@ void LoadColumns::reserve(const SurfaceModel& model, int count) {
   const auto n = static_cast<std::size_t>(model.compliance_vertex_count());
   index_.resize(static_cast<std::size_t>(capacity_));
   count_ = 0;
-  rows_.resize(9 * static_cast<std::size_t>(capacity_) * n);
+  rows_ = std::make_unique_for_overwrite<double[]>(9 * static_cast<std::size_t>(capacity_) * n);
   epoch_.assign(n, 0);
   epoch_now_ = 1;
 }
@@ -30,7 +30,7 @@ Eigen::Map<const Eigen::MatrixX3d> LoadColumns::at(int v, std::span<const int> i
     }
   }
   const auto slot = static_cast<std::size_t>(v);
-  double* column = rows_.data() + 9 * static_cast<std::size_t>(capacity_) * slot;
+  double* column = rows_.get() + 9 * static_cast<std::size_t>(capacity_) * slot;
   Eigen::Map<Eigen::MatrixX3d> block(column, 3 * count, 3);
   if (epoch_[slot] != epoch_now_) {
     // G^{b v} down the columns of v, the loads' rows in their order.

@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -27,7 +28,8 @@ namespace palpate::detail {
 class LoadColumns {
  public:
   /// Room for @p count loads on @p model's compliance vertices: 9·count
-  /// doubles per compliance vertex (allocates; @p model must outlive it).
+  /// doubles per compliance vertex, of which only the vertices gathered
+  /// take memory (allocates; @p model must outlive it).
   void reserve(const SurfaceModel& model, int count);
   /// The block column of compliance vertex @p v for loads on @p indices
   /// (at most the reserved count): 3·indices.size() rows, 3 columns. Other
@@ -39,7 +41,9 @@ class LoadColumns {
   int capacity_ = 0;
   std::vector<int> index_;  // the loaded vertices the columns are for
   int count_ = 0;
-  std::vector<double> rows_;          // per compliance vertex, 9·capacity_
+  // Per compliance vertex, 9·capacity_; left uninitialized, so that only the
+  // pages of the vertices gathered (those near a tool) are ever touched.
+  std::unique_ptr<double[]> rows_;
   std::vector<std::uint32_t> epoch_;  // per compliance vertex: current when = epoch_now_
   std::uint32_t epoch_now_ = 1;
 };
