@@ -13,7 +13,8 @@
 // the Woodbury update adds to the tick, and when the worker's
 // refactorization lands). And the contact tick of a probe on the rest next
 // to the region, with the region's push as background loads and without
-// (what they cost).
+// (what they cost), and the whole served tick around it: that contact
+// tick, the region's step under the probe's loads, its push to the engine.
 //
 //   build/bench/palpate_hybrid_tick_bench [mesh_size_m] [ticks] [ball_radius_mm: 16 or 25]
 //
@@ -165,7 +166,7 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
   probe.friction = 0;
   ToolContactEngine with(model, {probe}, {}, {}), without(model, {probe}, {}, {});
   with.reserve_background_loads(static_cast<int>(region.interface_vertices().size()));
-  std::vector<double> with_us, without_us;
+  std::vector<double> with_us, without_us, served_us;
   if (near >= 0) {
     const Vector3d n = normals.row(near).transpose();
     ToolPoseInput pose;
@@ -177,6 +178,8 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
       auto start = Clock::now();
       with.update(0, pose, 1e-3 * step);
       with_us.push_back(microseconds(start));
+      const double contact_us = with_us.back();
+      start = Clock::now();
       region.advance(1e-3, with.contact_indices(), with.contact_forces(), {});
       const Eigen::VectorXd& push = region.interface_force_n();
       with.set_background_loads(
@@ -184,13 +187,15 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
           {push.data(), static_cast<std::size_t>(push.size())},
           {region.interface_displacement_m().data(),
            static_cast<std::size_t>(region.interface_displacement_m().size())});
+      served_us.push_back(contact_us + microseconds(start));
       without.check(0, pose);
       start = Clock::now();
       without.update(0, pose, 1e-3 * step);
       without_us.push_back(microseconds(start));
     }
   }
-  const Quantiles contact_with = quantiles(with_us), contact_without = quantiles(without_us);
+  const Quantiles contact_with = quantiles(with_us), contact_without = quantiles(without_us),
+                  served = quantiles(served_us);
   const int contacts = near >= 0 ? with.output(0).contacts : -1;
 
   // An incision at 20 mm/s (a brisk one): a vertical blade 30 mm long
@@ -265,7 +270,9 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
       "max %.1f µs; tick "
       "p50 %.1f µs, p99 %.1f µs, max %.1f µs\n"
       "  contact tick next to the region (%d contacts): with its push as background loads p50 "
-      "%.1f µs, p99 %.1f µs; without p50 %.1f µs, p99 %.1f µs\n",
+      "%.1f µs, p99 %.1f µs; without p50 %.1f µs, p99 %.1f µs\n"
+      "  served tick (that contact tick, the region's step, its push to the engine): p50 %.1f "
+      "µs, p99 %.1f µs, max %.1f µs\n",
       radius_m * 1e3, static_cast<int>(data.tetrahedra.rows()),
       static_cast<int>(data.vertices_m.rows()),
       static_cast<std::size_t>(data.interface_vertices.size()), construction_ms,
@@ -277,7 +284,8 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
       cutting_tick.p99, cutting_tick.max, incision_cut_us.size(), incision_factorizations,
       incision_factorization_ms, incision_cut.p50, incision_cut.p99, incision_cut.max,
       incision_tick.p50, incision_tick.p99, incision_tick.max, contacts, contact_with.p50,
-      contact_with.p99, contact_without.p50, contact_without.p99);
+      contact_with.p99, contact_without.p50, contact_without.p99, served.p50, served.p99,
+      served.max);
 }
 
 }  // namespace
