@@ -382,6 +382,12 @@ TEST(HybridServing, BadInputIsNamed) {
   testing::expect_error<InputError>([&] { h.advance(0, {}, {}, {}); }, {"tick of 0 s"});
   const std::vector<int> one{0};
   testing::expect_error<InputError>([&] { h.advance(1e-3, one, {}, {}); }, {"3 per vertex"});
+  const double force[3] = {0, 0, 0.1};
+  for (const int outside : {-1, o.model.compliance_vertex_count()}) {
+    const std::vector<int> bad{outside};
+    testing::expect_error<InputError>([&] { h.advance(1e-3, bad, force, {}); },
+                                      {"rest load on compliance vertex", "are accepted"});
+  }
 }
 
 }  // namespace

@@ -37,6 +37,10 @@ void HybridRegion::advance(double tick_s, std::span<const int> rest_indices,
         fmt::format("{}: {} rest forces for {} loaded vertices; 3 per vertex are "
                     "accepted",
                     kWhat, rest_forces_n.size(), rest_indices.size()));
+  for (const int l : rest_indices)
+    if (l < 0 || l >= model_ref_.compliance_vertex_count())
+      throw InputError(fmt::format("{}: a rest load on compliance vertex {}; 0..{} are accepted",
+                                   kWhat, l, model_ref_.compliance_vertex_count() - 1));
 
   offset_from_rest_loads(rest_indices, rest_forces_n);
   if (settings_.integrator == RegionIntegrator::kImplicit) {

@@ -102,6 +102,9 @@ class HybridRegion {
   /// Afterwards tip_force_n(t) is what the region pushes tip t with,
   /// averaged over the substeps, and interface_force_n() the region's push
   /// on the rest.
+  /// @throws InputError for a tick that is not > 0, more tips than
+  ///         max_tips, a force count other than 3 per rest load, or a rest
+  ///         load on a vertex outside the compliance vertices.
   void advance(double tick_s, std::span<const int> rest_indices,
                std::span<const double> rest_forces_n, std::span<const RegionTip> tips);
 
