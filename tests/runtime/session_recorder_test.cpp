@@ -492,7 +492,7 @@ TEST(SessionRecorder, FullRingsDropWithoutBlockingOrAllocating) {
   bad_tool.tool = 2;
   std::array<bool, 12> taken{};
   std::array<bool, 3> events_taken{};
-  const std::uint64_t allocations_before = testing::allocations();
+  const std::uint64_t allocations_before = testing::allocations_here();
   taken[0] = recorder.record(t, six, six_forces);                     // cut to 4 contacts
   taken[1] = recorder.record(t, three, three_forces);                 // 7 contacts
   taken[2] = recorder.record(t, three, three_forces);                 // 10 contacts
@@ -503,7 +503,7 @@ TEST(SessionRecorder, FullRingsDropWithoutBlockingOrAllocating) {
   taken[11] = recorder.record(bad_tool, {}, {});                      // no such tool: refused
   for (int e = 0; e < 3; ++e)
     events_taken[e] = recorder.record_event(0.001 * e, 0, ToolEventKind::kTouch, 7);
-  const std::uint64_t allocations_after = testing::allocations();
+  const std::uint64_t allocations_after = testing::allocations_here();
 
   EXPECT_EQ(allocations_after, allocations_before) << "record() allocated";
   const std::array<bool, 12> expected_taken = {true, true, true, false, true,  true,

@@ -259,7 +259,7 @@ TEST(TensorMassCut, IndexedQueriesEqualTheScan) {
   }
   std::vector<std::vector<int>> got(sweeps.size());
   for (auto& g : got) g.reserve(out.capacity());
-  const auto before = testing::allocations();
+  const auto before = testing::allocations_here();
   for (std::size_t n = 0; n < sweeps.size(); ++n) {
     r.model.tetrahedra_swept_by_blade(sweeps[n][0], sweeps[n][1], got[n]);
     r.model.tetrahedra_crossed_by_segment(sweeps[n][0].a_m, sweeps[n][1].b_m, out);
@@ -268,7 +268,7 @@ TEST(TensorMassCut, IndexedQueriesEqualTheScan) {
   int cut = 0;
   for (std::size_t n = 0; n < 10; ++n)
     cut += r.model.cut_swept_blade(sweeps[n][0], sweeps[n][1], removed);
-  const auto allocations = testing::allocations() - before;
+  const auto allocations = testing::allocations_here() - before;
   EXPECT_EQ(allocations, 0u);
   EXPECT_EQ(got, expected);
   EXPECT_GT(cut, 0);

@@ -557,14 +557,14 @@ TEST_F(ToolContactTest, ATickAllocatesNothing) {
   start(driver, 1, b + Vector3d(0, 0, reach + 0.001));
   driver.log.reserve(1000);
   driver.log_tool.reserve(1000);
-  const auto before = testing::allocations();
+  const auto before = testing::allocations_here();
   for (int i = 0; i < 200; ++i) {  // both 3 mm deep
     driver.poses[0].position_m.z() -= 2e-5;
     driver.poses[1].position_m.z() -= 2e-5;
     driver.tick_all();
   }
   engine.watchdog(driver.now + 0.1);
-  EXPECT_EQ(testing::allocations() - before, 0u);
+  EXPECT_EQ(testing::allocations_here() - before, 0u);
   EXPECT_GT(driver.last(0).contacts, 0);
   EXPECT_GT(driver.last(1).contacts, 0);
 }

@@ -90,9 +90,9 @@ TEST(VertexBlockFactor, ASolveAllocatesNothing) {
   const VertexBlockFactor factor(dense_factor(grid_matrix(5, 4, 5)));
   VectorXd x = VectorXd::Ones(factor.size());
   factor.solve_in_place(x);
-  const std::uint64_t before = testing::allocations();
+  const std::uint64_t before = testing::allocations_here();
   for (int i = 0; i < 100; ++i) factor.solve_in_place(x);
-  EXPECT_EQ(testing::allocations(), before);
+  EXPECT_EQ(testing::allocations_here(), before);
   EXPECT_TRUE(x.allFinite());
 }
 

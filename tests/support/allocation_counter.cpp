@@ -8,11 +8,51 @@
 
 namespace palpate::testing {
 std::atomic<std::uint64_t> g_allocations{0};
+namespace {
+// Per thread: the other threads of a test (DDS's, a worker's) allocate as
+// they please. Static TLS of the executable: reading it never allocates.
+thread_local std::uint64_t t_heap_allocations = 0;
+}  // namespace
+std::uint64_t heap_allocations_on_this_thread() { return t_heap_allocations; }
+}  // namespace palpate::testing
+
+// malloc, calloc and realloc counted, then glibc's own (its free() takes
+// what they return). A sanitizer's run time replaces these itself.
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+#define PALPATE_COUNTS_MALLOC 1
+extern "C" {
+void* __libc_malloc(std::size_t size);
+void* __libc_calloc(std::size_t count, std::size_t size);
+void* __libc_realloc(void* p, std::size_t size);
+void* malloc(std::size_t size) {
+  ++palpate::testing::t_heap_allocations;
+  return __libc_malloc(size);
 }
+void* calloc(std::size_t count, std::size_t size) {
+  ++palpate::testing::t_heap_allocations;
+  return __libc_calloc(count, size);
+}
+void* realloc(void* p, std::size_t size) {
+  ++palpate::testing::t_heap_allocations;
+  return __libc_realloc(p, size);
+}
+}
+#endif
+
+namespace {
+// operator new's memory: counted once, by g_allocations.
+void* uncounted_malloc(std::size_t size) {
+#ifdef PALPATE_COUNTS_MALLOC
+  return __libc_malloc(size);
+#else
+  return std::malloc(size);
+#endif
+}
+}  // namespace
 
 void* operator new(std::size_t size) {
   palpate::testing::g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  if (void* p = uncounted_malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
 void* operator new[](std::size_t size) { return operator new(size); }

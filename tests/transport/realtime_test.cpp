@@ -110,9 +110,9 @@ TEST(Realtime, ApplyingBindsTheThreadWithoutAllocating) {
   std::vector<int> seen;
   std::uint64_t allocated = 1;
   std::thread([&] {
-    const std::uint64_t before = testing::allocations();
+    const std::uint64_t before = testing::allocations_here();
     realtime::apply_to_this_thread(options);
-    allocated = testing::allocations() - before;
+    allocated = testing::allocations_here() - before;
     seen = thread_cpus();
   }).join();
   EXPECT_EQ(seen, options.cpus);

@@ -226,10 +226,10 @@ TEST(WireRegion, ViewingTheRegionAllocatesNothing) {
   const RegionArrays r;
   palpate_SurfaceDisplacement s{};
   for (int i = 0; i < 3; ++i) wire::view_region(1, r.positions, r.triangles, r.hidden, s);
-  const std::uint64_t before = testing::allocations();
+  const std::uint64_t before = testing::allocations_here();
   for (std::uint64_t i = 0; i < 100; ++i)
     wire::view_region(i, r.positions, r.triangles, r.hidden, s);
-  EXPECT_EQ(testing::allocations() - before, 0u);
+  EXPECT_EQ(testing::allocations_here() - before, 0u);
   EXPECT_EQ(s.topology_version, 99u);
 }
 

@@ -730,14 +730,14 @@ TEST_F(WireSolverTest, TheRequestAndToolPathsAllocateNothing) {
     return ok;
   };
   for (std::size_t i = 0; i < requests.size(); ++i) tick(i);  // warm-up
-  const std::uint64_t before = testing::allocations();
+  const std::uint64_t before = testing::allocations_here();
   int ok = 0;
   for (int i = 0; i < 300; ++i) ok += tick(static_cast<std::size_t>(i) % requests.size());
-  EXPECT_EQ(testing::allocations() - before, 0u);
+  EXPECT_EQ(testing::allocations_here() - before, 0u);
   EXPECT_EQ(ok, 200);
   // The counter does count.
   std::string counted(100, 'x');
-  EXPECT_EQ(testing::allocations() - before, 1u);
+  EXPECT_EQ(testing::allocations_here() - before, 1u);
   EXPECT_EQ(counted.size(), 100u);
 }
 

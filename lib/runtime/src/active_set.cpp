@@ -542,14 +542,13 @@ RequestStatus ActiveSet::append_pending() {
   }
   Strided L(L_.data(), m, m, Eigen::OuterStride<>(ld));
   if (first > 0) {
-    auto L21 = L.block(first, 0, k, first);
-    L21 = W.block(first, 0, k, first);
-    L.topLeftCorner(first, first)
-        .triangularView<Eigen::Lower>()
-        .transpose()
-        .solveInPlace<Eigen::OnTheRight>(L21);
-    L.block(first, first, k, k).triangularView<Eigen::Lower>() =
-        W.block(first, first, k, k) - L21 * L21.transpose();
+    // By BLAS in place: Eigen's L21 L21ᵀ is a temporary on the heap past
+    // 20 unknowns (its coefficient-wise product's threshold).
+    const double one = 1, minus_one = -1;
+    L.block(first, 0, k, first) = W.block(first, 0, k, first);
+    dtrsm_("R", "L", "T", "N", &k, &first, &one, &L(0, 0), &ld, &L(first, 0), &ld);
+    L.block(first, first, k, k).triangularView<Eigen::Lower>() = W.block(first, first, k, k);
+    dsyrk_("L", "N", &k, &first, &minus_one, &L(first, 0), &ld, &one, &L(first, first), &ld);
   } else {
     L.topLeftCorner(m, m).triangularView<Eigen::Lower>() = W.topLeftCorner(m, m);
   }
