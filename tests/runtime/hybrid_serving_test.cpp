@@ -26,6 +26,7 @@
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
 #include "runtime/hybrid_organ.hpp"
+#include "support/allocation_counter.hpp"
 #include "support/box_job.hpp"
 #include "support/expect_error.hpp"
 #include "support/test_meshes.hpp"
@@ -363,6 +364,23 @@ TEST(HybridServing, AProbeOnTheRestNextToTheRegionFeelsTheWholeOrgan) {
   EXPECT_GT(expected.z(), 0.05);
   EXPECT_LE(e_coupled, 1e-6);
   EXPECT_GT(e_one_way, 100 * e_coupled) << "the test tells the coupling from its absence";
+}
+
+// The served tick allocates nothing: the implicit step with a rest load (its
+// u_Γ⁰ shift), a tip, and a cut's Woodbury update in use.
+TEST(HybridServing, TheImplicitTickAllocatesNothing) {
+  const Organ o;
+  HybridRegion h(o.model);
+  ASSERT_GT(h.cut({0.091, 0.030, kLz + 0.002}, {0.091, 0.034, kLz - 0.004}), 0);
+  ASSERT_GT(h.update_rank(), 0);
+  const std::vector<int> indices{rest_vertex_near(o.model, {0.056, 0.032, kLz})};
+  const std::vector<double> forces{0.05, -0.1, -0.5};
+  const RegionTip tip{{0.082, 0.030, kLz + 0.0045}, {0.082, 0.030, kLz + 0.0045}, 0.006};
+  h.advance(1e-3, indices, forces, {&tip, 1});
+  const auto before = testing::allocations_here();
+  for (int n = 0; n < 10; ++n) h.advance(1e-3, indices, forces, {&tip, 1});
+  EXPECT_EQ(testing::allocations_here() - before, 0u);
+  EXPECT_GT(h.interface_force_n().norm(), 0);
 }
 
 TEST(HybridServing, BadInputIsNamed) {

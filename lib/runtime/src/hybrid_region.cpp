@@ -175,7 +175,6 @@ HybridRegion::HybridRegion(const SurfaceModel& model, const HybridRegionSettings
     rhs_n_ = Eigen::VectorXd::Zero(3 * nv);
     next_m_ = rhs_n_;
     loaded_offset_m_ = Eigen::VectorXd::Zero(3 * n);
-    loaded_s_offset_n_ = loaded_offset_m_;
     loaded_push_n_ = loaded_offset_m_;
     loaded_rows_n_ = loaded_offset_m_;
     skin_before_.reserve(static_cast<std::size_t>(nv));

@@ -60,8 +60,7 @@ void HybridRegion::advance(double tick_s, std::span<const int> rest_indices,
   if (substeps_ > 0) advance_explicit(tips);
 }
 
-// u_Γ⁰ = G_ΓS f_S on the held Γ (explicit) or on Γ as loaded (implicit,
-// with S u_Γ⁰).
+// u_Γ⁰ = G_ΓS f_S on the held Γ (explicit) or on Γ as loaded (implicit).
 void HybridRegion::offset_from_rest_loads(std::span<const int> rest_indices,
                                           std::span<const double> rest_forces_n) {
   const bool implicit = settings_.integrator == RegionIntegrator::kImplicit;
@@ -73,12 +72,6 @@ void HybridRegion::offset_from_rest_loads(std::span<const int> rest_indices,
     for (std::size_t k = 0; k < gamma.size(); ++k)
       offset.segment<3>(3 * static_cast<Eigen::Index>(k)) +=
           model_ref_.G_block(gamma[k], rest_indices[j]) * f;
-  }
-  if (implicit && offset.size() > 0) {
-    if (rest_indices.empty())
-      loaded_s_offset_n_.setZero();
-    else
-      detail::symmetric_product(coupling_, offset, loaded_s_offset_n_);
   }
 }
 
@@ -107,7 +100,8 @@ void HybridRegion::advance_explicit(std::span<const RegionTip> tips) {
 //       + S u_Γ⁰ (Γ),
 // the tips' penalty taken at u and corrected by k_s (u⁺ − u) (A's k_s), so
 // that it is exact at rest and damps, never feeds, the motion between.
-// The push on the rest is read off Γ's rows: S (u⁺_Γ − u_Γ⁰) = b_Γ − S u_Γ⁰
+// S u_Γ⁰ is never formed: the solve shifts Γ by u_Γ⁰ (solve_offset). The
+// push on the rest is read off Γ's rows: S (u⁺_Γ − u_Γ⁰) = b_Γ − S u_Γ⁰
 // − ((A − S) u⁺)_Γ, a sparse product instead of a dense one.
 void HybridRegion::advance_implicit(std::span<const RegionTip> tips) {
   const detail::ImplicitStepCoefficients& step = implicit_->coefficients();
@@ -130,15 +124,14 @@ void HybridRegion::advance_implicit(std::span<const RegionTip> tips) {
     }
     for (Eigen::Index g = 0; g < n_loaded; ++g) {
       const int v = loaded_interface_[g];
-      rhs_n_.segment<3>(3 * v) += loaded_s_offset_n_.segment<3>(3 * g) +
-                                  implicit_->interface_proximal(v) * u.segment<3>(3 * v);
+      rhs_n_.segment<3>(3 * v) += implicit_->interface_proximal(v) * u.segment<3>(3 * v);
     }
-    implicit_->solve(rhs_n_, next_m_);
+    // b without S u_Γ⁰ in rhs_n_, and the solve adds it.
+    implicit_->solve_offset(rhs_n_, loaded_offset_m_, next_m_);
     implicit_->interface_rows(next_m_, loaded_rows_n_);
     for (Eigen::Index g = 0; g < n_loaded; ++g)
-      loaded_push_n_.segment<3>(3 * g) = rhs_n_.segment<3>(3 * loaded_interface_[g]) -
-                                         loaded_s_offset_n_.segment<3>(3 * g) -
-                                         loaded_rows_n_.segment<3>(3 * g);
+      loaded_push_n_.segment<3>(3 * g) =
+          rhs_n_.segment<3>(3 * loaded_interface_[g]) - loaded_rows_n_.segment<3>(3 * g);
     retimed_m_ = u;
     model_.set_state(next_m_, retimed_m_);
   }

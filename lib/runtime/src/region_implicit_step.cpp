@@ -46,8 +46,9 @@ void become_background_thread() {
   pthread_setaffinity_np(pthread_self(), sizeof every, &every);
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 10);
 }
-}  // namespace
 
+// y = A x for a symmetric @p a, reading its lower half (BLAS dsymv: several
+// times Eigen's own on this machine). Allocates nothing.
 void symmetric_product(const Eigen::MatrixXd& a, CRef<VectorXd> x, Eigen::Ref<VectorXd> y) {
   PALPATE_DEMAND(a.rows() == a.cols() && x.size() == a.rows() && y.size() == a.rows() &&
                  x.innerStride() == 1 && y.innerStride() == 1);
@@ -55,6 +56,7 @@ void symmetric_product(const Eigen::MatrixXd& a, CRef<VectorXd> x, Eigen::Ref<Ve
   const double alpha = 1, beta = 0;
   if (n > 0) dsymv_("L", &n, &alpha, a.data(), &n, x.data(), &one, &beta, y.data(), &one);
 }
+}  // namespace
 
 struct RegionFactorization {
   SparseMatrixd a;  // A − S, ordered DOFs (interior, then Γ), both halves
@@ -280,6 +282,38 @@ void ImplicitRegionStep::solve(CRef<VectorXd> b, Eigen::Ref<VectorXd> x) {
   const int nv = model_.vertex_count();
   for (int v = 0; v < nv; ++v)
     if (first_dof_[v] >= 0) ordered_.segment<3>(first_dof_[v]) = b.segment<3>(3 * v);
+  solve_ordered();
+  for (int v = 0; v < nv; ++v)
+    x.segment<3>(3 * v) = first_dof_[v] >= 0 ? Eigen::Vector3d(ordered_.segment<3>(first_dof_[v]))
+                                             : Eigen::Vector3d::Zero();
+}
+
+void ImplicitRegionStep::solve_offset(CRef<VectorXd> b, CRef<VectorXd> gamma_offset,
+                                      Eigen::Ref<VectorXd> x) {
+  const Index ng = dofs_ - interior_dofs_;
+  PALPATE_DEMAND(b.size() == 3 * model_.vertex_count() && x.size() == b.size() &&
+                 gamma_offset.size() == ng);
+  const int nv = model_.vertex_count();
+  for (int v = 0; v < nv; ++v)
+    if (first_dof_[v] >= 0) ordered_.segment<3>(first_dof_[v]) = b.segment<3>(3 * v);
+  // − (A − S) u_Γ⁰: the base factor's sparse Γ columns, and the cuts'
+  // change D on the update's Γ DOFs.
+  ordered_.noalias() -= factor_->a.rightCols(ng) * gamma_offset;
+  if (rank_ > 0) {
+    for (int k = 0; k < rank_; ++k)
+      picked_[k] =
+          update_dofs_[k] >= interior_dofs_ ? gamma_offset[update_dofs_[k] - interior_dofs_] : 0.0;
+    weights_.noalias() = d_ * picked_;
+    for (int k = 0; k < rank_; ++k) ordered_[update_dofs_[k]] -= weights_[k];
+  }
+  solve_ordered();
+  ordered_.tail(ng) += gamma_offset;
+  for (int v = 0; v < nv; ++v)
+    x.segment<3>(3 * v) = first_dof_[v] >= 0 ? Eigen::Vector3d(ordered_.segment<3>(first_dof_[v]))
+                                             : Eigen::Vector3d::Zero();
+}
+
+void ImplicitRegionStep::solve_ordered() {
   base_solve(*factor_, interior_dofs_, ordered_, scratch_);
   if (rank_ > 0) {
     // Woodbury: A⁻¹ b = A₀⁻¹ b − Y (I + D Eᵀ Y)⁻¹ D Eᵀ A₀⁻¹ b.
@@ -293,9 +327,6 @@ void ImplicitRegionStep::solve(CRef<VectorXd> b, Eigen::Ref<VectorXd> x) {
     dgemv_("N", &rows, &columns, &minus_one, y_.data(), &lda, picked_.data(), &one, &keep,
            ordered_.data(), &one);
   }
-  for (int v = 0; v < nv; ++v)
-    x.segment<3>(3 * v) = first_dof_[v] >= 0 ? Eigen::Vector3d(ordered_.segment<3>(first_dof_[v]))
-                                             : Eigen::Vector3d::Zero();
 }
 
 void ImplicitRegionStep::interface_rows(CRef<VectorXd> x, Eigen::Ref<VectorXd> out) {

@@ -29,11 +29,6 @@
 
 namespace palpate::detail {
 
-/// y = A x for a symmetric @p a, reading its lower half (BLAS dsymv: several
-/// times Eigen's own on this machine). Allocates nothing.
-void symmetric_product(const Eigen::MatrixXd& a, CRef<Eigen::VectorXd> x,
-                       Eigen::Ref<Eigen::VectorXd> y);
-
 /// A's constant coefficients.
 struct ImplicitStepCoefficients {
   double time_step_s = 1e-3;          ///< Δt
@@ -93,6 +88,12 @@ class ImplicitRegionStep {
   /// x = A⁻¹ b, both 3#V in region vertex numbering; a fixed vertex's x is 0.
   /// Allocates nothing.
   void solve(CRef<Eigen::VectorXd> b, Eigen::Ref<Eigen::VectorXd> x);
+  /// x = A⁻¹ (b + S u_Γ⁰ on Γ), @p gamma_offset u_Γ⁰ on Γ as loaded (3n_Γ),
+  /// without S: with x = x' + u_Γ⁰ on Γ, A x' = b − (A − S) u_Γ⁰, a sparse
+  /// product (the rest's pull S (u_Γ − u_Γ⁰) is zero at x_Γ = u_Γ⁰).
+  /// Allocates nothing.
+  void solve_offset(CRef<Eigen::VectorXd> b, CRef<Eigen::VectorXd> gamma_offset,
+                    Eigen::Ref<Eigen::VectorXd> x);
   /// out = (A − S) x on Γ's rows as loaded (3n_Γ): what the region's
   /// tensors, mass and hold give there. Allocates nothing.
   void interface_rows(CRef<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> out);
@@ -114,6 +115,8 @@ class ImplicitRegionStep {
   void add_update_dofs(std::span<const int> touched);
   void refresh_capacitance(const std::vector<char>& on_skin);
   void launch_refactor(const std::vector<char>& on_skin);
+  // ordered_ = A⁻¹ ordered_ in place (the base factor, then Woodbury).
+  void solve_ordered();
 
   const TensorMassModel& model_;
   const Eigen::MatrixXd& coupling_;

@@ -230,11 +230,10 @@ class HybridRegion {
   Eigen::VectorXd offset_m_, interface_force_n_, gamma_u_m_;
   Eigen::VectorXd region_load_n_, step_force_n_, retimed_m_;
   Eigen::VectorXd coupling_row_sum_;  // Σ_w |S_vw| per Γ DOF
-  // The implicit step: the factored A, its right-hand side, u⁺, u_Γ⁰, S u_Γ⁰
-  // and the push on the loaded Γ, its rows of A − S.
+  // The implicit step: the factored A, its right-hand side, u⁺, u_Γ⁰ and
+  // the push on the loaded Γ, its rows of A − S.
   std::unique_ptr<detail::ImplicitRegionStep> implicit_;
-  Eigen::VectorXd rhs_n_, next_m_, loaded_offset_m_, loaded_s_offset_n_, loaded_push_n_,
-      loaded_rows_n_;
+  Eigen::VectorXd rhs_n_, next_m_, loaded_offset_m_, loaded_push_n_, loaded_rows_n_;
   std::vector<char> skin_before_;
   std::vector<int> touched_;
   std::vector<Eigen::Vector3d> tip_force_n_, tip_force_step_n_, tip_torque_nm_, tip_torque_step_nm_;
