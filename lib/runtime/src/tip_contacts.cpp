@@ -12,7 +12,9 @@ namespace palpate::detail {
 using Eigen::Vector3d;
 
 TipContacts::TipContacts(int triangles)
-    : found_(static_cast<std::size_t>(triangles)), ranked_(static_cast<std::size_t>(triangles)) {}
+    : found_(static_cast<std::size_t>(triangles)),
+      ranked_(static_cast<std::size_t>(triangles)),
+      kept_point_(static_cast<std::size_t>(triangles)) {}
 
 int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<const int> owner,
                       std::span<const int> previous_owner, std::span<TipCandidate> out) {
@@ -117,17 +119,45 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
   std::sort(ranked_.begin(), ranked_.begin() + total,
             [](const Ranked& x, const Ranked& y) { return x.depth > y.depth; });
   const double spacing2 = (g.friction > 0 ? 0.09 : 0.0025) * r * r;
+  // Two points closer than r cannot push the tip from opposite sides: where
+  // their pushes oppose, the tip has reached through a fold of tissue
+  // thinner than itself, and one of them is the fold's far face, found from
+  // within. Both kept, their rows are nearly opposite (a singular system:
+  // forces of kilonewtons that cancel, points flung decimetres). The one
+  // pushed more along the tool's direction z (away from the tool) stays.
+  const auto on_triangle = [&](const TipCandidate& x) {
+    Vector3d p = Vector3d::Zero();
+    for (int i = 0; i < x.count; ++i)
+      p += x.weights[static_cast<std::size_t>(i)] *
+           surface.deformed(x.vertices[static_cast<std::size_t>(i)]);
+    return p;
+  };
   int kept = 0;
   for (int c = 0; c < total && kept < static_cast<int>(out.size()); ++c) {
     const TipCandidate& x =
         found_[static_cast<std::size_t>(ranked_[static_cast<std::size_t>(c)].index)];
-    const Vector3d point = x.target - x.depth * x.normal;  // on the deformed triangle
+    // The spacing compares target − depth·n, the point itself where n is
+    // the axis-to-point direction (as it always did); the folds, the point.
+    const Vector3d point = x.target - x.depth * x.normal;
+    const Vector3d p = on_triangle(x);
     bool crowded = false;
+    int replaced = -1;
     for (int k = 0; k < kept && !crowded; ++k) {
       const TipCandidate& y = out[static_cast<std::size_t>(k)];
+      if (x.normal.dot(y.normal) < 0 &&
+          (kept_point_[static_cast<std::size_t>(k)] - p).squaredNorm() < r * r) {
+        if (x.normal.dot(axis) > y.normal.dot(axis) && replaced < 0)
+          replaced = k;
+        else
+          crowded = true;
+        continue;
+      }
       crowded = (y.target - y.depth * y.normal - point).squaredNorm() < spacing2;
     }
-    if (!crowded) out[static_cast<std::size_t>(kept++)] = x;
+    if (crowded) continue;
+    const int slot = replaced >= 0 ? replaced : kept++;
+    out[static_cast<std::size_t>(slot)] = x;
+    kept_point_[static_cast<std::size_t>(slot)] = p;
   }
   return kept;
 }

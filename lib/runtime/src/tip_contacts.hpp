@@ -60,7 +60,8 @@ class TipContacts {
   /// Scratch for a surface of @p triangles triangles.
   explicit TipContacts(int triangles);
 
-  /// Tool @p q's tip contacts, deepest first, at most out.size() of them,
+  /// Tool @p q's tip contacts, deepest first (but for a fold's near face,
+  /// which takes its far face's place), at most out.size() of them,
   /// into @p out; @returns how many. A triangle with a vertex in @p owner
   /// (per compliance vertex: the tool holding it, or −1) is left out, and
   /// one whose point another tool's jaws may take: tissue between open
@@ -76,7 +77,8 @@ class TipContacts {
     int index;  // into found_
   };
   std::vector<TipCandidate> found_;
-  std::vector<Ranked> ranked_;  // found_'s depths, to sort
+  std::vector<Ranked> ranked_;               // found_'s depths, to sort
+  std::vector<Eigen::Vector3d> kept_point_;  // the kept points, on their deformed triangles
 };
 
 }  // namespace palpate::detail
