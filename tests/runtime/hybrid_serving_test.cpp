@@ -29,6 +29,7 @@
 #include "support/allocation_counter.hpp"
 #include "support/box_job.hpp"
 #include "support/expect_error.hpp"
+#include "support/sphere_tool.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {
@@ -296,18 +297,7 @@ TEST(HybridServing, CuttingTheWholeRegionOutLeavesTheRestAlone) {
 }
 
 /// A frictionless 3 mm sphere probe (no jaws, no force limit in the way).
-ToolGeometry sphere_probe() {
-  ToolGeometry g;
-  g.id = "probe";
-  g.tip = TipShape::kSphere;
-  g.tip_radius_m = 0.003;
-  g.tip_length_m = 0;
-  g.friction = 0;
-  g.jaw_length_m = 0;
-  g.force_limit_n = 100;
-  g.max_force_rate_n_per_s = 1e9;
-  return g;
-}
+ToolGeometry sphere_probe() { return testing::sphere_tool("probe", 0.003); }
 
 /// The force on the probe pressing 1.5 mm at @p hinge, held for @p ticks
 /// of 1 ms; with @p region, the region stepped in each tick and, when

@@ -19,6 +19,7 @@
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
 #include "support/box_job.hpp"
+#include "support/sphere_tool.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {
@@ -32,15 +33,7 @@ TEST(TipOverAFold, NoTwoPointsWithinTheTipPushItFromOppositeSides) {
   const TetMesh plate = testing::box_mesh(0.080, 0.040, 0.004, 16, 8, 1);
   const SurfaceModel model = load_surface_model(
       "plate", testing::write_clamped_compliance(plate, dir.path(), "plate", 85e3));
-  ToolGeometry g;
-  g.id = "finger";
-  g.tip = TipShape::kSphere;
-  g.tip_radius_m = 0.010;
-  g.tip_length_m = 0;
-  g.jaw_length_m = 0;
-  g.friction = 0;
-  g.force_limit_n = 100;
-  g.max_force_rate_n_per_s = 1e6;
+  const ToolGeometry g = testing::sphere_tool("finger", 0.010);
   ToolContactEngine engine(model, {g}, {}, {});
   ToolPoseInput pose;
   pose.orientation = Eigen::Quaterniond(0, 1, 0, 0);  // pointing down: +z is the model's −z
