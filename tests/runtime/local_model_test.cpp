@@ -17,6 +17,7 @@
 #include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/tool_contact.hpp"
 #include "support/box_model_suite.hpp"
+#include "support/sphere_tool.hpp"
 
 namespace palpate {
 namespace {
@@ -36,18 +37,7 @@ constexpr double kTick = 0.001;  // s
 constexpr double kStepM = 1e-6, kStepRad = 1e-5;
 constexpr double kRelative = 1e-4, kAbsolute = 1e-10;
 
-ToolGeometry probe(double friction) {
-  ToolGeometry g;
-  g.id = "probe";
-  g.tip = TipShape::kSphere;
-  g.tip_radius_m = 0.004;
-  g.tip_length_m = 0;
-  g.friction = friction;
-  g.jaw_length_m = 0;
-  g.force_limit_n = 100;
-  g.max_force_rate_n_per_s = 1e6;
-  return g;
-}
+ToolGeometry probe(double friction) { return testing::sphere_tool("probe", 0.004, friction); }
 
 ToolGeometry grasper() {
   ToolGeometry g;

@@ -16,6 +16,7 @@
 #include "../../lib/runtime/src/contact_geometry.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/box_job.hpp"
+#include "support/sphere_tool.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {
@@ -97,16 +98,7 @@ class ToolContactTest : public ::testing::Test {
   }
 
   static ToolGeometry probe(const std::string& id, double friction, double radius_m = 0.002) {
-    ToolGeometry g;
-    g.id = id;
-    g.tip = TipShape::kSphere;
-    g.tip_radius_m = radius_m;
-    g.tip_length_m = 0;
-    g.friction = friction;
-    g.jaw_length_m = 0;
-    g.force_limit_n = 100;
-    g.max_force_rate_n_per_s = 1e6;
-    return g;
+    return testing::sphere_tool(id, radius_m, friction);
   }
 
   /// Pointing down: the tool's +z is the model's −z.
