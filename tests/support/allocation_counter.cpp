@@ -17,8 +17,17 @@ std::uint64_t heap_allocations_on_this_thread() { return t_heap_allocations; }
 }  // namespace palpate::testing
 
 // malloc, calloc and realloc counted, then glibc's own (its free() takes
-// what they return). A sanitizer's run time replaces these itself.
-#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+// what they return). A sanitizer's run time replaces these itself: GCC
+// says so by __SANITIZE_*__, Clang by __has_feature.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define PALPATE_SANITIZER_OWNS_MALLOC 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
+    __has_feature(memory_sanitizer)
+#define PALPATE_SANITIZER_OWNS_MALLOC 1
+#endif
+#endif
+#ifndef PALPATE_SANITIZER_OWNS_MALLOC
 #define PALPATE_COUNTS_MALLOC 1
 extern "C" {
 void* __libc_malloc(std::size_t size);
