@@ -339,7 +339,10 @@ void HybridRegion::release_detached_interface() {
   }
   const Eigen::MatrixXd s_ad = coupling_(keep, drop);
   const Eigen::MatrixXd s_dd = coupling_(drop, drop);
-  Eigen::MatrixXd condensed = coupling_(keep, keep) - s_ad * s_dd.llt().solve(s_ad.transpose());
+  Eigen::MatrixXd condensed = coupling_(keep, keep);
+  // (Every Γ vertex released: nothing to condense onto, and Eigen's
+  // triangular solve of an empty right-hand side reads through null.)
+  if (!keep.empty()) condensed -= s_ad * s_dd.llt().solve(s_ad.transpose());
   coupling_ = 0.5 * (condensed + condensed.transpose());
   std::vector<int> vertices, compliance;
   for (std::size_t i = 0; i < keep.size(); i += 3) {

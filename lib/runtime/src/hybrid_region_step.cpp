@@ -68,6 +68,7 @@ void HybridRegion::offset_from_rest_loads(std::span<const int> rest_indices,
   const std::vector<int>& gamma = implicit ? loaded_compliance_ : interface_compliance_;
   Eigen::VectorXd& offset = implicit ? loaded_offset_m_ : offset_m_;
   offset.setZero();
+  if (gamma.empty()) return;  // every Γ vertex released (explicit)
   // G_Γl, l's three columns at Γ's rows, contiguous once gathered.
   for (std::size_t j = 0; j < rest_indices.size(); ++j) {
     const Vector3d f(rest_forces_n[3 * j], rest_forces_n[3 * j + 1], rest_forces_n[3 * j + 2]);
