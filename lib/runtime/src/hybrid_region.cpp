@@ -9,7 +9,6 @@
 #include <limits>
 #include <map>
 
-#include "background_loads.hpp"
 #include "hybrid_region_limits.hpp"
 #include "palpate/core/error.hpp"
 #include "region_implicit_step.hpp"
@@ -116,8 +115,6 @@ HybridRegion::HybridRegion(const SurfaceModel& model, const HybridRegionSettings
   update_coupling_row_sums();
   loaded_interface_ = interface_;
   loaded_compliance_ = interface_compliance_;
-  rest_columns_ = std::make_unique<detail::LoadColumns>();
-  rest_columns_->reserve(model, static_cast<int>(loaded_compliance_.size()));
   held_slot_.resize(interface_.size());
   for (std::size_t k = 0; k < held_slot_.size(); ++k) held_slot_[k] = static_cast<int>(k);
 

@@ -10,7 +10,6 @@
 #include <cmath>
 #include <limits>
 
-#include "background_loads.hpp"
 #include "hybrid_region_limits.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/hybrid_region.hpp"
@@ -68,11 +67,11 @@ void HybridRegion::offset_from_rest_loads(std::span<const int> rest_indices,
   const std::vector<int>& gamma = implicit ? loaded_compliance_ : interface_compliance_;
   Eigen::VectorXd& offset = implicit ? loaded_offset_m_ : offset_m_;
   offset.setZero();
-  if (gamma.empty()) return;  // every Γ vertex released (explicit)
-  // G_Γl, l's three columns at Γ's rows, contiguous once gathered.
   for (std::size_t j = 0; j < rest_indices.size(); ++j) {
     const Vector3d f(rest_forces_n[3 * j], rest_forces_n[3 * j + 1], rest_forces_n[3 * j + 2]);
-    offset.noalias() += rest_columns_->at(rest_indices[j], gamma) * f;
+    for (std::size_t k = 0; k < gamma.size(); ++k)
+      offset.segment<3>(3 * static_cast<Eigen::Index>(k)) +=
+          model_ref_.G_block(gamma[k], rest_indices[j]) * f;
   }
 }
 

@@ -32,8 +32,7 @@ namespace palpate {
 
 namespace detail {
 class ImplicitRegionStep;  // lib/runtime/src/region_implicit_step.hpp
-class LoadColumns;         // lib/runtime/src/background_loads.hpp
-}  // namespace detail
+}
 
 /// How the region's dynamics are integrated (docs/model.md, "The implicit
 /// step" and "Substeps").
@@ -228,9 +227,6 @@ class HybridRegion {
 
   double substep_bound_s_ = 0, substep_s_ = 0, pending_s_ = 0;
   int substeps_ = 0, pressed_vertices_ = 0;
-  // G_ΓS's block columns at the rest's loaded vertices, gathered when a
-  // vertex is first loaded (u_Γ⁰ = G_ΓS f_S without G's scattered blocks).
-  std::unique_ptr<detail::LoadColumns> rest_columns_;
   Eigen::VectorXd offset_m_, interface_force_n_, gamma_u_m_;
   Eigen::VectorXd region_load_n_, step_force_n_, retimed_m_;
   Eigen::VectorXd coupling_row_sum_;  // Σ_w |S_vw| per Γ DOF
