@@ -12,9 +12,7 @@ namespace palpate::detail {
 using Eigen::Vector3d;
 
 TipContacts::TipContacts(int triangles)
-    : found_(static_cast<std::size_t>(triangles)),
-      ranked_(static_cast<std::size_t>(triangles)),
-      kept_point_(static_cast<std::size_t>(triangles)) {}
+    : found_(static_cast<std::size_t>(triangles)), ranked_(static_cast<std::size_t>(triangles)) {}
 
 int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<const int> owner,
                       std::span<const int> previous_owner, std::span<TipCandidate> out) {
@@ -91,9 +89,16 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
                                                 : Vector3d(-surface.vertex_normal_of(corner));
     if (pair.distance > 1e-9 * r && (p - pair.on_segment).dot(outward) <= 0)
       normal = (p - pair.on_segment) / pair.distance;
-    TipCandidate candidate{
-        tri,   0, {}, {}, r - pair.distance, normal, pair.on_segment + r * normal, Vector3d::Zero(),
-        active};
+    TipCandidate candidate{tri,
+                           0,
+                           {},
+                           {},
+                           r - pair.distance,
+                           normal,
+                           pair.on_segment + r * normal,
+                           p,
+                           Vector3d::Zero(),
+                           active};
     bool movable = false;
     for (int i = 0; i < 3; ++i) {
       const double w = pair.on_triangle.weights[static_cast<std::size_t>(i)];
@@ -125,13 +130,6 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
   // within. Both kept, their rows are nearly opposite (a singular system:
   // forces of kilonewtons that cancel, points flung decimetres). The one
   // pushed more along the tool's direction z (away from the tool) stays.
-  const auto on_triangle = [&](const TipCandidate& x) {
-    Vector3d p = Vector3d::Zero();
-    for (int i = 0; i < x.count; ++i)
-      p += x.weights[static_cast<std::size_t>(i)] *
-           surface.deformed(x.vertices[static_cast<std::size_t>(i)]);
-    return p;
-  };
   int kept = 0;
   for (int c = 0; c < total && kept < static_cast<int>(out.size()); ++c) {
     const TipCandidate& x =
@@ -139,13 +137,11 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
     // The spacing compares target − depth·n, the point itself where n is
     // the axis-to-point direction (as it always did); the folds, the point.
     const Vector3d point = x.target - x.depth * x.normal;
-    const Vector3d p = on_triangle(x);
     bool crowded = false;
     int replaced = -1;
     for (int k = 0; k < kept && !crowded; ++k) {
       const TipCandidate& y = out[static_cast<std::size_t>(k)];
-      if (x.normal.dot(y.normal) < 0 &&
-          (kept_point_[static_cast<std::size_t>(k)] - p).squaredNorm() < r * r) {
+      if (x.normal.dot(y.normal) < 0 && (y.point - x.point).squaredNorm() < r * r) {
         if (x.normal.dot(axis) > y.normal.dot(axis) && replaced < 0)
           replaced = k;
         else
@@ -155,9 +151,7 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
       crowded = (y.target - y.depth * y.normal - point).squaredNorm() < spacing2;
     }
     if (crowded) continue;
-    const int slot = replaced >= 0 ? replaced : kept++;
-    out[static_cast<std::size_t>(slot)] = x;
-    kept_point_[static_cast<std::size_t>(slot)] = p;
+    out[static_cast<std::size_t>(replaced >= 0 ? replaced : kept++)] = x;
   }
   return kept;
 }

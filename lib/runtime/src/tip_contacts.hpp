@@ -30,6 +30,7 @@ struct TipCandidate {
   Eigen::Vector3d
       normal;  // unit: the direction the tip pushes the tissue (from the axis to the point)
   Eigen::Vector3d target;  // the point put back on the tip's surface, m
+  Eigen::Vector3d point;   // the point on the deformed triangle, m
   Eigen::Vector3d rest;    // the point at rest, Σ w_i rest_i, m
   bool active;             // penetrating (or within the hysteresis shell); else a near
                            // triangle the solve may push into the tip
@@ -77,8 +78,7 @@ class TipContacts {
     int index;  // into found_
   };
   std::vector<TipCandidate> found_;
-  std::vector<Ranked> ranked_;               // found_'s depths, to sort
-  std::vector<Eigen::Vector3d> kept_point_;  // the kept points, on their deformed triangles
+  std::vector<Ranked> ranked_;  // found_'s depths, to sort
 };
 
 }  // namespace palpate::detail
