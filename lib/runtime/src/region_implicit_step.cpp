@@ -279,13 +279,9 @@ SparseMatrixd ImplicitRegionStep::assemble(const std::vector<char>& on_skin) con
 
 void ImplicitRegionStep::solve(CRef<VectorXd> b, Eigen::Ref<VectorXd> x) {
   PALPATE_DEMAND(b.size() == 3 * model_.vertex_count() && x.size() == b.size());
-  const int nv = model_.vertex_count();
-  for (int v = 0; v < nv; ++v)
-    if (first_dof_[v] >= 0) ordered_.segment<3>(first_dof_[v]) = b.segment<3>(3 * v);
+  to_ordered(b);
   solve_ordered();
-  for (int v = 0; v < nv; ++v)
-    x.segment<3>(3 * v) = first_dof_[v] >= 0 ? Eigen::Vector3d(ordered_.segment<3>(first_dof_[v]))
-                                             : Eigen::Vector3d::Zero();
+  from_ordered(x);
 }
 
 void ImplicitRegionStep::solve_offset(CRef<VectorXd> b, CRef<VectorXd> gamma_offset,
@@ -293,9 +289,7 @@ void ImplicitRegionStep::solve_offset(CRef<VectorXd> b, CRef<VectorXd> gamma_off
   const Index ng = dofs_ - interior_dofs_;
   PALPATE_DEMAND(b.size() == 3 * model_.vertex_count() && x.size() == b.size() &&
                  gamma_offset.size() == ng);
-  const int nv = model_.vertex_count();
-  for (int v = 0; v < nv; ++v)
-    if (first_dof_[v] >= 0) ordered_.segment<3>(first_dof_[v]) = b.segment<3>(3 * v);
+  to_ordered(b);
   // − (A − S) u_Γ⁰: the base factor's sparse Γ columns, and the cuts'
   // change D on the update's Γ DOFs.
   ordered_.noalias() -= factor_->a.rightCols(ng) * gamma_offset;
@@ -308,7 +302,16 @@ void ImplicitRegionStep::solve_offset(CRef<VectorXd> b, CRef<VectorXd> gamma_off
   }
   solve_ordered();
   ordered_.tail(ng) += gamma_offset;
-  for (int v = 0; v < nv; ++v)
+  from_ordered(x);
+}
+
+void ImplicitRegionStep::to_ordered(CRef<VectorXd> x) {
+  for (int v = 0; v < model_.vertex_count(); ++v)
+    if (first_dof_[v] >= 0) ordered_.segment<3>(first_dof_[v]) = x.segment<3>(3 * v);
+}
+
+void ImplicitRegionStep::from_ordered(Eigen::Ref<VectorXd> x) const {
+  for (int v = 0; v < model_.vertex_count(); ++v)
     x.segment<3>(3 * v) = first_dof_[v] >= 0 ? Eigen::Vector3d(ordered_.segment<3>(first_dof_[v]))
                                              : Eigen::Vector3d::Zero();
 }
@@ -331,9 +334,7 @@ void ImplicitRegionStep::solve_ordered() {
 
 void ImplicitRegionStep::interface_rows(CRef<VectorXd> x, Eigen::Ref<VectorXd> out) {
   PALPATE_DEMAND(x.size() == 3 * model_.vertex_count() && out.size() == dofs_ - interior_dofs_);
-  const int nv = model_.vertex_count();
-  for (int v = 0; v < nv; ++v)
-    if (first_dof_[v] >= 0) ordered_.segment<3>(first_dof_[v]) = x.segment<3>(3 * v);
+  to_ordered(x);
   out.noalias() = factor_->gamma_rows * ordered_;
   if (rank_ > 0) {
     for (int k = 0; k < rank_; ++k) picked_[k] = ordered_[update_dofs_[k]];

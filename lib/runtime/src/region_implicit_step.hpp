@@ -117,6 +117,9 @@ class ImplicitRegionStep {
   void launch_refactor(const std::vector<char>& on_skin);
   // ordered_ = A⁻¹ ordered_ in place (the base factor, then Woodbury).
   void solve_ordered();
+  // ordered_ from @p x (3#V, region numbering), and back (a fixed vertex 0).
+  void to_ordered(CRef<Eigen::VectorXd> x);
+  void from_ordered(Eigen::Ref<Eigen::VectorXd> x) const;
 
   const TensorMassModel& model_;
   const Eigen::MatrixXd& coupling_;
