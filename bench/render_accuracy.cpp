@@ -255,9 +255,9 @@ int main(int argc, char** argv) {
       "model %s, friction %g; device at 4 kHz, palpated at 1 kHz, errors against its answer at "
       "every device pose\n",
       model_path.c_str(), friction);
-  std::printf("%-20s %6s %6s %9s %9s %6s %9s %9s %9s %8s %9s %9s\n", "gesture", "rt ms", "ticks",
-              "local N", "held N", "ratio", "max loc", "max held", "ref rms", "changes", "loc stdy",
-              "held stdy");
+  std::printf("%-20s %6s %6s %9s %9s %6s %9s %9s %9s %8s %9s %9s %9s\n", "gesture", "rt ms",
+              "ticks", "local N", "held N", "ratio", "max loc", "max held", "ref rms", "changes",
+              "loc stdy", "held stdy", "4 kHz");
   for (const std::string& path : gesture_paths) {
     const palpate::Gesture gesture = palpate::read_gesture_file(path);
     const palpate::GesturePlayer player(gesture, palpate::place_gesture(gesture, model.surface));
