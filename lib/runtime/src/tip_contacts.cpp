@@ -134,9 +134,10 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
   for (int c = 0; c < total && kept < static_cast<int>(out.size()); ++c) {
     const TipCandidate& x =
         found_[static_cast<std::size_t>(ranked_[static_cast<std::size_t>(c)].index)];
-    // The spacing compares target − depth·n, the point itself where n is
-    // the axis-to-point direction (as it always did); the folds, the point.
-    const Vector3d point = x.target - x.depth * x.normal;
+    // The spacing compares target − depth·n (spaced_at), the point itself
+    // where n is the axis-to-point direction (as it always did); the
+    // folds compare the points on the triangles.
+    const Vector3d spaced_at = x.target - x.depth * x.normal;
     bool crowded = false;
     int replaced = -1;
     for (int k = 0; k < kept && !crowded; ++k) {
@@ -148,7 +149,7 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
           crowded = true;
         continue;
       }
-      crowded = (y.target - y.depth * y.normal - point).squaredNorm() < spacing2;
+      crowded = (y.target - y.depth * y.normal - spaced_at).squaredNorm() < spacing2;
     }
     if (crowded) continue;
     out[static_cast<std::size_t>(replaced >= 0 ? replaced : kept++)] = x;
