@@ -195,7 +195,8 @@ int main(int argc, char** argv) {
   const double dt = 1.0 / rate_hz;
   const int64_t dt_ns = (int64_t)llround(1e9 / rate_hz);
   double depth = kPhases[0].from_m, velocity = 0;
-  double free_max_n = 0, contact_max_n = 0, max_damping = 0;
+  double free_max_n = 0, free_damping_max_n = 0, contact_max_n = 0, max_damping = 0;
+  double posed_depth = depth; /* the depth of the pose given at the step before */
   double hold_force = 0, hold_spring = 0, hold_answer = 0;
   long hold_samples = 0, steps = 0, free_steps = 0;
   int64_t free_since = -1; /* when the answers began to say the tool is free */
@@ -209,6 +210,7 @@ int main(int argc, char** argv) {
       const double s = (double)(k + 1) / (double)n;
       const double target = phase->from_m + (phase->to_m - phase->from_m) * s;
       const double target_velocity = (phase->to_m - phase->from_m) / phase->duration_s;
+      const double posing_depth = depth;
       /* The hinge: the tip point minus the reach along the shaft. */
       double hinge[3];
       for (int i = 0; i < 3; ++i) hinge[i] = surface[i] + (depth - REACH_M) * inward[i];
@@ -229,16 +231,26 @@ int main(int argc, char** argv) {
       state.struct_size = sizeof state;
       palpate_device_get_state(tool, &state, NULL, 0);
       if (state.damping_n_s_per_m > max_damping) max_damping = state.damping_n_s_per_m;
+      /* The passivity controller's damping, -alpha v, with v the velocity
+       * of the poses given (the step before to this one). */
+      double damping_force[3];
+      const double speed = (posing_depth - posed_depth) / dt; /* along the inward normal */
+      for (int i = 0; i < 3; ++i) damping_force[i] = -state.damping_n_s_per_m * speed * inward[i];
+      posed_depth = posing_depth;
       /* Free: the tip a clear 5 mm outside the rest surface, and palpated
        * has said so for 20 ms (a touch's force, slew limited at 500 N/s,
-       * is gone by then): nothing at all is rendered. */
+       * is gone by then): nothing is rendered but the damping that pays
+       * back an energy debt the touch left (docs/model.md, passivity). */
       if (!state.has_answer || state.tool_state != PALPATE_DEVICE_FREE)
         free_since = -1;
       else if (free_since < 0)
         free_since = t;
       if (depth < -0.005 && free_since >= 0 && t - free_since >= 20000000) {
+        double beside[3];
+        for (int i = 0; i < 3; ++i) beside[i] = force[i] - damping_force[i];
         ++free_steps;
-        if (magnitude > free_max_n) free_max_n = magnitude;
+        if (norm(beside) > free_max_n) free_max_n = norm(beside);
+        if (norm(damping_force) > free_damping_max_n) free_damping_max_n = norm(damping_force);
       }
       if (magnitude > contact_max_n) contact_max_n = magnitude;
       /* The last half of the hold, settled: the device's force and the hand's. */
@@ -285,17 +297,16 @@ int main(int argc, char** argv) {
   printf(
       "simulated_device: %ld steps, %llu poses, %llu answers; pushed back %.3f N held (the "
       "hand's spring %.3f N, palpated's answer %.3f N), at most %.3f N; free (answered so) at most "
-      "%.3g N; "
-      "damping at most %.3g N s/m\n",
+      "%.3g N beside %.3g N of damping; damping at most %.3g N s/m\n",
       steps, (unsigned long long)state.poses_sent, (unsigned long long)state.answers_taken,
       hold_force / samples, hold_spring / samples, hold_answer / samples, contact_max_n, free_max_n,
-      max_damping);
+      free_damping_max_n, max_damping);
   printf(
       "result steps=%ld poses=%llu answers=%llu hold_force_n=%.6f hold_spring_n=%.6f "
-      "hold_answer_n=%.6f max_force_n=%.6f free_steps=%ld free_max_n=%.9f max_damping=%.6f "
-      "touch=%d leave=%d ended=%d refused=%d\n",
+      "hold_answer_n=%.6f max_force_n=%.6f free_steps=%ld free_max_n=%.9f "
+      "free_damping_max_n=%.9f max_damping=%.6f touch=%d leave=%d ended=%d refused=%d\n",
       steps, (unsigned long long)state.poses_sent, (unsigned long long)state.answers_taken,
       hold_force / samples, hold_spring / samples, hold_answer / samples, contact_max_n, free_steps,
-      free_max_n, max_damping, touch, leave, ended, refused);
+      free_max_n, free_damping_max_n, max_damping, touch, leave, ended, refused);
   return refused > 0 ? 3 : 0;
 }
