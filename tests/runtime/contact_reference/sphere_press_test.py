@@ -3,7 +3,8 @@
 solution (issue 17; docs/model.md, "An independent check of the contact").
 
 Makes the sample organ (8 mm tetrahedra, the demo's materials and attachment),
-presses a frictionless rigid 5 mm sphere into it at three points, 1 to 5 mm,
+presses a frictionless rigid 5 mm sphere into it at three points, and a 20 mm
+one at one of them, 1 to 5 mm,
 with palpate's ToolContactEngine (palpate_sphere_press: 200 ticks per
 millimetre, 300 held ticks, the mean of the last 75), and solves the same
 press with reference_contact.py: its own stiffness K from the mesh and
@@ -25,8 +26,11 @@ Tolerances, per press (force along the press, relative to the reference):
   (measured 0.3 % at most: the same fixed point, up to the reference's
   refinement tolerance);
 - a press whose contact set alternates from tick to tick (a limit cycle of 2
-  to 6 ticks): the mean force within 10 %, the issue's target, on the presses
-  of `lower_face_x20_y10` and `upper_face_x40_ym10`; on `lower_face_x0_y30` at
+  to 6 ticks, or no cycle at all under the 20 mm sphere): the mean force
+  within 10 %, the issue's target, on the presses of `lower_face_x20_y10`,
+  `upper_face_x40_ym10` and `lower_face_x20_y10_wide` (measured: −1.5 % to
+  −5.5 % under the 20 mm sphere, its held ticks from 14 % below the
+  reference to 3 % above); on `lower_face_x0_y30` at
   4 and 5 mm the cycle's mean is 7 % and 13 % below the reference (every tick
   of the cycle is below it, and its triangles are penetrated by up to 0.8 mm):
   the 10 % target is not met there, and the test holds it to 20 % so that it
@@ -60,6 +64,10 @@ SCENARIOS = {
                                                             4: 0.20, 5: 0.20}),
     "upper_face_x40_ym10": dict(aim=(0.04, -0.01), side=1, radius_mm=5,
                                 alternating_tolerance={d: 0.10 for d in (1, 2, 3, 4, 5)}),
+    # A wide tip (a palpating finger, a retractor): 20 mm, over twice the
+    # triangles' size, where palpate's contact set never settles.
+    "lower_face_x20_y10_wide": dict(aim=(0.02, 0.01), radius_mm=20,
+                                    alternating_tolerance={d: 0.10 for d in (1, 2, 3, 4, 5)}),
 }
 DEPTHS_MM = (1, 2, 3, 4, 5)
 STEADY_TOLERANCE = 0.01
