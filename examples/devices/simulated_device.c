@@ -231,11 +231,9 @@ int main(int argc, char** argv) {
       state.struct_size = sizeof state;
       palpate_device_get_state(tool, &state, NULL, 0);
       if (state.damping_n_s_per_m > max_damping) max_damping = state.damping_n_s_per_m;
-      /* The passivity controller's damping, -alpha v, with v the velocity
-       * of the poses given (the step before to this one). */
-      double damping_force[3];
-      const double speed = (posing_depth - posed_depth) / dt; /* along the inward normal */
-      for (int i = 0; i < 3; ++i) damping_force[i] = -state.damping_n_s_per_m * speed * inward[i];
+      /* The velocity of the poses given (the step before to this one), along
+       * the inward normal: the passivity controller damps it, -alpha v. */
+      const double speed = (posing_depth - posed_depth) / dt;
       posed_depth = posing_depth;
       /* Free: the tip a clear 5 mm outside the rest surface, and palpated
        * has said so for 20 ms (a touch's force, slew limited at 500 N/s,
@@ -246,11 +244,15 @@ int main(int argc, char** argv) {
       else if (free_since < 0)
         free_since = t;
       if (depth < -0.005 && free_since >= 0 && t - free_since >= 20000000) {
-        double beside[3];
-        for (int i = 0; i < 3; ++i) beside[i] = force[i] - damping_force[i];
+        double damping_force[3], beside[3];
+        for (int i = 0; i < 3; ++i) {
+          damping_force[i] = -state.damping_n_s_per_m * speed * inward[i];
+          beside[i] = force[i] - damping_force[i];
+        }
         ++free_steps;
-        if (norm(beside) > free_max_n) free_max_n = norm(beside);
-        if (norm(damping_force) > free_damping_max_n) free_damping_max_n = norm(damping_force);
+        const double beside_n = norm(beside), damping_n = norm(damping_force);
+        if (beside_n > free_max_n) free_max_n = beside_n;
+        if (damping_n > free_damping_max_n) free_damping_max_n = damping_n;
       }
       if (magnitude > contact_max_n) contact_max_n = magnitude;
       /* The last half of the hold, settled: the device's force and the hand's. */

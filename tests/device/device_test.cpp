@@ -341,13 +341,14 @@ TEST_F(DeviceSession, OpenPosesRenderEventsAndEnd) {
     palpate_device_state s;
     s.struct_size = sizeof s;
     ASSERT_EQ(palpate_device_get_state(tool, &s, error, sizeof error), PALPATE_DEVICE_OK);
-    const Eigen::Vector3d damping = -s.damping_n_s_per_m * (h - posed) / (kStepNs * 1e-9);
+    const Eigen::Vector3d velocity = (h - posed) / (kStepNs * 1e-9);
     posed = h;
     if (!s.has_answer || s.tool_state != PALPATE_DEVICE_FREE)
       free_since = -1;
     else if (free_since < 0)
       free_since = now;
     if (depth_m <= -0.005 && free_since >= 0 && now - free_since >= 20'000'000) {
+      const Eigen::Vector3d damping = -s.damping_n_s_per_m * velocity;
       ++free_steps;
       free_max = std::max(free_max, (Eigen::Vector3d(f) - damping).norm());
       free_damping = std::max(free_damping, damping.norm());
