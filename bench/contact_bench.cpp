@@ -43,7 +43,8 @@
 // Usage: palpate_contact_bench MODEL.h5 [--benchmark_...]
 //        (or PALPATE_BENCH_MODEL=MODEL.h5); without a model it says so and exits 0.
 //        PALPATE_BENCH_FLOAT32=1 keeps a float32 file's G in float32 (half
-//        the bytes; the engine's sums stay double).
+//        the bytes; the engine's sums stay double); PALPATE_BENCH_LAYOUTS=1
+//        also times the floor's positions read two other ways (Floor).
 
 #include <benchmark/benchmark.h>
 
@@ -116,8 +117,15 @@ struct Floor {
   std::vector<Vector3d> u;
   std::vector<int> used;
   std::vector<char> in_used;
-  std::vector<double> positions_us, blocks_us;
+  std::vector<double> positions_us, blocks_us, whole_us, block_major_us;
   double candidate_sum = 0, used_sum = 0, load_sum = 0;
+  // PALPATE_BENCH_LAYOUTS=1 (float64 files): the positions also read two
+  // other ways, timed the same way: every vertex's, each load's columns
+  // read whole (whole_columns_*), and the candidates' from a copy of G
+  // whose 3 × 3 blocks are contiguous, G^{vl} at 9 (l n + v) (block_major_*;
+  // a layout the engine does not have, 346 MB more on h8).
+  std::vector<double> block_major;
+  Eigen::VectorXd whole;
   double sink = 0;
 
   void measure(const palpate::SurfaceModel& m, const ToolContactEngine& engine,
@@ -160,6 +168,35 @@ struct Floor {
                           f;
     }
     const auto middle = std::chrono::steady_clock::now();
+    if (!block_major.empty()) {
+      // Every vertex, each load's three columns read whole, in order.
+      whole.setZero();
+      const auto from = std::chrono::steady_clock::now();
+      for (std::size_t l = 0; l < index.size(); ++l) {
+        const Vector3d f(force[3 * l], force[3 * l + 1], force[3 * l + 2]);
+        whole.noalias() +=
+            Eigen::Map<const Eigen::MatrixXd>(m.G.data() + 3 * index[l] * ld, ld, 3) * f;
+      }
+      const auto to = std::chrono::steady_clock::now();
+      whole_us.push_back(std::chrono::duration<double, std::micro>(to - from).count());
+      sink += whole.sum();
+      // The candidates' blocks, each contiguous.
+      std::vector<Vector3d> v(candidates.size(), Vector3d::Zero());
+      const auto block_from = std::chrono::steady_clock::now();
+      for (std::size_t l = 0; l < index.size(); ++l) {
+        const Vector3d f(force[3 * l], force[3 * l + 1], force[3 * l + 2]);
+        const double* blocks = block_major.data() +
+                               9 * static_cast<std::size_t>(index[l]) * static_cast<std::size_t>(n);
+        for (std::size_t j = 0; j < candidates.size(); ++j)
+          v[j].noalias() += Eigen::Map<const Eigen::Matrix3d>(
+                                blocks + 9 * static_cast<std::size_t>(candidates[j])) *
+                            f;
+      }
+      const auto block_to = std::chrono::steady_clock::now();
+      block_major_us.push_back(
+          std::chrono::duration<double, std::micro>(block_to - block_from).count());
+      for (std::size_t j = 0; j < v.size(); ++j) sink += (v[j] - u[j]).norm();
+    }
     for (const auto& v : u) sink += v.x();
     used.clear();
     in_used.assign(static_cast<std::size_t>(n), 0);
@@ -196,6 +233,13 @@ struct Floor {
     state.counters["floor_p50_us"] = q(both, 0.5);
     state.counters["floor_p99_us"] = q(both, 0.99);
     state.counters["floor_positions_p50_us"] = q(positions_us, 0.5);
+    state.counters["floor_positions_p99_us"] = q(positions_us, 0.99);
+    if (!block_major_us.empty()) {
+      state.counters["whole_columns_p50_us"] = q(whole_us, 0.5);
+      state.counters["whole_columns_p99_us"] = q(whole_us, 0.99);
+      state.counters["block_major_p50_us"] = q(block_major_us, 0.5);
+      state.counters["block_major_p99_us"] = q(block_major_us, 0.99);
+    }
     state.counters["floor_G_UU_p50_us"] = q(blocks_us, 0.5);
     state.counters["floor_candidates"] = candidate_sum / ticks;
     state.counters["floor_U"] = used_sum / ticks;
@@ -242,6 +286,16 @@ void run_gesture(benchmark::State& state, int tools, const std::vector<Keyframe>
   changed_us.reserve(tick_us.capacity());
   std::uint64_t extra_solves = 0;
   Floor reads;
+  if (const char* b = std::getenv("PALPATE_BENCH_LAYOUTS");
+      floor && b != nullptr && std::string(b) == "1" && !m.float32() && m.G.size() > 0) {
+    const auto n = static_cast<std::size_t>(m.compliance_vertex_count());
+    reads.block_major.resize(9 * n * n);
+    for (std::size_t l = 0; l < n; ++l)
+      for (std::size_t v = 0; v < n; ++v)
+        Eigen::Map<Eigen::Matrix3d>(reads.block_major.data() + 9 * (l * n + v)) =
+            m.G_block(static_cast<Eigen::Index>(v), static_cast<Eigen::Index>(l));
+    reads.whole.resize(m.G.rows());
+  }
   std::uint64_t sequence = 0, contacts = 0, failures = 0;
   int max_contacts = 0;
   double now = 0;
