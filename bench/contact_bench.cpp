@@ -56,6 +56,7 @@
 #include <vector>
 
 #include "common.hpp"
+#include "palpate/core/statistics.hpp"
 #include "palpate/core/system_info.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
@@ -197,9 +198,7 @@ void run_gesture(benchmark::State& state, int tools, const std::vector<Keyframe>
     }
   }
   std::sort(tick_us.begin(), tick_us.end());
-  auto at = [&](double q) {
-    return tick_us[static_cast<std::size_t>(q * static_cast<double>(tick_us.size() - 1) + 0.5)];
-  };
+  auto at = [&](double q) { return palpate::sorted_percentile(tick_us, q); };
   state.counters["p50_us"] = at(0.5);
   state.counters["p99_us"] = at(0.99);
   state.counters["p999_us"] = at(0.999);
@@ -216,9 +215,8 @@ void run_gesture(benchmark::State& state, int tools, const std::vector<Keyframe>
     return v.empty() ? 0.0 : sum / static_cast<double>(v.size());
   };
   const auto quantile = [](std::vector<double>& v, double q) {
-    if (v.empty()) return 0.0;
     std::sort(v.begin(), v.end());
-    return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5)];
+    return palpate::sorted_percentile(v, q);
   };
   const auto times = engine.solve_times();
   state.counters["first_solve_us"] =

@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "palpate/core/statistics.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
 
@@ -141,7 +142,7 @@ struct TickFloor {
     for (std::size_t i = 0; i < both.size(); ++i) both[i] = positions_us[i] + blocks_us[i];
     const auto q = [](std::vector<double> v, double at) {
       std::sort(v.begin(), v.end());
-      return v[static_cast<std::size_t>(at * static_cast<double>(v.size() - 1) + 0.5)];
+      return palpate::sorted_percentile(v, at);
     };
     const auto ticks = static_cast<double>(positions_us.size());
     state.counters["floor_p50_us"] = q(both, 0.5);
