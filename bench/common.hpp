@@ -40,4 +40,10 @@ inline std::string take_model_path(int& argc, char** argv) {
   return env != nullptr ? env : "";
 }
 
+/// Whether environment variable @p name is set to "1" (a benchmark's option).
+inline bool env_is_one(const char* name) {
+  const char* value = std::getenv(name);
+  return value != nullptr && std::string(value) == "1";
+}
+
 }  // namespace palpate::bench

@@ -51,7 +51,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -143,16 +142,7 @@ void run_gesture(benchmark::State& state, int tools, const std::vector<Keyframe>
   changed_us.reserve(tick_us.capacity());
   std::uint64_t extra_solves = 0;
   palpate::bench::TickFloor reads;
-  if (const char* b = std::getenv("PALPATE_BENCH_LAYOUTS");
-      floor && b != nullptr && std::string(b) == "1" && !m.float32() && m.G.size() > 0) {
-    const auto n = static_cast<std::size_t>(m.compliance_vertex_count());
-    reads.block_major.resize(9 * n * n);
-    for (std::size_t l = 0; l < n; ++l)
-      for (std::size_t v = 0; v < n; ++v)
-        Eigen::Map<Eigen::Matrix3d>(reads.block_major.data() + 9 * (l * n + v)) =
-            m.G_block(static_cast<Eigen::Index>(v), static_cast<Eigen::Index>(l));
-    reads.whole.resize(m.G.rows());
-  }
+  if (floor && palpate::bench::env_is_one("PALPATE_BENCH_LAYOUTS")) reads.time_layouts_too(m);
   std::uint64_t sequence = 0, contacts = 0, failures = 0;
   int max_contacts = 0;
   double now = 0;
@@ -332,9 +322,8 @@ int main(int argc, char** argv) {
   }
   palpate::ensure_optimized_blas(argv);
   // PALPATE_BENCH_FLOAT32=1: a float32 file's G stays float32 in memory.
-  const char* float32 = std::getenv("PALPATE_BENCH_FLOAT32");
-  const palpate::SurfaceModel model =
-      palpate::load_surface_model("bench", path, float32 != nullptr && std::string(float32) == "1");
+  const palpate::SurfaceModel model = palpate::load_surface_model(
+      "bench", path, palpate::bench::env_is_one("PALPATE_BENCH_FLOAT32"));
   g_model = &model;
   benchmark::Initialize(&argc, argv);
   benchmark::AddCustomContext("model", path);

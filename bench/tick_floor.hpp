@@ -42,6 +42,19 @@ struct TickFloor {
   Eigen::VectorXd whole;
   double sink = 0;
 
+  /// Also times the positions read the two other ways (allocates the copy
+  /// of G; nothing for a float32 model).
+  void time_layouts_too(const palpate::SurfaceModel& m) {
+    if (m.float32() || m.G.size() == 0) return;
+    const auto n = static_cast<std::size_t>(m.compliance_vertex_count());
+    block_major.resize(9 * n * n);
+    for (std::size_t l = 0; l < n; ++l)
+      for (std::size_t v = 0; v < n; ++v)
+        Eigen::Map<Eigen::Matrix3d>(block_major.data() + 9 * (l * n + v)) =
+            m.G_block(static_cast<Eigen::Index>(v), static_cast<Eigen::Index>(l));
+    whole.resize(m.G.rows());
+  }
+
   void measure(const palpate::SurfaceModel& m, const palpate::ToolContactEngine& engine,
                const Eigen::Vector3d& centre, double reach_m) {
     const auto points = engine.contact_points();
