@@ -1,5 +1,5 @@
 // How close what a device renders between palpated's answers is to what it
-// should feel (issue 19; docs/model.md, "Rendering between answers: the
+// should feel (issue 19; docs/model/rendering.md, "Rendering between answers: the
 // local model and passivity"; BENCHMARKS.md, "Rendering between answers").
 //
 // Each gesture (config/gestures/*.toml, its first tool, palpated's default
@@ -93,7 +93,7 @@ struct Result {
   int set_changes = 0;  // ticks where the reference's contact count changes
   double rms_fast = 0;  // one engine at 4 kHz against the reference
   // The same RMS without the 20 ms after a change of the reference's
-  // contact set: what the local model cannot know (docs/model.md).
+  // contact set: what the local model cannot know (docs/model/rendering.md).
   double rms_local_steady = 0, rms_held_steady = 0;
 };
 

@@ -1,4 +1,4 @@
-// In-process request rates of the run-time model (docs/model.md, "The reduced system of a
+// In-process request rates of the run-time model (docs/model/requests.md, "The reduced system of a
 // request"): what ConstraintSolver sustains on one core for k imposed displacements on a clustered
 // patch, before any transport. Three cases per k = 1, 3, 10, 20:
 //

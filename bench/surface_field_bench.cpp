@@ -1,4 +1,4 @@
-// Why the full surface field u_S = G_SC F_C (docs/model.md, "The surface field") runs at
+// Why the full surface field u_S = G_SC F_C (docs/model/surface-field.md) runs at
 // the rate it does, and what would make it faster: the same product done
 // several ways on the same model, forces and patch, timed side by side.
 //

@@ -1,4 +1,4 @@
-// What a warped request costs against the linear one, same run (docs/model.md,
+// What a warped request costs against the linear one, same run (docs/model/warped.md,
 // "Large rotations: warped compliance"): a lift of the k = 6 compliance vertices
 // nearest the surface point farthest from the attachment, rotated by θ about
 // the axis through the attachment's centroid perpendicular to the point's

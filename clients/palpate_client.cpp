@@ -168,7 +168,7 @@ double percentile(std::vector<double> values, double q) {
 }
 
 /// Press the top of the organ, pinch a triangle, slide along the surface,
-/// release: the gestures of docs/model.md ("Tool contacts") at the haptic rate, with the forces.
+/// release: the gestures of docs/model/contact.md at the haptic rate, with the forces.
 int demo(palpate::Client& client, const std::string& model_id, std::uint32_t domain, double rate_hz,
          int repeat) {
   const palpate::ModelInfo m = connect(client, model_id, domain);

@@ -21,7 +21,7 @@
 #                                    config/gestures/cut.toml, with no job given, runs
 #                                    the cut demo)
 #              PALPATE_DEMO_WARPING  "linear" (default) or "warped": the model's
-#                                    mechanics (palpated --warp, docs/model.md,
+#                                    mechanics (palpated --warp, docs/model/warped.md,
 #                                    "Large rotations: warped compliance")
 #              PALPATE_DEMO_NETNS    "private" (default) or "host" (below)
 #              PALPATE_BUILD_DIR     the build directory (default build)

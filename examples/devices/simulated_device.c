@@ -238,7 +238,7 @@ int main(int argc, char** argv) {
       /* Free: the tip a clear 5 mm outside the rest surface, and palpated
        * has said so for 20 ms (a touch's force, slew limited at 500 N/s,
        * is gone by then): nothing is rendered but the damping that pays
-       * back an energy debt the touch left (docs/model.md, passivity). */
+       * back an energy debt the touch left (docs/model/rendering.md, passivity). */
       if (!state.has_answer || state.tool_state != PALPATE_DEVICE_FREE)
         free_since = -1;
       else if (free_since < 0)

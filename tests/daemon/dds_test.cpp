@@ -212,7 +212,7 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
 // A model served with warping = "warped" says so in its description and
 // answers requests as the library's WarpedSolver does in process (the same
 // code on the same file: to round-off), which differs from the linear
-// answer for a lift of the free end (docs/model.md, "Large rotations").
+// answer for a lift of the free end (docs/model/warped.md, "Large rotations").
 TEST_F(PalpatedTest, AWarpedModelSaysSoAndAnswersAsTheWarpedSolver) {
   auto client = connect("warped");
   EXPECT_EQ(box_info(*client).mechanics, "linear");

@@ -179,7 +179,7 @@ TEST_F(RegionStream, AProbeFeelsTheRegionAndAHookCutsIt) {
   // A 4 mm sphere 2 mm into the region's top at (80, 32) mm, a region vertex
   // off Γ and 16 mm from the rest's top faces: only the region is touched.
   // The region pushes the probe up, by at most k · 2 mm (the vertex moves
-  // away: docs/model.md, "The hybrid model as served").
+  // away: docs/model/hybrid-serving.md, "The hybrid model as served").
   const Eigen::Vector3d touch(0.080, 0.032, 0.048 + 0.004 - 0.002);
   for (int i = 0; i <= 20; ++i)
     hand.pose("probe", touch + Eigen::Vector3d(0, 0, 0.002 - i * 1e-4), 0);

@@ -1,7 +1,7 @@
 // Haptic tools end to end: the real palpated, real Cyclone DDS on loopback
 // (CTest runs this binary in a private network namespace), poses sent by a
 // ToolClient at the haptic rate, feedback checked against the direct solves
-// of docs/model.md on G read from the compliance file. The fixture:
+// of docs/model/requests.md on G read from the compliance file. The fixture:
 // tools_over_dds.hpp.
 
 #include "tools_over_dds.hpp"
@@ -28,7 +28,7 @@ TEST_F(ToolsOverDdsTest, PressingGivesTheDirectSolveAndWithdrawingGivesNothing) 
     ASSERT_TRUE(probe.last) << daemon_->log();
     EXPECT_GT(probe.force().norm(), previous * 1.2) << "depth " << d;
     previous = probe.force().norm();
-    // docs/model.md: at the vertex alone, G_vv f = u_v with u_v = −d e_z and
+    // docs/model/requests.md: at the vertex alone, G_vv f = u_v with u_v = −d e_z and
     // the probe feels −f. The tip also meets the triangles that the dip
     // around v tilts towards it (docs/tools.md, "Tip contacts"): a few
     // per cent more, never less (the exact joint solve is checked in

@@ -4,7 +4,7 @@
 // probe and two graspers, real Cyclone DDS on loopback (CTest runs the
 // binary in a private network namespace), one ToolClient driving the tools
 // at the haptic rate, a Client watching the surface stream, and G read from
-// the compliance file for the direct solves of docs/model.md.
+// the compliance file for the direct solves of docs/model/requests.md.
 
 #include <gtest/gtest.h>
 

@@ -85,8 +85,8 @@ TEST(ElementStiffness, EqualsTextbookBtDB) {
 }
 
 TEST(ElementStiffness, LectureFormulaWithSwappedIndicesIsTheTransposeAndWrong) {
-  // Documents the lecture's mistake (docs/model.md): swapping j and k in the first two terms
-  // transposes each off-diagonal block, which differs when λ ≠ μ.
+  // Documents the lecture's mistake (docs/model/elasticity.md): swapping j and k in the first two
+  // terms transposes each off-diagonal block, which differs when λ ≠ μ.
   Matrix43d P;
   P << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
   const Lame m = lame_parameters(1e5, 0.45);

@@ -374,7 +374,7 @@ OutsideCompliance outside_compliance(const RegionSplit& split,
       PALPATE_DEMAND(false);  // a boundary vertex of the outside is on Γ or the organ's surface
   }
 
-  // S = G_ΓΓ⁻¹ (docs/model.md, "The hybrid model"): the outside's Schur
+  // S = G_ΓΓ⁻¹ (docs/model/hybrid-region.md, "The hybrid model"): the outside's Schur
   // complement onto Γ, the stiffness the region feels at its interface.
   const Eigen::MatrixXd Ggg = vertex_block(result.G, result.interface, result.interface);
   result.interface_compliance = 0.5 * (Ggg + Ggg.transpose());

@@ -146,7 +146,7 @@ double streamed_memory_bytes(int n, int m, int block, int threads, double k_byte
 double in_memory_bytes(Method method, int n, int m, int block, double k_bytes,
                        double solves_factor_bytes, double condensation_factor_bytes);
 
-/// Largest relative residual or column mismatch accepted (docs/model.md,
+/// Largest relative residual or column mismatch accepted (docs/model/compliance.md,
 /// "Checks before a file is written").
 inline constexpr double kMaxResidual = 1e-6;
 

@@ -2,7 +2,7 @@
 """A finite-element contact solution of a rigid sphere pressed into an organ,
 written from the physics in numpy/scipy: it shares no code with palpate.
 
-The problem (docs/model.md, "An independent check of the contact"): the
+The problem (docs/model/contact-reference.md, "An independent check of the contact"): the
 organ is the tetrahedral mesh of a compliance file, linear elastic on P1
 tetrahedra (E, nu per tetrahedron), its attached vertices fixed. A rigid,
 frictionless sphere of radius r, centre c, is pushed into it. The

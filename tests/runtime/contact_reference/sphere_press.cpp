@@ -1,4 +1,4 @@
-// palpate's side of the independent contact check (docs/model.md, "An
+// palpate's side of the independent contact check (docs/model/contact-reference.md, "An
 // independent check of the contact"; tests/runtime/contact_reference/): a
 // frictionless rigid sphere pressed into the organ through
 // ToolContactEngine's public interface, printed as JSON for

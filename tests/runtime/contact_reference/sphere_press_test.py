@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """palpate's sphere press against an independent finite-element contact
-solution (issue 17; docs/model.md, "An independent check of the contact").
+solution (issue 17; docs/model/contact-reference.md, "An independent check of the contact").
 
 Makes the sample organ (8 mm tetrahedra, the demo's materials and attachment),
 presses a frictionless rigid 5 mm sphere into it at three points, and a 20 mm
@@ -34,7 +34,7 @@ Tolerances, per press (force along the press, relative to the reference):
   4 and 5 mm the cycle's mean is 7 % and 13 % below the reference (every tick
   of the cycle is below it, and its triangles are penetrated by up to 0.8 mm):
   the 10 % target is not met there, and the test holds it to 20 % so that it
-  fails if this gets worse (docs/model.md explains the cycle).
+  fails if this gets worse (docs/model/contact-reference.md explains the cycle).
 
 Usage: sphere_press_test.py PRECOMPUTE SPHERE_PRESS
 """

@@ -1,4 +1,4 @@
-// palpate's side of the large-rotation check (docs/model.md, "Large
+// palpate's side of the large-rotation check (docs/model/warped.md, "Large
 // rotations: warped compliance"; tests/runtime/nonlinear_reference/): a patch
 // of surface vertices grasped and lifted along a rotation, answered by the
 // request path (imposed displacements) in the linear and the warped model,

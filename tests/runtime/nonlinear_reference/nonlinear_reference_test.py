@@ -21,14 +21,14 @@ with palpate-precompute, and checks, with tolerances:
    degrees away from it.
 With PALPATE_LIFT (tests/runtime/nonlinear_reference/lift_palpate.cpp),
 palpate's own answers to the same `pinch` lift through its request path
-(docs/model.md, "Large rotations: warped compliance"):
+(docs/model/warped.md, "Large rotations: warped compliance"):
 6. its linear force equals W^-1 d above: < 1e-9 relative (the same grasp,
    the same G);
 7. its warped force at 5 degrees: magnitude within 5 %, direction within
    5 degrees of the nonlinear one (measured +1 %, 4 degrees);
 8. at 15 degrees: magnitude within 20 % (the issue's target; measured
    +19 %) and direction within 16 degrees (the target is 15; measured
-   15.1: missed by 0.1 degree, stated in docs/model.md);
+   15.1: missed by 0.1 degree, stated in docs/model/warped.md);
 9. at every angle either an answer whose error is under a fifth of the
    linear one's, or a refusal (ill_conditioned: the fixed point did not
    settle, at 30 degrees and beyond for this 6-vertex pinch), never a

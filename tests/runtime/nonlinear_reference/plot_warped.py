@@ -7,7 +7,7 @@ FLAP.h5 is the flap of flap_mesh.py (3.33 mm) precomputed by palpate; the
 nonlinear forces are the ones recorded in flap_reference.md and
 liver_reference.md (this directory; they take 10-75 s to recompute with
 lift.py). palpate's answers are computed now by PALPATE_LIFT
-(lift_palpate.cpp) for the same grasps. docs/model.md, "Large rotations:
+(lift_palpate.cpp) for the same grasps. docs/model/warped.md, "Large rotations:
 warped compliance", shows the result.
 """
 

@@ -21,7 +21,7 @@ struct ModelEntry {
   std::string id;              ///< what requests name; 1..63 characters [A-Za-z0-9_.-]
   std::filesystem::path file;  ///< compliance file (HDF5)
   /// Large rotations: the linear model, or warped compliance for its
-  /// requests, its tools and its surface stream (docs/model.md, "Large
+  /// requests, its tools and its surface stream (docs/model/warped.md, "Large
   /// rotations: warped compliance").
   bool warped = false;
 };

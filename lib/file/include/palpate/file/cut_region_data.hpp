@@ -3,7 +3,7 @@
 /// The cuttable region of the hybrid model as the compliance file stores it
 /// (the group /cut_region, format 1.3; docs/compliance-file.md): what the run
 /// time's tensor-mass model needs, in plain arrays, so that the file layer
-/// knows nothing of how precompute chose or computed it (docs/model.md, "The
+/// knows nothing of how precompute chose or computed it (docs/model/hybrid-region.md, "The
 /// hybrid model: a cuttable region and the precomputed rest").
 
 #include <string>

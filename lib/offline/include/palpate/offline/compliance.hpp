@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The surface compliance G_SS = (K⁻¹)_SS by the two methods of docs/model.md
+/// The surface compliance G_SS = (K⁻¹)_SS by the two methods of docs/model/compliance.md
 /// ("Surface compliance"): 3N_S solves, and condensation (Schur complement).
 ///
 /// The stiffness is numbered surface-first (fem.hpp, DofMap): DOFs [0, m) are

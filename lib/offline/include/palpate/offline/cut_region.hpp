@@ -4,7 +4,7 @@
 /// of the organ, simulated at run time by a tensor-mass model, and the
 /// precomputed compliance of the rest of the organ (the "outside") on its
 /// boundary, the interface Γ with the region and its part of the organ's
-/// surface (docs/model.md, "The hybrid model: a cuttable region and the
+/// surface (docs/model/hybrid-region.md, "The hybrid model: a cuttable region and the
 /// precomputed rest"; S. Cotin, H. Delingette & N. Ayache, "A hybrid elastic
 /// model for real-time cutting, deformations and force feedback for surgery
 /// training and simulation", The Visual Computer 16(8), 2000).

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// Linear elasticity on P1 tetrahedra: Lamé parameters, the element
-/// stiffness, and the assembled global stiffness K (docs/model.md, "Linear
+/// stiffness, and the assembled global stiffness K (docs/model/elasticity.md, "Linear
 /// elasticity on P1 tetrahedra", "Global stiffness and the attachment";
 /// Cotin, Delingette & Ayache, IEEE TVCG 5(1), 1999).
 

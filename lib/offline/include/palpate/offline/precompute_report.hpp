@@ -88,7 +88,7 @@ struct ColumnsReport {
   std::optional<double> columns_per_second;
 };
 
-/// The checks that decide whether a file is written (docs/model.md,
+/// The checks that decide whether a file is written (docs/model/compliance.md,
 /// "Checks before a file is written").
 struct ChecksReport {
   double max_residual = 0;         ///< max ‖K u − e_j‖ over sampled columns, ‖e_j‖ = 1

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The run-time algebra of the precomputed model (docs/model.md, "The reduced system of a
+/// The run-time algebra of the precomputed model (docs/model/requests.md, "The reduced system of a
 /// request"): constraints on a few surface vertices in, forces and displacements out, by a small
 /// dense SPD solve on the compliance G. Allocation-free after construction, no exceptions: every
 /// failure is a RequestStatus.
@@ -59,7 +59,7 @@ struct SolverLimits {
 ///
 ///     (Bᵀ P B) φ = b − (P B)ᵀ f_known,
 ///
-/// m ≤ 3k (docs/model.md, "The reduced system of a request"). The Cholesky
+/// m ≤ 3k (docs/model/requests.md, "The reduced system of a request"). The Cholesky
 /// factor of Bᵀ P B depends only on the points (vertices and weights), their
 /// kinds and normals; it is kept in one of `cache_slots` slots and reused
 /// while they stay the same, so that a tool holding tissue pays two
@@ -195,7 +195,7 @@ class ConstraintSolver {
 };
 
 /// u_S = G_SC f_C: the displacement of every compliance vertex under forces
-/// on the vertices @p indices (docs/model.md, "The surface field"). 3N_S × 3k flops × 2.
+/// on the vertices @p indices (docs/model/surface-field.md). 3N_S × 3k flops × 2.
 /// @param forces_n 3 per index, N
 /// @param u_m receives 3N_S displacements, m
 void surface_displacement(const Eigen::MatrixXd& G, std::span<const int> indices,

@@ -2,7 +2,7 @@
 /// @file
 /// What a haptic device renders between palpated's answers, at its own rate
 /// (docs/pliers.md, "Rendering at the device's rate"; the physics in
-/// docs/model.md, "Rendering between answers: the local model and
+/// docs/model/rendering.md, "Rendering between answers: the local model and
 /// passivity").
 ///
 /// palpated answers each pose of a tool with the contact wrench at that pose

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The local rotation of the surface, for warped compliance (docs/model.md,
+/// The local rotation of the surface, for warped compliance (docs/model/warped.md,
 /// "Large rotations: warped compliance"). A linear operator from the
 /// displacement of the compliance vertices to a rotation vector ω at each
 /// of them, and the rotation matrices made from ω.
@@ -91,7 +91,7 @@ class RotationField {
 
 /// ρ = @p edges × the median edge of the surface's triangles among
 /// compliance vertices. Requests: kRequestEdges (the flap's checks against
-/// a nonlinear reference, docs/model.md: 1.2 to 1.5 edges meet the 15°
+/// a nonlinear reference, docs/model/warped.md: 1.2 to 1.5 edges meet the 15°
 /// target, larger radii average the bend away). The contact engine:
 /// kToolEdges (it takes each tick's rotations from the previous tick, without
 /// the requests' relaxation, and at 1.5 or 3 edges a grasped flap swung up

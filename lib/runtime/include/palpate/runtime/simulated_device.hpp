@@ -2,7 +2,7 @@
 /// @file
 /// A haptic device's handle held by a human hand, simulated: what the
 /// rendering of palpated's answers is tested and measured against
-/// (docs/model.md, "Rendering between answers: the local model and
+/// (docs/model/rendering.md, "Rendering between answers: the local model and
 /// passivity"; tests/runtime/passivity_test.cpp).
 ///
 /// The handle is a mass m_d with viscous damping b_d (the device's own

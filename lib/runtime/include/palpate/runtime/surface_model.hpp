@@ -35,7 +35,7 @@ struct SurfaceModel {
   std::string input_hash;        ///< "sha256:<hex>", from the file
   /// The file's cuttable region (/cut_region, format 1.3), as the job chose
   /// it, or empty. Such a file's mesh and G are the organ without that
-  /// region, which palpated steps beside it (HybridRegion; docs/model.md,
+  /// region, which palpated steps beside it (HybridRegion; docs/model/hybrid-serving.md,
   /// "The hybrid model as served").
   std::string cut_region_spec;
   /// The region itself (null without one): what HybridRegion steps.

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The surface field u_S = G_SC f_C (docs/model.md, "The surface field"), the one
+/// The surface field u_S = G_SC f_C (docs/model/surface-field.md, "The surface field"), the one
 /// memory-bound product of the run time: it reads 3N_S × 3k doubles of G per
 /// request (3.2 MB for k = 20 on a 2,192-vertex surface), more than one
 /// core's L2 cache. Split by rows over two cores, each half stays in its

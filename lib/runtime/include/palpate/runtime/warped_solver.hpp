@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Requests on a warped model (docs/model.md, "Large rotations: warped
+/// Requests on a warped model (docs/model/warped.md, "Large rotations: warped
 /// compliance"): the same constraints as ConstraintSolver, answered with the
 /// compliance rotated into each surface point's local frame.
 

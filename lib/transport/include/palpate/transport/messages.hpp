@@ -23,7 +23,7 @@ struct ModelInfo {
   /// What a request may give on this model; larger is refused. 0 from a
   /// palpated older than these fields (unknown).
   double max_displacement_m = 0, max_force_n = 0;
-  /// "linear", or "warped" (large rotations, docs/model.md); "linear" from
+  /// "linear", or "warped" (large rotations, docs/model/warped.md); "linear" from
   /// a palpated older than the field.
   std::string mechanics = "linear";
   /// The compliance file's cuttable region as its job chose it, when
