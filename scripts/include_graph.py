@@ -8,7 +8,10 @@ docs/architecture.md: a unit of a layer includes only units of its own
 layer or of the layers beneath it (core < file < offline, runtime <
 transport < daemon, device; offline and runtime do not include each other,
 nor do daemon and device), and the programs include only the library's
-public headers.
+public headers. Inside the runtime, the same rule holds between its rooms
+(lib/runtime/src/<room>/, lib/runtime/internal/palpate/runtime/<room>/):
+a room includes only rooms of a lower rank (ROOMS below) and itself;
+rooms of one rank do not include each other.
 
     scripts/include_graph.py [ROOT]          # the numbers, then the rule
     scripts/include_graph.py --check [ROOT]  # exit 1 if the rule is broken
@@ -29,6 +32,11 @@ LAYERS = {"core": 0, "file": 1, "offline": 2, "runtime": 2, "transport": 3, "dae
 # Layers of one rank that must not include each other.
 SIBLINGS = {("offline", "runtime"), ("runtime", "offline"), ("daemon", "device"),
             ("device", "daemon")}
+# The runtime's rooms by rank (docs/architecture.md, "Rooms of the runtime").
+ROOMS = {"model": 0, "solve": 1, "warp": 2, "contact": 3, "region": 3, "haptics": 4,
+         "recording": 4, "scripted": 4, "tick": 5}
+# Public runtime headers with no source of their own: their room.
+PUBLIC_ROOMS = {"tool_geometry": "model"}
 SOURCE_DIRS = ["lib", "precompute", "server", "clients", "viewer", "bench", "fuzz", "examples"]
 EXTENSIONS = (".cpp", ".hpp", ".h", ".c")
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)
@@ -70,6 +78,23 @@ def layer_of(path):
     return None
 
 
+def room_of(path, stem_unit):
+    """The runtime room of a file of lib/runtime, or None for another layer.
+    A public header is in the room of its unit's source."""
+    parts = path.split(os.sep)
+    if parts[:2] != ["lib", "runtime"]:
+        return None
+    if parts[2] == "src" and len(parts) > 4:
+        return parts[3]
+    if parts[2] == "internal" and len(parts) > 5:
+        return parts[5]
+    stem = os.path.basename(unit(path))
+    source = stem_unit.get(stem)
+    if source is not None and source != unit(path):
+        return room_of(source + ".cpp", stem_unit)
+    return PUBLIC_ROOMS.get(stem, "?")
+
+
 def main(argv):
     check = "--check" in argv
     programs_as_one = "--programs-as-one" in argv
@@ -109,6 +134,15 @@ def main(argv):
             la, lb = layer_of(f), layer_of(target)
             if la and lb and (LAYERS[lb] > LAYERS[la] or (la, lb) in SIBLINGS):
                 broken.append(f"{f} includes {target}: layer {la} may not include {lb}")
+            ra, rb = room_of(f, stem_unit), room_of(target, stem_unit)
+            if ra and rb:
+                if "?" in (ra, rb) or ra not in ROOMS or rb not in ROOMS:
+                    broken.append(f"{f} includes {target}: a runtime file outside the rooms "
+                                  f"{sorted(ROOMS)} (a public header needs a source or an entry "
+                                  f"in PUBLIC_ROOMS)")
+                elif ra != rb and ROOMS[rb] >= ROOMS[ra]:
+                    broken.append(f"{f} includes {target}: room {ra} (rank {ROOMS[ra]}) may not "
+                                  f"include room {rb} (rank {ROOMS[rb]})")
             if la is None and lb and os.sep + "include" + os.sep not in target:
                 broken.append(f"{f} includes {target}: programs include public headers only")
 
@@ -131,7 +165,8 @@ def main(argv):
         for b in broken:
             print("  " + b)
     else:
-        print("layer rule kept: no include from a lower layer to a higher one")
+        print("layer rule kept: no include from a lower layer to a higher one, nor from a "
+              "lower room of the runtime to a higher one")
     return 1 if (check and broken) else 0
 
 

@@ -156,21 +156,8 @@ ServedModel::ServedModel(SurfaceModel loaded, const Options& config, bool warped
         model.surface, default_smoothing_radius(model.surface, kToolEdges));
     warped_solver = std::make_unique<WarpedSolver>(model, request_limits, *request_field);
   }
-  const auto k = 3 * static_cast<std::size_t>(config.limits.max_constraints);
-  tools.engine = std::make_unique<ToolContactEngine>(model, config.tools, config.contact,
-                                                     config.limits, tool_field.get());
-  tools.record_vertices.resize(k);
-  tools.posed_s.assign(config.tools.size(), -1.0);
-  tools.blades.assign(config.tools.size(), Blade{});
-  tools.blade_live.assign(config.tools.size(), 0);
-  tools.region_tips.reserve(config.tools.size());
-  tools.region_tip_tools.reserve(config.tools.size());
-  if (region) {
-    for (int t = 0; t < model.surface.triangle_count(); ++t)
-      tools.engine->set_triangle_hidden(t, region->covers_rest_triangle(t));
-    tools.engine->reserve_background_loads(static_cast<int>(region->interface_vertices().size()));
-  }
-  tools.record_forces.resize(3 * k);
+  tools.tick = std::make_unique<ToolTick>(model, config.tools, config.contact, config.limits,
+                                          tool_field.get(), region.get());
   for (const ToolGeometry& tool : config.tools)
     tools.ids += (tools.ids.empty() ? "" : ", ") + tool.id;
   if (config.record_directory.empty()) return;

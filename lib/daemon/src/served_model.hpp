@@ -18,6 +18,7 @@
 #include "palpate/runtime/session_recorder.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
+#include "palpate/runtime/tool_tick.hpp"
 #include "palpate/runtime/warped_solver.hpp"
 #include "pi_mutex.hpp"
 
@@ -39,7 +40,7 @@ class ShownState {
     char source[64] = {};              // client id, or "tool:<id>"
     std::uint64_t source_request = 0;
     double total_force[3] = {};
-    /// The served cut region's part (docs/model.md, "The hybrid model as
+    /// The served cut region's part (docs/model/hybrid-serving.md, "The hybrid model as
     /// served"); all counts 0 without one.
     struct Region {
       /// 0: no region; else 1 + HybridRegion::topology_version(): changes
@@ -109,11 +110,11 @@ struct ServedModel {
   /// file starts now, before any pose, so that the pose listener never creates a file (a recorder
   /// that cannot start is logged and the model served without).
   /// @p warped: warped compliance for the requests, the tools and the
-  /// stream (docs/model.md, "Large rotations: warped compliance").
+  /// stream (docs/model/warped.md, "Large rotations: warped compliance").
   ServedModel(SurfaceModel loaded, const Options& options, bool warped = false);
 
   SurfaceModel model;
-  /// The file's cut region, stepped in the tools' ticks (under tools.mutex);
+  /// The file's cut region, stepped in the tools' ticks (tools.tick, under tools.mutex);
   /// null without one, or for a warped model (the region is linear).
   std::unique_ptr<HybridRegion> region;
   /// Warped models: the rotations of requests (RotationField at
@@ -128,25 +129,14 @@ struct ServedModel {
   std::unique_ptr<ConstraintSolver> solver;  // the request listener's
   ShownState shown;
 
-  /// The tools acting on the model. The pose listener and the watchdog
-  /// (stream thread) take turns under `mutex`.
+  /// The tools acting on the model: their tick (the contact engine, and the
+  /// cut region stepped in it). The pose listener and the watchdog (stream
+  /// thread) take turns under `mutex`.
   struct Tools {
     PiMutex mutex;
-    std::unique_ptr<ToolContactEngine> engine;
-    std::unique_ptr<SessionRecorder> recorder;   // when recording
-    std::vector<std::uint32_t> record_vertices;  // one tool's contacts, for the recorder
-    std::vector<double> record_forces;
+    std::unique_ptr<ToolTick> tick;
+    std::unique_ptr<SessionRecorder> recorder;  // when recording
     std::string ids;  // the tools' ids, "left, right": for a pose naming another
-    // The cut region's tick (with `region`): when it was last advanced, when
-    // each tool last posed (−1: never), the tips pressing it and their tools.
-    double region_time_s = -1;
-    std::vector<double> posed_s;
-    std::vector<RegionTip> region_tips;
-    std::vector<int> region_tip_tools;
-    // Each cutting tool's edge at its last live pose (rest geometry), and
-    // whether that pose's edge was live: a cut sweeps from there.
-    std::vector<Blade> blades;
-    std::vector<char> blade_live;
   } tools;
 };
 

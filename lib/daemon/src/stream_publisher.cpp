@@ -32,7 +32,7 @@ StreamPublisher::StreamPublisher(Sources sources, const DaemonConfig& config,
     s.vertex_ids.resize(s.shown.indices.size());
     s.contacts.resize(s.shown.points.size());
     // The tools' ids never change: read once, not under the tools' lock.
-    const ToolContactEngine& engine = *served.tools.engine;
+    const ToolContactEngine& engine = served.tools.tick->engine();
     for (int t = 0; t < engine.tool_count(); ++t) s.tool_ids.push_back(engine.tool(t).id);
     // The loads of the displacement field: the tools' and, with a served
     // cut region, its push on the rest at Γ.
@@ -84,7 +84,7 @@ void StreamPublisher::publish_surfaces() {
     const ShownState::Snapshot::Region& region = s.shown.region;
     const auto gamma = static_cast<std::size_t>(region.interface_count);
     // u_S = G_SC f_C + G_SΓ f_Γ, off the request path: the tools' loads, and
-    // the cut region's push on the rest at Γ (docs/model.md, "The hybrid
+    // the cut region's push on the rest at Γ (docs/model/hybrid-region.md, "The hybrid
     // model"; docs/dds.md, "The cut region"). f_Γ is not a tool's: it stays
     // out of the constrained vertices below. (The region is linear: for a
     // warped model its f_Γ enters the material field as the tools' material
@@ -103,7 +103,7 @@ void StreamPublisher::publish_surfaces() {
     const double* forces = s.shown.forces.data();
     if (served.warped()) {
       // The field is the material û: x − p = R̃(ω) û vertex by vertex, and a
-      // load f̂ on vertex v is R̃(ω_v)⁻ᵀ f̂ in the world (docs/model.md,
+      // load f̂ on vertex v is R̃(ω_v)⁻ᵀ f̂ in the world (docs/model/warped.md,
       // "Large rotations: warped compliance").
       served.tool_field->rotations(
           {s.displacement.data(), static_cast<std::size_t>(s.displacement.size())}, s.omega);

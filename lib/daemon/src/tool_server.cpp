@@ -41,7 +41,7 @@ void ToolServer::listen(dds_entity_t participant, const Topics& topics,
   // Each tool's responses and events in its own partition: a station reads
   // its tools' only (not every other station's 1 kHz answers).
   if (!models_.empty()) {
-    const ToolContactEngine& engine = *models_.front()->tools.engine;
+    const ToolContactEngine& engine = models_.front()->tools.tick->engine();
     for (int t = 0; t < engine.tool_count(); ++t) {
       const std::string partition = dds::tool_partition(engine.tool(t).id);
       const char* partitions[] = {partition.c_str()};
@@ -136,7 +136,7 @@ void ToolServer::serve_rendered(dds_entity_t reader) {
       const std::string_view model_id = wire::bounded(rendered.model_id);
       for (const auto& served : models_) {
         if (served->model.id != model_id) continue;
-        const int tool = served->tools.engine->tool_index(wire::bounded(rendered.tool_id));
+        const int tool = served->tools.tick->engine().tool_index(wire::bounded(rendered.tool_id));
         if (tool < 0) break;
         const std::lock_guard lock(served->tools.mutex);
         if (!served->tools.recorder) break;
@@ -178,7 +178,8 @@ void ToolServer::take(const palpate_ToolPose& pose) {
         format_message("model '{}' is not served by palpated; served: {}", model_id, served_ids_));
     return;
   }
-  ToolContactEngine& engine = *served->tools.engine;
+  ToolTick& tick = *served->tools.tick;
+  ToolContactEngine& engine = tick.engine();
   const int tool = engine.tool_index(tool_id);
   if (tool < 0) {
     stats_.count_error();
@@ -205,8 +206,16 @@ void ToolServer::take(const palpate_ToolPose& pose) {
     return;
   }
   const double now_s = clock_.seconds();
-  const RequestStatus status = engine.update(tool, input, now_s);
-  if (served->region) step_region(*served, tool, now_s);
+  const RequestStatus status = tick.update(tool, input, now_s);
+  if (tick.cut_tetrahedra() > 0) {
+    const HybridRegion& region = *served->region;
+    spdlog::info(
+        "event=cut tool={} model={} tetrahedra={} remaining={} topology_version={} "
+        "step_us={:.1f} update_rank={}",
+        tool_id, model_id, tick.cut_tetrahedra(), region.tensor_mass().remaining_tetrahedra(),
+        region.topology_version(), region.substep_s() * 1e6, region.update_rank());
+  }
+  if (tick.region_stepped()) served->shown.show_region(*served->region);
   if (status != RequestStatus::kOk)
     warnings_.warn(kSolveFailed,
                    "event=tool_solve_failed tool={} model={} status={} message=\"{}\"", tool_id,
@@ -264,11 +273,11 @@ void ToolServer::take(const palpate_ToolCommand& command) {
   }
   for (const auto& served : models_) {
     if (served->model.id != model_id) continue;
-    ToolContactEngine& engine = *served->tools.engine;
-    const int tool = engine.tool_index(tool_id);
+    ToolTick& tick = *served->tools.tick;
+    const int tool = tick.engine().tool_index(tool_id);
     if (tool < 0) break;
     const std::lock_guard lock(served->tools.mutex);
-    if (engine.end(tool, clock_.seconds())) {
+    if (tick.end(tool, clock_.seconds())) {
       spdlog::info("event=tool_session_ended tool={} model={} last_sequence={}", tool_id, model_id,
                    command.pose_sequence);
       publish(*served, tool, 0);
@@ -279,87 +288,10 @@ void ToolServer::take(const palpate_ToolCommand& command) {
                model_id);
 }
 
-void ToolServer::step_region(ServedModel& served, int tool, double now_s) {
-  HybridRegion& region = *served.region;
-  ServedModel::Tools& tools = served.tools;
-  ToolContactEngine& engine = *tools.engine;
-  const auto tip_of = [&](int t) {
-    const ToolGeometry& g = engine.tool(t);
-    const ToolPoseInput& pose = engine.pose(t);
-    const double length = g.tip == TipShape::kCapsule ? g.tip_length_m : 0.0;
-    return RegionTip{pose.position_m,
-                     pose.position_m + length * (pose.orientation * Eigen::Vector3d::UnitZ()),
-                     g.tip_radius_m};
-  };
-  const ToolGeometry& g = engine.tool(tool);
-  const auto slot = static_cast<std::size_t>(tool);
-  const bool live = g.cutting && engine.pose(tool).jaw_angle_rad <= g.grasp_angle_rad;
-  if (live) {
-    // The edge on the region at rest; it cuts what it swept since its last
-    // live pose (or what it lies in, on the first).
-    const RegionTip edge = tip_of(tool);
-    const Blade now{region.rest_point_of(edge.base_m), region.rest_point_of(edge.end_m)};
-    const Blade before = tools.blade_live[slot] != 0 ? tools.blades[slot] : now;
-    tools.blades[slot] = now;
-    if (const int removed = region.cut(before, now); removed > 0) {
-      for (int t = 0; t < served.model.surface.triangle_count(); ++t)
-        engine.set_triangle_hidden(t, region.covers_rest_triangle(t));
-      spdlog::info(
-          "event=cut tool={} model={} tetrahedra={} remaining={} topology_version={} "
-          "step_us={:.1f} update_rank={}",
-          g.id, served.model.id, removed, region.tensor_mass().remaining_tetrahedra(),
-          region.topology_version(), region.substep_s() * 1e6, region.update_rank());
-    }
-  }
-  tools.blade_live[slot] = live ? 1 : 0;
-  tools.region_tips.clear();
-  tools.region_tip_tools.clear();
-  for (int t = 0; t < engine.tool_count(); ++t) {
-    if (!engine.in_session(t)) continue;
-    tools.region_tips.push_back(tip_of(t));
-    tools.region_tip_tools.push_back(t);
-  }
-  // The region's clock follows the poses: the time since its last step (a
-  // 1 ms tick the first time).
-  const double tick_s = tools.region_time_s < 0 ? 1e-3 : now_s - tools.region_time_s;
-  if (tick_s <= 0) return;
-  tools.region_time_s = now_s;
-  region.advance(tick_s, engine.contact_indices(), engine.contact_forces(), tools.region_tips);
-  // The tools meet the rest as the region pushes it, from the next tick on.
-  const Eigen::VectorXd& push = region.interface_force_n();
-  engine.set_background_loads(region.interface_compliance_indices(),
-                              {push.data(), static_cast<std::size_t>(push.size())},
-                              {region.interface_displacement_m().data(),
-                               static_cast<std::size_t>(region.interface_displacement_m().size())});
-  served.shown.show_region(region);
-}
-
-const ToolOutput& ToolServer::felt(const ServedModel& served, int tool) {
-  const ToolContactEngine& engine = *served.tools.engine;
-  if (!served.region) return engine.output(tool);
-  felt_ = engine.output(tool);
-  const auto& tools = served.tools.region_tip_tools;
-  const auto at = std::find(tools.begin(), tools.end(), tool);
-  if (at == tools.end()) return felt_;
-  const int tip = static_cast<int>(at - tools.begin());
-  const Eigen::Vector3d push = served.region->tip_force_n(tip);
-  if (push.squaredNorm() == 0) return felt_;
-  // The tip's base is the hinge: the torque is about the same point.
-  felt_.force_n += push;
-  felt_.torque_nm += served.region->tip_torque_nm(tip);
-  felt_.local.force_n += push;
-  felt_.local.torque_nm += served.region->tip_torque_nm(tip);
-  const double limit = engine.tool(tool).force_limit_n;
-  if (felt_.force_n.norm() > limit) {
-    felt_.force_n *= limit / felt_.force_n.norm();
-    felt_.force_limited = true;
-  }
-  return felt_;
-}
-
 void ToolServer::publish(ServedModel& served, int tool, std::uint64_t compute_ns) {
-  const ToolContactEngine& engine = *served.tools.engine;
-  const ToolOutput& out = felt(served, tool);
+  ToolTick& tick = *served.tools.tick;
+  const ToolContactEngine& engine = tick.engine();
+  const ToolOutput& out = tick.output(tool);
   const std::string& tool_id = engine.tool(tool).id;
   const ToolWriters* own = static_cast<std::size_t>(tool) < tool_writers_.size()
                                ? &tool_writers_[static_cast<std::size_t>(tool)]
@@ -406,60 +338,16 @@ void ToolServer::publish(ServedModel& served, int tool, std::uint64_t compute_ns
   served.shown.show(engine.contact_indices(), forces, engine.contact_points(), "tool:", tool_id,
                     out.sequence, total);
 
-  if (served.tools.recorder) record(served, tool, compute_ns);
-}
-
-void ToolServer::record(ServedModel& served, int tool, std::uint64_t compute_ns) {
-  const ToolContactEngine& engine = *served.tools.engine;
-  const ToolOutput& out = engine.output(tool);
-  const ToolPoseInput& pose = engine.pose(tool);
-  const double now_s = clock_.seconds();
-  ToolTickRecord tick;
-  tick.time_s = now_s;
-  tick.tool = tool;
-  tick.sequence = out.sequence;
-  tick.send_time_ns = out.send_time_ns;
-  for (int d = 0; d < 3; ++d) {
-    tick.position_m[d] = pose.position_m[d];
-    tick.force_n[d] = out.force_n[d];
-    tick.torque_nm[d] = out.torque_nm[d];
-  }
-  tick.orientation_wxyz[0] = pose.orientation.w();
-  tick.orientation_wxyz[1] = pose.orientation.x();
-  tick.orientation_wxyz[2] = pose.orientation.y();
-  tick.orientation_wxyz[3] = pose.orientation.z();
-  tick.jaw_angle_rad = pose.jaw_angle_rad;
-  tick.grip_n = out.grip_n;
-  tick.state = out.state;
-  tick.watchdog = out.watchdog;
-  tick.force_limited = out.force_limited;
-  tick.held = static_cast<std::uint32_t>(out.held);
-  tick.compute_ns = compute_ns;
-  // This tool's contacts, by mesh vertex id.
-  const auto indices = engine.contact_indices();
-  const auto forces = engine.contact_forces();
-  const auto tools_of = engine.contact_tools();
-  auto& vertices = served.tools.record_vertices;
-  auto& vertex_forces = served.tools.record_forces;
-  std::size_t m = 0;
-  for (std::size_t c = 0; c < indices.size() && m < vertices.size(); ++c) {
-    if (tools_of[c] != tool) continue;
-    vertices[m] = served.model.surface.vertex_ids[static_cast<std::size_t>(indices[c])];
-    std::copy_n(&forces[3 * c], 3, &vertex_forces[3 * m]);
-    ++m;
-  }
-  SessionRecorder& recorder = *served.tools.recorder;
-  recorder.record(tick, {vertices.data(), m}, {vertex_forces.data(), 3 * m});
-  for (int e = 0; e < out.event_count; ++e)
-    recorder.record_event(now_s, tool, out.events[static_cast<std::size_t>(e)], out.sequence);
+  if (served.tools.recorder)
+    tick.record(tool, clock_.seconds(), compute_ns, *served.tools.recorder);
 }
 
 void ToolServer::run_watchdogs() {
   for (const auto& served : models_) {
     const std::lock_guard lock(served->tools.mutex);
-    ToolContactEngine& engine = *served->tools.engine;
-    const std::uint64_t changed = engine.watchdog(clock_.seconds());
-    for (int t = 0; t < engine.tool_count(); ++t)
+    ToolTick& tick = *served->tools.tick;
+    const std::uint64_t changed = tick.watchdog(clock_.seconds());
+    for (int t = 0; t < tick.engine().tool_count(); ++t)
       if (changed >> t & 1) publish(*served, t, 0);
   }
 }

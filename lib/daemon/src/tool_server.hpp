@@ -21,7 +21,8 @@ namespace palpate::daemon {
 /// Serves poses in the pose reader's data-available listener, on Cyclone's
 /// receive thread (or palpated's serving thread), as RequestServer serves
 /// requests: take the pose, check
-/// it, update the model's ToolContactEngine (every tool solved together),
+/// it, update the model's ToolTick (every tool solved together, the cut
+/// region stepped; lib/runtime/src/tick/), convert its output and
 /// write the tool's response (with its local model) in the tool's own
 /// partition, its feedback for older clients and viewers, and its events
 /// (in both), show the contacts, record the tick.
@@ -86,16 +87,6 @@ class ToolServer {
   /// Feedback, events, shown state and recording of tool @p tool after a
   /// tick (with served.tools.mutex held).
   void publish(ServedModel& served, int tool, std::uint64_t compute_ns);
-  /// The model's cut region after tool @p tool's tick (with
-  /// served.tools.mutex held): a live cutting edge cuts, the region is
-  /// stepped to @p now_s under the tools' loads on the rest and the tips in
-  /// session, and shown.
-  void step_region(ServedModel& served, int tool, double now_s);
-  /// What tool @p tool feels: the contact engine's output plus the region's
-  /// push on its tip, within its force limit.
-  const ToolOutput& felt(const ServedModel& served, int tool);
-  void record(ServedModel& served, int tool, std::uint64_t compute_ns);
-
   const std::vector<std::unique_ptr<ServedModel>>& models_;
   std::string served_ids_;
   const DaemonClock& clock_;
@@ -109,7 +100,6 @@ class ToolServer {
   };
   std::vector<ToolWriters> tool_writers_;
   palpate_ToolResponse response_{};
-  ToolOutput felt_;                     // felt()'s
   std::atomic<bool> listening_{false};  // as RequestServer::listening_
 
   palpate_ToolPose samples_[kBatch];

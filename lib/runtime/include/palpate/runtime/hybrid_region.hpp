@@ -31,7 +31,7 @@
 namespace palpate {
 
 namespace detail {
-class ImplicitRegionStep;  // lib/runtime/src/region_implicit_step.hpp
+class ImplicitRegionStep;  // lib/runtime/internal/palpate/runtime/region/region_implicit_step.hpp
 }
 
 /// How the region's dynamics are integrated (docs/model.md, "The implicit

@@ -19,7 +19,8 @@
 namespace palpate {
 
 namespace detail {
-class TetGrid;  // the cut queries' spatial index (lib/runtime/src/tet_grid.hpp)
+class TetGrid;  // the cut queries' spatial index
+                // (lib/runtime/internal/palpate/runtime/region/tet_grid.hpp)
 }
 
 /// A cutting tool's blade at one instant: the segment a–b, in the region's

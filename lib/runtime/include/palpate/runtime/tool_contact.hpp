@@ -13,10 +13,9 @@
 ///  2. Grasp: when the jaw angle falls below grasp_angle, the surface
 ///     under the two jaw faces (and what the tip pressed) is held: points
 ///     of the deformed triangles, each with rows independent of the others'
-///     (JawGrasp, lib/runtime/src/jaw_grasp.hpp). Each keeps its position
-///     in the tool frame, squeezed between the faces onto one plane, and
-///     follows the tool rigidly. Released when the jaws open past
-///     release_angle (hysteresis).
+///     (JawGrasp, lib/runtime/internal/palpate/runtime/contact/jaw_grasp.hpp). Each keeps its
+///     position in the tool frame, squeezed between the faces onto one plane, and follows the tool
+///     rigidly. Released when the jaws open past release_angle (hysteresis).
 ///  3. Tip contacts on triangles: for every deformed surface triangle near
 ///     the tip (a sphere or a capsule of radius r around the segment
 ///     hinge → hinge + tip_length·z), the closest points between the tip's
@@ -83,6 +82,14 @@ struct ContactPoint {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
 };
 
+/// A wrench on a tool from beside its contacts with the engine's surface (a
+/// served cut region's push on its tip): N, and N·m about the hinge, in the
+/// model frame, on the tool.
+struct ToolWrench {
+  Eigen::Vector3d force_n = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque_nm = Eigen::Vector3d::Zero();
+};
+
 class ToolContactEngine {
  public:
   /// @p model must outlive the engine. Sizes every buffer for the tools.
@@ -114,6 +121,17 @@ class ToolContactEngine {
   /// failed; then the previous contacts are kept and the output repeats the
   /// last one (solver_message() says why).
   RequestStatus update(int tool, const ToolPoseInput& pose, double now_s);
+  /// update() in its two halves, for a caller that adds to what the tool
+  /// feels a wrench it computes from this solve (ToolTick: a cut region's
+  /// push on the tip, from the region stepped under these contacts). solve()
+  /// takes the pose and solves every tool's contacts (contact_indices() and
+  /// contact_forces() are this solve's); answer() then makes tool @p tool's
+  /// output from its contact wrench plus @p added, through the device's
+  /// force and slew limits together (and adds @p added to the local model's
+  /// F₀, τ₀). update(t, p, now) is solve(t, p, now) then answer(t, now).
+  /// Call answer() exactly once after each solve().
+  RequestStatus solve(int tool, const ToolPoseInput& pose, double now_s);
+  const ToolOutput& answer(int tool, double now_s, const ToolWrench& added = {});
   /// Ramps out tools whose poses stopped. @returns the tools whose output
   /// changed (their feedback should be sent), as a bit mask.
   std::uint64_t watchdog(double now_s);

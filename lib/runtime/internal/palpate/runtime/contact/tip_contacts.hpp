@@ -1,0 +1,84 @@
+#pragma once
+/// @file
+/// A tool tip's contacts with the deformed surface (internal to the runtime;
+/// the contact engine's step 3, docs/tools.md "One tick" and "Tip
+/// contacts"): for every surface triangle near the tip, the closest points
+/// between the tip's axis (a sphere's centre, a capsule's segment) and the
+/// deformed triangle; a triangle closer than the radius r is penetrated,
+/// and its closest point is put back on the tip's surface along the normal
+/// from the axis. Deepest first, each point once, points kept apart so that
+/// their rows are independent. Allocation-free after construction.
+
+#include <Eigen/Core>
+#include <array>
+#include <span>
+#include <vector>
+
+#include "palpate/runtime/contact/deformed_surface.hpp"
+#include "palpate/runtime/tool_geometry.hpp"
+
+namespace palpate::detail {
+
+/// A tip contact found this tick: the deepest point of a surface triangle
+/// inside the tip, on the triangle's vertices that carry a weight.
+struct TipCandidate {
+  int triangle;                 // drawn triangle it was found on
+  int count;                    // vertices with a non-zero weight, 1 to 3
+  std::array<int, 3> vertices;  // drawn vertices
+  std::array<double, 3> weights;
+  double depth;  // r − distance to the tip's axis, m (negative: within the hysteresis shell)
+  Eigen::Vector3d
+      normal;  // unit: the direction the tip pushes the tissue (from the axis to the point)
+  Eigen::Vector3d target;  // the point put back on the tip's surface, m
+  Eigen::Vector3d point;   // the point on the deformed triangle, m
+  Eigen::Vector3d rest;    // the point at rest, Σ w_i rest_i, m
+  bool active;             // penetrating (or within the hysteresis shell); else a near
+                           // triangle the solve may push into the tip
+};
+
+/// A tool's segment: a capsule's from its hinge along +z; a sphere's is its centre.
+inline double tip_length(const ToolGeometry& g) {
+  return g.tip == TipShape::kCapsule ? g.tip_length_m : 0.0;
+}
+/// Longest reach of a tool from its hinge along z: its tip or its jaws.
+inline double reach_length(const ToolGeometry& g) {
+  return std::max(tip_length(g), g.jaw_length_m);
+}
+
+/// One tool at its pose, as the search needs it.
+struct TipQuery {
+  int tool = 0;  ///< its index (the hysteresis: its triangles of last tick)
+  const ToolGeometry* geometry = nullptr;
+  Eigen::Vector3d hinge = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< tool → model
+  double jaw_angle_rad = 0;
+  bool holding = false;      ///< the jaws hold tissue
+  double search_radius = 0;  ///< of its candidate vertices about its segment at rest, m
+};
+
+class TipContacts {
+ public:
+  /// Scratch for a surface of @p triangles triangles.
+  explicit TipContacts(int triangles);
+
+  /// Tool @p q's tip contacts, deepest first (but for a fold's near face,
+  /// which takes its far face's place), at most out.size() of them,
+  /// into @p out; @returns how many. A triangle with a vertex in @p owner
+  /// (per compliance vertex: the tool holding it, or −1) is left out, and
+  /// one whose point another tool's jaws may take: tissue between open
+  /// jaws is not pushed. @p previous_owner (per triangle: the tool whose tip
+  /// touched it last tick) keeps a contact within 5 % of r outside the tip
+  /// (hysteresis).
+  int find(const TipQuery& q, DeformedSurface& surface, std::span<const int> owner,
+           std::span<const int> previous_owner, std::span<TipCandidate> out);
+
+ private:
+  struct Ranked {
+    double depth;
+    int index;  // into found_
+  };
+  std::vector<TipCandidate> found_;
+  std::vector<Ranked> ranked_;  // found_'s depths, to sort
+};
+
+}  // namespace palpate::detail

@@ -1,0 +1,853 @@
+#include "palpate/runtime/tool_contact.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <optional>
+#include <span>
+
+#include "palpate/core/error.hpp"
+#include "palpate/runtime/contact/background_loads.hpp"
+#include "palpate/runtime/contact/contact_geometry.hpp"
+#include "palpate/runtime/contact/deformed_surface.hpp"
+#include "palpate/runtime/contact/jaw_grasp.hpp"
+#include "palpate/runtime/contact/local_model.hpp"
+#include "palpate/runtime/contact/tip_contacts.hpp"
+#include "palpate/runtime/rotation_field.hpp"
+#include "palpate/runtime/solve/active_set.hpp"
+
+namespace palpate {
+
+namespace {
+
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+
+using detail::HeldPoint;
+using detail::TipCandidate;
+
+}  // namespace
+
+struct ToolContactEngine::Impl {
+  const SurfaceModel& model;
+  // Warped compliance (docs/model.md, "Large rotations: warped compliance"):
+  // null for the linear model.
+  const RotationField* warping = nullptr;
+  ContactSettings settings;
+  SolverLimits limits;
+  detail::ActiveSet active_set;
+  int per_tool_cap = 0;
+
+  struct Tool {
+    ToolGeometry geometry;
+    bool alive = false;  // a pose was taken and the watchdog has not ramped it out
+    ToolPoseInput pose;
+    Matrix3d rotation = Matrix3d::Identity();
+    double last_pose_s = 0;
+    // The pose the stored solution was solved at, while the tool has taken
+    // part in every solve since (friction: a sticking contact is dragged by
+    // the tool's motion since).
+    bool has_solved_pose = false;
+    Vector3d solved_hinge = Vector3d::Zero();
+    Matrix3d solved_rotation = Matrix3d::Identity();
+    bool has_sequence = false;
+    double previous_jaw = 0;
+    bool has_previous_jaw = false;
+    // The widest the jaws opened since they last held anything: the faces'
+    // position when they came around the tissue (line jaws closing slowly
+    // pass into it; real ones stop on its surface).
+    double widest_jaw = 0;
+    double scale = 1;  // watchdog ramp, 1 → 0
+    bool in_watchdog = false;
+    std::vector<HeldPoint> held;     // by the jaws, in the tool frame
+    std::vector<TipCandidate> tips;  // this tick's tip contacts, deepest first
+    int tip_count = 0;
+    Vector3d raw_force = Vector3d::Zero(), raw_torque = Vector3d::Zero();
+    double raw_grip = 0;
+    int contacts = 0;
+    ToolOutput out;
+    ToolOutput pending;    // solve()'s events, until answer()
+    bool answered = true;  // answer() since the last solve()
+    bool has_output = false;
+    double last_output_s = 0;
+    ToolState shown_state = ToolState::kFree;
+  };
+  std::vector<Tool> tools;
+
+  // The drawn surface as the last solve's loads deform it.
+  int compliance_count = 0;
+  detail::DeformedSurface surface;
+  std::vector<int> owner;  // per compliance vertex: tool holding it this tick, or -1
+  std::vector<int> previous_triangle_owner;  // per triangle: tool whose tip touched it last tick
+
+  // Scratch, sized once.
+  detail::TipContacts tip_search;
+  detail::JawGrasp grasp;
+  std::vector<int> grasp_triangles;     // near the closing jaws
+  std::vector<Vector3d> grasp_corners;  // 3 per grasp triangle, deformed
+  std::vector<HeldPoint> touched;       // the tip's points at the last tick
+
+  // The last successful solve: every tool's contact points and their loads.
+  int count = 0;
+  std::vector<ContactPoint> points;
+  std::vector<int> tip_of;  // per point: index into its tool's tips, or -1 for a held point
+  int load_count = 0;
+  std::vector<int> load_index;     // compliance vertex per load
+  std::vector<int> load_tool;      // tool per load
+  std::vector<double> load_force;  // 3 per load, N
+  std::vector<int> load_slot;      // per compliance vertex: its load this tool, or -1
+  double max_displacement = 0;     // over the points, m
+  // fᵀ G f of the loads, J (f_Cᵀ u_C over the points, material): with
+  // ‖G^{vv}‖, it bounds every vertex's displacement (DeformedSurface::far_from).
+  double load_energy = 0;
+  // Known loads that are not the tools' (set_background_loads): they deform
+  // the surface with the tools' loads and every row's imposed displacement
+  // discounts them.
+  detail::BackgroundLoads background;
+  // The background as the surface has it: taken at each solve's end with
+  // the tools' loads, so the surface the next tick's contacts are found on
+  // is the one the last solve left: its tools' forces balance the
+  // background it discounted. The latest background with those forces is
+  // a surface no solve produced; finding contacts on it made a tool
+  // pressing the rest beside a served region wander (1–4 contacts, never
+  // settling, in bench/hybrid_tick_bench's contact loop at the 16 mm ball).
+  detail::BackgroundLoads surface_background;
+  detail::LoadColumns background_columns;  // both backgrounds' G^{b v}
+  char message[256] = {};
+  mutable char problem[256] = {};  // why check() refused the last pose it refused
+
+  /// Writes the reason for a refused pose into `problem` (cut to fit).
+  template <typename... Args>
+  void explain(fmt::format_string<Args...> format, Args&&... args) const {
+    const auto written =
+        fmt::format_to_n(problem, sizeof problem - 1, format, std::forward<Args>(args)...);
+    *written.out = '\0';
+  }
+
+  // The constraint set being built: a held point (tip -1) or a tip point.
+  int building = 0;
+  std::vector<int> b_tool, b_tip, b_held;
+  std::vector<detail::ActiveRow> rows;  // the active set's rows, one per built constraint
+  // Warped: per row, R̃ of its point and its normal in the world; per point
+  // of the last solve, its force in the material frame (the loads' frame).
+  std::vector<Matrix3d> row_rotation;
+  std::vector<Vector3d> row_world_normal, material_force;
+  // Per row, what the local model needs beyond the active set's row; the
+  // active set holds the factor of the stored solution when `factored`
+  // (the last solve succeeded): the local model is read off it.
+  std::vector<detail::LocalRow> local_rows;
+  detail::LocalModel linearization;
+  bool factored = false;
+
+  Impl(const SurfaceModel& m, std::vector<ToolGeometry> geometries, const ContactSettings& s,
+       const SolverLimits& l, const RotationField* w)
+      : model(m),
+        warping(w),
+        settings(s),
+        limits(l),
+        active_set(m, l),
+        compliance_count(m.compliance_vertex_count()),
+        surface(m, w),
+        tip_search(m.surface.triangle_count()),
+        grasp(std::max(1, l.max_constraints), m.compliance_vertex_count()),
+        linearization(std::max(1, l.max_constraints), m.compliance_vertex_count()) {
+    const int n = compliance_count;
+    const int triangles = m.surface.triangle_count();
+    const int t = static_cast<int>(geometries.size());
+    PALPATE_DEMAND(t >= 1 && t <= 64);
+    per_tool_cap = std::min(settings.max_contacts_per_tool, limits.max_constraints / t);
+    PALPATE_DEMAND(per_tool_cap >= 1);
+    for (auto& g : geometries) {
+      Tool tool;
+      tool.geometry = std::move(g);
+      tool.held.reserve(static_cast<std::size_t>(per_tool_cap));
+      tool.tips.resize(static_cast<std::size_t>(per_tool_cap));
+      tools.push_back(std::move(tool));
+    }
+    previous_triangle_owner.assign(static_cast<std::size_t>(triangles), -1);
+    owner.assign(static_cast<std::size_t>(n), -1);
+    grasp_triangles.resize(static_cast<std::size_t>(triangles));
+    grasp_corners.resize(3 * static_cast<std::size_t>(triangles));
+    const auto k = static_cast<std::size_t>(limits.max_constraints);
+    touched.reserve(k);
+    points.resize(k);
+    tip_of.resize(k);
+    load_index.resize(3 * k);
+    load_tool.resize(3 * k);
+    load_force.resize(9 * k);
+    load_slot.assign(static_cast<std::size_t>(n), -1);
+    b_tool.resize(k);
+    b_tip.resize(k);
+    b_held.resize(k);
+    rows.resize(k);
+    row_rotation.assign(k, Matrix3d::Identity());
+    row_world_normal.assign(k, Vector3d::Zero());
+    material_force.assign(k, Vector3d::Zero());
+    local_rows.resize(k);
+    surface.set_loads(0, load_index.data(), load_force.data(), 0);
+  }
+
+  /// How far from a tool's segment its candidate vertices lie at rest, m.
+  double search_radius(const ToolGeometry& g) const {
+    const double wedge = g.jaw_length_m * std::tan(0.5 * g.max_jaw_angle_rad);
+    return std::max(g.tip_radius_m, wedge + g.tip_radius_m) + settings.search_margin_m +
+           max_displacement + background.reach_m(surface.max_softness());
+  }
+
+  /// The distinct surface triangles around tool @p tool's candidate
+  /// vertices (those within search_radius of its segment at rest), in the
+  /// order met: a view the caller may rewrite.
+  std::span<int> triangles_near(const Tool& tool) {
+    const ToolGeometry& g = tool.geometry;
+    return surface.triangles_around(surface.vertices_near(
+        tool.pose.position_m, tool.rotation.col(2), detail::reach_length(g), search_radius(g)));
+  }
+
+  static detail::JawsAtClosing jaws_of(const Tool& tool, double opening) {
+    return {tool.pose.position_m, tool.rotation, &tool.geometry, opening};
+  }
+
+  /// Grasp state machine of tool @p t for its new jaw angle (before contacts).
+  void update_grasp(int t, ToolOutput& out) {
+    Tool& tool = tools[static_cast<std::size_t>(t)];
+    const ToolGeometry& g = tool.geometry;
+    const double jaw = tool.pose.jaw_angle_rad;
+    if (!tool.held.empty()) {
+      if (jaw >= g.release_angle_rad) {
+        tool.held.clear();
+        push_event(out, ToolEventKind::kRelease);
+      }
+      return;
+    }
+    const bool closing = tool.has_previous_jaw && tool.previous_jaw > g.grasp_angle_rad &&
+                         jaw <= g.grasp_angle_rad && g.jaw_length_m > 0 && !g.cutting;
+    if (!closing) return;
+    surface.next_epoch();
+    // The triangles near the jaws that this tool may hold: not wholly fixed,
+    // no vertex of a point another tool holds.
+    std::size_t near = 0;
+    for (const int tri : triangles_near(tool)) {
+      const int* corner = surface.corners(tri);
+      int fixed = 0;
+      bool elsewhere = false;
+      for (int i = 0; i < 3; ++i) {
+        if (corner[i] >= compliance_count)
+          ++fixed;
+        else
+          elsewhere |= owner_held_elsewhere(corner[i], t);
+      }
+      if (fixed == 3 || elsewhere) continue;
+      grasp_triangles[near++] = tri;
+    }
+    surface.deform_corners({grasp_triangles.data(), near});
+    for (std::size_t k = 0; k < near; ++k)
+      for (int i = 0; i < 3; ++i)
+        grasp_corners[3 * k + static_cast<std::size_t>(i)] =
+            surface.deformed(surface.corners(grasp_triangles[k])[i]);
+    // What the tip pressed at the last tick.
+    touched.clear();
+    for (int c = 0; c < count; ++c) {
+      const ContactPoint& point = points[static_cast<std::size_t>(c)];
+      if (point.tool != t || point.held) continue;
+      HeldPoint h{};
+      h.triangle = point.triangle;
+      h.count = point.vertex_count;
+      h.vertices = point.vertices;
+      h.weights = point.weights;
+      for (int i = 0; i < h.count; ++i)
+        h.rest += h.weights[static_cast<std::size_t>(i)] *
+                  surface.rest(h.vertices[static_cast<std::size_t>(i)]);
+      touched.push_back(h);
+    }
+    grasp.choose(jaws_of(tool, std::max(tool.widest_jaw, tool.previous_jaw)),
+                 {grasp_triangles.data(), near}, {grasp_corners.data(), 3 * near},
+                 surface.triangle_vertices(), surface.rest(), touched, tool.held, per_tool_cap);
+    if (!tool.held.empty()) push_event(out, ToolEventKind::kGrasp);
+  }
+
+  bool owner_held_elsewhere(int j, int t) const {
+    for (int other = 0; other < static_cast<int>(tools.size()); ++other) {
+      if (other == t) continue;
+      for (const auto& h : tools[static_cast<std::size_t>(other)].held)
+        for (int i = 0; i < h.count; ++i)
+          if (h.vertices[static_cast<std::size_t>(i)] == j) return true;
+    }
+    return false;
+  }
+
+  static void push_event(ToolOutput& out, ToolEventKind kind) {
+    if (out.event_count < static_cast<int>(out.events.size()))
+      out.events[static_cast<std::size_t>(out.event_count++)] = kind;
+  }
+
+  /// Tool @p t's tip contacts (docs/tools.md, "Tip contacts").
+  void find_tips(int t) {
+    Tool& tool = tools[static_cast<std::size_t>(t)];
+    const int room = std::max(0, per_tool_cap - static_cast<int>(tool.held.size()));
+    const detail::TipQuery query{t,
+                                 &tool.geometry,
+                                 tool.pose.position_m,
+                                 tool.rotation,
+                                 tool.pose.jaw_angle_rad,
+                                 !tool.held.empty(),
+                                 search_radius(tool.geometry)};
+    tool.tip_count = tip_search.find(query, surface, owner, previous_triangle_owner,
+                                     {tool.tips.data(), static_cast<std::size_t>(room)});
+  }
+
+  /// Every living tool's contacts at its latest pose, one solve for all.
+  /// On failure the previous solution stays.
+  RequestStatus find_contacts_and_solve() {
+    // Held vertices first: they win a vertex over any tip.
+    for (int t = 0; t < static_cast<int>(tools.size()); ++t)
+      if (tools[static_cast<std::size_t>(t)].alive)
+        for (const auto& h : tools[static_cast<std::size_t>(t)].held)
+          for (int i = 0; i < h.count; ++i)
+            if (h.vertices[static_cast<std::size_t>(i)] < compliance_count)
+              owner[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = t;
+    surface.next_epoch();
+    for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
+      Tool& tool = tools[static_cast<std::size_t>(t)];
+      // Ramping out: the last contacts, scaled down, not found again (the
+      // scaled-back tissue would leave the frozen tip and come back).
+      if (tool.alive && tool.in_watchdog) continue;
+      tool.tip_count = 0;
+      if (tool.alive) find_tips(t);
+    }
+    return solve_all();
+  }
+
+  /// Builds, solves (with adhesion release) and stores every tool's constraints.
+  RequestStatus solve_all() {
+    building = 0;
+    // A point on its vertices, a fixed one as −1 (its share goes to the attachment).
+    auto add = [&](int t, int tip, int held, const auto& point, ConstraintKind kind, Vector3d value,
+                   const Vector3d& normal, const Vector3d& lever) {
+      // The background loads move the point by H u_b already: the tools'
+      // forces make the rest (linear engines only: set_background_loads).
+      if (background.count() > 0) {
+        const Vector3d moved = background.at_point(point, compliance_count);
+        if (kind == ConstraintKind::kDisplacement) value -= moved;
+        if (kind == ConstraintKind::kNormalDisplacement) value.x() -= normal.dot(moved);
+      }
+      const auto b = static_cast<std::size_t>(building++);
+      detail::LocalRow& l = local_rows[b];
+      l.tool = t;
+      l.tip = tip >= 0;
+      l.lever = lever;
+      l.normal = normal;
+      l.rotation = Matrix3d::Identity();
+      for (int i = 0; i < point.count && l.tip; ++i)
+        l.corners[static_cast<std::size_t>(i)] =
+            surface.deformed(point.vertices[static_cast<std::size_t>(i)]);
+      b_tool[b] = t;
+      b_tip[b] = tip;
+      b_held[b] = held;
+      const Tool& tool = tools[static_cast<std::size_t>(t)];
+      detail::ActiveRow& row = rows[b];
+      row.count = point.count;
+      for (std::size_t i = 0; i < 3; ++i) {
+        const int v = static_cast<int>(i) < point.count ? point.vertices[i] : -1;
+        row.index[i] = v < compliance_count ? v : -1;
+        row.weights[i] = static_cast<int>(i) < point.count ? point.weights[i] : 0.0;
+      }
+      row.kind = kind;
+      row.value = value;
+      row.normal = normal;
+      row_world_normal[b] = normal;
+      if (warping != nullptr) {
+        // Into the point's material frame (docs/model.md, "Large rotations:
+        // warped compliance"): d̂ = R̃⁻¹ d; a normal n̂ = R̃ᵀ n / s, δ̂ = δ / s.
+        const Matrix3d Rt = surface.point_rotation(point);
+        row_rotation[b] = Rt;
+        l.rotation = Rt;
+        if (kind == ConstraintKind::kDisplacement) row.value = Rt.inverse() * value;
+        if (normal.squaredNorm() > 0) {
+          const Vector3d n = Rt.transpose() * normal;
+          const double scale = n.norm();
+          row.normal = n / scale;
+          if (kind == ConstraintKind::kNormalDisplacement) row.value.x() = value.x() / scale;
+        }
+      }
+      row.tip = tip >= 0;
+      row.friction = tool.geometry.friction;
+      row.depth = row.tip ? tool.tips[static_cast<std::size_t>(tip)].depth : 0.0;
+      row.join_gap_m = 1e-3 * tool.geometry.tip_radius_m;
+      row.state = detail::ActiveRow::kActive;
+    };
+    for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
+      const Tool& tool = tools[static_cast<std::size_t>(t)];
+      if (!tool.alive) continue;
+      for (int h = 0; h < static_cast<int>(tool.held.size()); ++h) {
+        const HeldPoint& held = tool.held[static_cast<std::size_t>(h)];
+        const Vector3d lever = tool.rotation * held.local;  // it turns with the jaws
+        add(t, -1, h, held, ConstraintKind::kDisplacement,
+            tool.scale * (tool.pose.position_m + lever - held.rest), Vector3d::Zero(), lever);
+      }
+    }
+    for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
+      const Tool& tool = tools[static_cast<std::size_t>(t)];
+      if (!tool.alive) continue;
+      for (int c = 0; c < tool.tip_count; ++c) {
+        const TipCandidate& tip = tool.tips[static_cast<std::size_t>(c)];
+        Vector3d u = tool.scale * (tip.target - tip.rest);
+        // Friction: the tissue sticks to the tip, so the point found where
+        // the surface is now is taken along with the tool's motion at it
+        // since the last solve, in the contact's plane (along the normal the
+        // tip's push decides); the active set lets it slip back onto the
+        // cone's edge (docs/tools.md, "Friction").
+        if (tool.geometry.friction > 0 && tool.has_solved_pose && !tool.in_watchdog) {
+          const Vector3d was =
+              tool.solved_hinge + tool.solved_rotation * (tool.rotation.transpose() *
+                                                          (tip.target - tool.pose.position_m));
+          const Vector3d moved = tip.target - was;
+          u += moved - tip.normal * tip.normal.dot(moved);
+        }
+        // The tip's surface point moves as the point of the axis it is
+        // pushed from (its normal frozen).
+        const Vector3d lever =
+            tip.target - tool.geometry.tip_radius_m * tip.normal - tool.pose.position_m;
+        if (tool.geometry.friction > 0)
+          add(t, c, -1, tip, ConstraintKind::kDisplacement, u, tip.normal, lever);
+        else
+          add(t, c, -1, tip, ConstraintKind::kNormalDisplacement, Vector3d(tip.normal.dot(u), 0, 0),
+              tip.normal, lever);
+        detail::LocalRow& l = local_rows[static_cast<std::size_t>(building - 1)];
+        l.target = tip.target;
+        l.radius = tool.geometry.tip_radius_m;
+        l.distance = tool.geometry.tip_radius_m - tip.depth;
+        if (!tip.active)
+          rows[static_cast<std::size_t>(building - 1)].state = detail::ActiveRow::kDormant;
+      }
+    }
+    const RequestStatus status =
+        active_set.solve({rows.data(), static_cast<std::size_t>(building)}, settings.max_iterations,
+                         settings.incremental_active_set ? detail::ActiveSetMethod::kIncremental
+                                                         : detail::ActiveSetMethod::kRefactor);
+    factored = status == RequestStatus::kOk;
+    for (int t = 0; t < static_cast<int>(tools.size()); ++t)
+      for (const auto& h : tools[static_cast<std::size_t>(t)].held)
+        for (int i = 0; i < h.count; ++i)
+          if (h.vertices[static_cast<std::size_t>(i)] < compliance_count)
+            owner[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = -1;
+    if (status != RequestStatus::kOk) {
+      const std::size_t length = strnlen(active_set.message(), sizeof message - 1);
+      std::memcpy(message, active_set.message(), length);
+      message[length] = '\0';
+      return status;
+    }
+    store_solution();
+    return RequestStatus::kOk;
+  }
+
+  void store_solution() {
+    // Forget last tick's tip contacts' triangles (for the hysteresis shell).
+    for (int c = 0; c < count; ++c) {
+      const ContactPoint& old = points[static_cast<std::size_t>(c)];
+      if (!old.held) previous_triangle_owner[static_cast<std::size_t>(old.triangle)] = -1;
+    }
+    count = 0;
+    max_displacement = 0;
+    load_energy = 0;
+    for (auto& tool : tools) {
+      tool.has_solved_pose = tool.alive && !tool.in_watchdog;
+      tool.solved_hinge = tool.pose.position_m;
+      tool.solved_rotation = tool.rotation;
+      tool.raw_force.setZero();
+      tool.raw_torque.setZero();
+      tool.raw_grip = 0;
+      tool.contacts = 0;
+    }
+    for (int b = 0; b < building; ++b) {
+      const auto bb = static_cast<std::size_t>(b);
+      const detail::ActiveRow& row = rows[bb];
+      if (row.state != detail::ActiveRow::kActive) continue;
+      const auto c = static_cast<std::size_t>(count);
+      const int t = b_tool[bb];
+      Tool& tool = tools[static_cast<std::size_t>(t)];
+      ContactPoint& point = points[c];
+      point.tool = t;
+      point.held = b_tip[bb] < 0;
+      // A held point and a tip's point are both a point of a triangle.
+      const auto take = [&point](const auto& from) {
+        point.triangle = from.triangle;
+        point.vertex_count = from.count;
+        point.vertices = from.vertices;
+        point.weights = from.weights;
+        return from.rest;
+      };
+      const Vector3d at_rest = point.held ? take(tool.held[static_cast<std::size_t>(b_held[bb])])
+                                          : take(tool.tips[static_cast<std::size_t>(b_tip[bb])]);
+      tip_of[c] = b_tip[bb];
+      // Warped: the solve's force and displacement are the material ones;
+      // the world's are f = R̃⁻ᵀ f̂ and R̃ û. The loads stay material.
+      material_force[c] = active_set.force(b);
+      const Matrix3d& Rt = row_rotation[bb];
+      point.force_n = warping != nullptr ? Vector3d(Rt.transpose().inverse() * material_force[c])
+                                         : material_force[c];
+      const Vector3d displacement = warping != nullptr ? Vector3d(Rt * active_set.displacement(b))
+                                                       : Vector3d(active_set.displacement(b));
+      point.position_m = at_rest + displacement;
+      if (background.count() > 0)
+        point.position_m +=
+            point.held ? background.at_point(tool.held[static_cast<std::size_t>(b_held[bb])],
+                                             compliance_count)
+                       : background.at_point(tool.tips[static_cast<std::size_t>(b_tip[bb])],
+                                             compliance_count);
+      point.normal =
+          row.kind == ConstraintKind::kNormalDisplacement ? row_world_normal[bb] : Vector3d::Zero();
+      max_displacement = std::max(max_displacement, displacement.norm());
+      load_energy += material_force[c].dot(active_set.displacement(b));
+      local_rows[bb].position = point.position_m;
+      local_rows[bb].force = point.force_n;
+      local_rows[bb].material_force = material_force[c];
+      tool.raw_force -= point.force_n;  // the organ pushes the tool back
+      tool.raw_torque += (point.position_m - tool.pose.position_m).cross(-point.force_n);
+      if (point.held) {
+        tool.raw_grip += 0.5 * std::abs(point.force_n.dot(tool.rotation.col(0)));
+      } else {
+        previous_triangle_owner[static_cast<std::size_t>(point.triangle)] = t;
+      }
+      ++tool.contacts;
+      ++count;
+    }
+    gather_loads();
+  }
+
+  /// The points' forces as loads on their vertices, f_S = Hᵀ f_C, tool by
+  /// tool (a vertex two tools load appears once for each).
+  void gather_loads() {
+    load_count = 0;
+    for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
+      const int first = load_count;
+      for (int c = 0; c < count; ++c) {
+        const ContactPoint& point = points[static_cast<std::size_t>(c)];
+        if (point.tool != t) continue;
+        for (int i = 0; i < point.vertex_count; ++i) {
+          const int v = point.vertices[static_cast<std::size_t>(i)];
+          if (v >= compliance_count) continue;  // the attachment takes it
+          int& slot = load_slot[static_cast<std::size_t>(v)];
+          if (slot < first) {
+            slot = load_count++;
+            load_index[static_cast<std::size_t>(slot)] = v;
+            load_tool[static_cast<std::size_t>(slot)] = t;
+            Eigen::Map<Vector3d>{&load_force[3 * static_cast<std::size_t>(slot)]}.setZero();
+          }
+          Eigen::Map<Vector3d>{&load_force[3 * static_cast<std::size_t>(slot)]} +=
+              point.weights[static_cast<std::size_t>(i)] *
+              material_force[static_cast<std::size_t>(c)];
+        }
+      }
+    }
+    for (int l = 0; l < load_count; ++l)
+      load_slot[static_cast<std::size_t>(load_index[static_cast<std::size_t>(l)])] = -1;
+    // The surface moves under these and the background's (set_background).
+    surface.set_loads(load_count, load_index.data(), load_force.data(), load_energy);
+    if (background.count() > 0 || surface_background.count() > 0)
+      surface_background.copy_from(background);
+  }
+
+  /// Tool @p t's contact wrench linearized about its pose (LocalContactModel,
+  /// docs/tools.md "The local model"), from the factor of the stored solve.
+  void local_model(int t, LocalContactModel& local) {
+    const Tool& tool = tools[static_cast<std::size_t>(t)];
+    local.valid = true;
+    local.position_m = tool.pose.position_m;
+    local.orientation = tool.pose.orientation;
+    local.holding = tool.alive && !tool.held.empty();
+    local.force_n = tool.alive ? tool.raw_force : Vector3d::Zero();
+    local.torque_nm = tool.alive ? tool.raw_torque : Vector3d::Zero();
+    local.stiffness.setZero();
+    if (!tool.alive || tool.contacts == 0) return;
+    const auto n = static_cast<std::size_t>(building);
+    local.stiffness = linearization.stiffness({rows.data(), n}, {local_rows.data(), n}, t,
+                                              tool.pose.position_m, tool.scale, active_set);
+  }
+
+  /// The feedback of tool @p t at @p now_s: its contact wrench and @p added
+  /// (a wrench from beside its contacts: ToolContactEngine::answer), clamped
+  /// and slew limited together; state events.
+  void make_output(int t, double now_s, ToolOutput& out, const ToolWrench& added = {}) {
+    Tool& tool = tools[static_cast<std::size_t>(t)];
+    // The local model of this tick's solve; the last one's when it failed
+    // (its pose is its own, so it stays right about where it was made).
+    if (factored)
+      local_model(t, out.local);
+    else
+      out.local = tool.out.local;
+    const bool pushed = tool.alive && (added.force_n.squaredNorm() > 0 ||
+                                       added.torque_nm.squaredNorm() > 0);
+    const Vector3d raw_force = pushed ? Vector3d(tool.raw_force + added.force_n) : tool.raw_force;
+    const Vector3d raw_torque =
+        pushed ? Vector3d(tool.raw_torque + added.torque_nm) : tool.raw_torque;
+    if (pushed && factored) {  // F₀, τ₀ as felt: before the limits, with the added wrench
+      out.local.force_n += added.force_n;
+      out.local.torque_nm += added.torque_nm;
+    }
+    const ToolGeometry& g = tool.geometry;
+    Vector3d target = raw_force;
+    bool limited = false;
+    if (const double magnitude = target.norm(); magnitude > g.force_limit_n) {
+      target *= g.force_limit_n / magnitude;
+      limited = true;
+    }
+    const Vector3d previous = tool.has_output ? tool.out.force_n : Vector3d::Zero();
+    const double dt = tool.has_output ? std::clamp(now_s - tool.last_output_s, 0.0, 0.01) : 0.001;
+    const double step = g.max_force_rate_n_per_s * dt;
+    Vector3d force = target;
+    if (const double change = (target - previous).norm(); change > step) {
+      force = previous + (target - previous) * (step / change);
+      limited = true;
+    }
+    if (!tool.alive) {  // ramped out: nothing left to feel
+      force.setZero();
+      limited = false;
+    }
+    const double raw = raw_force.norm();
+    const double torque_scale = raw > 0 ? std::min(1.0, force.norm() / raw) : 0.0;
+    out.force_n = force;
+    out.torque_nm = raw_torque * torque_scale;
+    out.grip_n = tool.raw_grip * torque_scale;
+    out.contacts = tool.alive ? tool.contacts : 0;
+    out.held = tool.alive ? static_cast<int>(tool.held.size()) : 0;
+    out.force_limited = limited;
+    out.watchdog = tool.in_watchdog;
+    out.sequence = tool.pose.sequence;
+    out.send_time_ns = tool.pose.send_time_ns;
+    const ToolState state = !tool.held.empty() && tool.alive ? ToolState::kGrasping
+                            : out.contacts > 0               ? ToolState::kTouching
+                                                             : ToolState::kFree;
+    if (state != tool.shown_state) {
+      if (state == ToolState::kTouching && tool.shown_state == ToolState::kFree)
+        push_event(out, ToolEventKind::kTouch);
+      if (state == ToolState::kFree && tool.shown_state == ToolState::kTouching)
+        push_event(out, ToolEventKind::kLeave);
+    }
+    out.state = state;
+    tool.shown_state = state;
+    tool.out = out;
+    tool.has_output = true;
+    tool.last_output_s = now_s;
+  }
+};
+
+ToolContactEngine::ToolContactEngine(const SurfaceModel& model, std::vector<ToolGeometry> tools,
+                                     const ContactSettings& settings, const SolverLimits& limits,
+                                     const RotationField* warping)
+    : impl_(std::make_unique<Impl>(model, std::move(tools), settings, limits, warping)) {}
+ToolContactEngine::~ToolContactEngine() = default;
+
+int ToolContactEngine::tool_count() const { return static_cast<int>(impl_->tools.size()); }
+
+int ToolContactEngine::tool_index(std::string_view id) const {
+  for (std::size_t t = 0; t < impl_->tools.size(); ++t)
+    if (impl_->tools[t].geometry.id == id) return static_cast<int>(t);
+  return -1;
+}
+
+const ToolGeometry& ToolContactEngine::tool(int index) const {
+  return impl_->tools.at(static_cast<std::size_t>(index)).geometry;
+}
+
+PoseProblem ToolContactEngine::check(int t, ToolPoseInput& pose) const {
+  const Impl& s = *impl_;
+  const auto& tool = s.tools.at(static_cast<std::size_t>(t));
+  const std::string& id = tool.geometry.id;
+  const auto& q = pose.orientation.coeffs();
+  if (!pose.position_m.allFinite() || !q.allFinite() || !std::isfinite(pose.jaw_angle_rad)) {
+    s.explain("pose of tool '{}' has a non-finite position, orientation or jaw angle", id);
+    return PoseProblem::kNonFinite;
+  }
+  const double norm = q.norm();
+  if (!(norm > 0.9 && norm < 1.1)) {
+    s.explain(
+        "orientation of tool '{}' is a quaternion of norm {:.3g}; accepted: a unit "
+        "quaternion (norm within 0.9-1.1, normalized here)",
+        id, norm);
+    return PoseProblem::kBadQuaternion;
+  }
+  pose.orientation.normalize();
+  const double max_jaw = tool.geometry.max_jaw_angle_rad;
+  if (!(pose.jaw_angle_rad >= 0 && pose.jaw_angle_rad <= max_jaw + 1e-9)) {
+    s.explain("jaw angle {:.4g}° of tool '{}' is {} its limit; accepted: 0° to {:.4g}°",
+              in_degrees(pose.jaw_angle_rad), id, pose.jaw_angle_rad < 0 ? "under" : "over",
+              in_degrees(max_jaw));
+    return PoseProblem::kBadJawAngle;
+  }
+  const double margin_m = s.settings.workspace_margin_m;
+  const Eigen::Vector3d margin = Eigen::Vector3d::Constant(margin_m);
+  const Eigen::Vector3d& box_min = s.surface.box_min();
+  const Eigen::Vector3d& box_max = s.surface.box_max();
+  if ((pose.position_m.array() < (box_min - margin).array()).any() ||
+      (pose.position_m.array() > (box_max + margin).array()).any()) {
+    s.explain(
+        "tool '{}' at ({:.4g}, {:.4g}, {:.4g}) m is more than {:.4g} m outside the "
+        "organ's box ({:.4g}, {:.4g}, {:.4g})-({:.4g}, {:.4g}, {:.4g}) m",
+        id, pose.position_m.x(), pose.position_m.y(), pose.position_m.z(), margin_m, box_min.x(),
+        box_min.y(), box_min.z(), box_max.x(), box_max.y(), box_max.z());
+    return PoseProblem::kOutOfWorkspace;
+  }
+  // A pose not newer than the last one is stale, unless the watchdog fired
+  // since (a restarted client counts again from 1).
+  if (tool.alive && !tool.in_watchdog && tool.has_sequence && pose.sequence <= tool.pose.sequence) {
+    s.explain("pose {} of tool '{}' is not newer than pose {} already taken", pose.sequence, id,
+              tool.pose.sequence);
+    return PoseProblem::kStale;
+  }
+  return PoseProblem::kNone;
+}
+
+const char* ToolContactEngine::problem_message() const { return impl_->problem; }
+
+RequestStatus ToolContactEngine::update(int t, const ToolPoseInput& pose, double now_s) {
+  const RequestStatus status = solve(t, pose, now_s);
+  answer(t, now_s);
+  return status;
+}
+
+RequestStatus ToolContactEngine::solve(int t, const ToolPoseInput& pose, double now_s) {
+  Impl& s = *impl_;
+  s.surface.next_tick();
+  auto& tool = s.tools.at(static_cast<std::size_t>(t));
+  ToolOutput& out = tool.pending;
+  out = ToolOutput{};
+  tool.answered = false;
+  if (tool.in_watchdog || !tool.alive) {
+    if (tool.in_watchdog || tool.has_sequence) Impl::push_event(out, ToolEventKind::kResumed);
+    tool.has_solved_pose = false;  // no drag from before
+    tool.in_watchdog = false;
+    tool.scale = 1;
+  }
+  tool.alive = true;
+  tool.has_previous_jaw = tool.has_sequence;
+  tool.previous_jaw = tool.pose.jaw_angle_rad;
+  tool.widest_jaw = tool.has_sequence && tool.held.empty()
+                        ? std::max(tool.widest_jaw, tool.previous_jaw)
+                        : tool.previous_jaw;
+  tool.pose = pose;
+  tool.has_sequence = true;
+  tool.rotation = pose.orientation.toRotationMatrix();
+  tool.last_pose_s = now_s;
+
+  s.update_grasp(t, out);
+  return s.find_contacts_and_solve();
+}
+
+const ToolOutput& ToolContactEngine::answer(int t, double now_s, const ToolWrench& added) {
+  Impl& s = *impl_;
+  auto& tool = s.tools.at(static_cast<std::size_t>(t));
+  PALPATE_DEMAND(!tool.answered);  // one answer per solve()
+  tool.answered = true;
+  s.make_output(t, now_s, tool.pending, added);
+  return tool.out;
+}
+
+std::uint64_t ToolContactEngine::watchdog(double now_s) {
+  Impl& s = *impl_;
+  std::uint64_t changed = 0;
+  std::array<ToolOutput, 64> outs{};
+  for (int t = 0; t < static_cast<int>(s.tools.size()); ++t) {
+    auto& tool = s.tools[static_cast<std::size_t>(t)];
+    if (!tool.alive) continue;
+    const double silent = now_s - tool.last_pose_s - s.settings.watchdog_timeout_s;
+    if (silent <= 0) continue;
+    if (!tool.in_watchdog) {
+      tool.in_watchdog = true;
+      Impl::push_event(outs[static_cast<std::size_t>(t)], ToolEventKind::kWatchdog);
+    }
+    tool.scale = std::clamp(1 - silent / s.settings.watchdog_ramp_s, 0.0, 1.0);
+    changed |= std::uint64_t{1} << t;
+  }
+  if (changed == 0) return 0;
+  // A tool ramped to zero lets go of everything and is forgotten.
+  for (auto& tool : s.tools)
+    if (tool.alive && tool.scale == 0) {
+      tool.held.clear();
+      tool.alive = false;
+    }
+  s.find_contacts_and_solve();
+  for (int t = 0; t < static_cast<int>(s.tools.size()); ++t)
+    if (changed >> t & 1) s.make_output(t, now_s, outs[static_cast<std::size_t>(t)]);
+  return changed;
+}
+
+bool ToolContactEngine::end(int t, double now_s) {
+  Impl& s = *impl_;
+  auto& tool = s.tools.at(static_cast<std::size_t>(t));
+  if (!tool.alive && !tool.has_sequence) return false;
+  const bool had_contacts = tool.alive && (tool.contacts > 0 || !tool.held.empty());
+  tool.held.clear();
+  tool.alive = false;
+  tool.in_watchdog = false;
+  tool.scale = 1;
+  tool.has_sequence = false;  // its next pose starts a new session, not a resumed one
+  tool.has_solved_pose = false;
+  tool.has_previous_jaw = false;
+  tool.widest_jaw = 0;
+  tool.tip_count = 0;
+  // The others feel the tissue it let go of.
+  if (had_contacts) s.find_contacts_and_solve();
+  ToolOutput out;
+  s.make_output(t, now_s, out);                       // a touching tool leaves first,
+  Impl::push_event(tool.out, ToolEventKind::kEnded);  // then its session ends
+  return true;
+}
+
+const ToolOutput& ToolContactEngine::output(int t) const {
+  return impl_->tools.at(static_cast<std::size_t>(t)).out;
+}
+const ToolPoseInput& ToolContactEngine::pose(int t) const {
+  return impl_->tools.at(static_cast<std::size_t>(t)).pose;
+}
+const char* ToolContactEngine::solver_message() const { return impl_->message; }
+bool ToolContactEngine::in_session(int tool) const {
+  const auto& t = impl_->tools.at(static_cast<std::size_t>(tool));
+  return t.alive && !t.in_watchdog;
+}
+void ToolContactEngine::reserve_background_loads(int count) {
+  Impl& m = *impl_;
+  if (m.warping != nullptr)
+    throw InputError("a warped contact engine takes no background loads (they are linear)");
+  m.background_columns.reserve(m.model, count);
+  m.background.reserve(m.model, count, m.background_columns);
+  m.surface_background.reserve(m.model, count, m.background_columns);
+  m.surface.set_background(&m.surface_background);
+}
+
+void ToolContactEngine::set_background_loads(std::span<const int> indices,
+                                             std::span<const double> forces_n, double energy_j) {
+  impl_->background.set(indices, forces_n, energy_j);
+}
+
+void ToolContactEngine::set_background_loads(std::span<const int> indices,
+                                             std::span<const double> forces_n,
+                                             std::span<const double> displacements_m) {
+  impl_->background.set(indices, forces_n, displacements_m);
+}
+
+void ToolContactEngine::set_triangle_hidden(int triangle, bool hidden) {
+  impl_->surface.set_hidden(triangle, hidden);
+}
+std::span<const ContactPoint> ToolContactEngine::contact_points() const {
+  return {impl_->points.data(), static_cast<std::size_t>(impl_->count)};
+}
+std::span<const int> ToolContactEngine::contact_indices() const {
+  return {impl_->load_index.data(), static_cast<std::size_t>(impl_->load_count)};
+}
+std::span<const double> ToolContactEngine::contact_forces() const {
+  return {impl_->load_force.data(), 3 * static_cast<std::size_t>(impl_->load_count)};
+}
+std::span<const int> ToolContactEngine::contact_tools() const {
+  return {impl_->load_tool.data(), static_cast<std::size_t>(impl_->load_count)};
+}
+std::uint64_t ToolContactEngine::solves() const { return impl_->active_set.solves(); }
+ToolContactEngine::SolveTimes ToolContactEngine::solve_times() const {
+  const detail::ActiveSet& a = impl_->active_set;
+  return {a.solves() - a.later_solves(), a.later_solves(), a.first_seconds(), a.later_seconds()};
+}
+
+}  // namespace palpate

@@ -1,0 +1,696 @@
+#include "palpate/runtime/solve/active_set.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "palpate/core/error.hpp"
+#include "palpate/runtime/solve/lapack.hpp"
+#include "palpate/runtime/solve/request_failure.hpp"
+
+namespace palpate::detail {
+
+namespace {
+
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+using Strided = Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+using Kind = ConstraintKind;
+
+/// A sticking point starts to slide: its three rows become the normal one,
+/// b_n = nᵀ b, and its tangential force is zero.
+void slide(ActiveRow& row) {
+  row.kind = Kind::kNormalDisplacement;
+  row.value = Vector3d(row.normal.dot(row.value), 0, 0);
+}
+
+int unknowns_of(const ActiveRow& row) {
+  if (row.state != ActiveRow::kActive) return 0;
+  return row.kind == Kind::kDisplacement ? 3 : 1;
+}
+
+}  // namespace
+
+ActiveSet::ActiveSet(const SurfaceModel& model, const SolverLimits& limits)
+    : model_(model), limits_(limits), solver_(model, limits) {
+  max_rows_ = limits.max_constraints;
+  max_unknowns_ = 3 * max_rows_;
+  max_used_ = 3 * max_rows_;
+  const auto k = index(max_rows_);
+  const auto m = index(max_unknowns_);
+  const auto u3 = 3 * index(max_used_);
+  force_.resize(3 * k);
+  displacement_.resize(3 * k);
+  const auto n = index(model.compliance_vertex_count());
+  used_epoch_.assign(n, 0);
+  used_slot_.assign(n, 0);
+  used_index_.resize(index(max_used_));
+  point_slot_.resize(3 * k);
+  G_UU_.resize(u3 * u3);
+  Y_.resize(u3 * 3 * k);
+  has_Y_.resize(k);
+  unknown_row_.resize(m);
+  unknown_dir_.resize(3 * m);
+  columns_of_.resize(k);
+  kind_in_W_.resize(k);
+  W_.resize(m * m);
+  L_.resize(m * m);
+  rhs_.resize(m);
+  work_.resize(3 * m);
+  iwork_.resize(m);
+  z_.resize(u3);
+  complete_.resize(index(max_used_));
+  const auto columns = index(ConstraintSolver::kMaxResponseColumns);
+  response_in_.resize(3 * k * columns);
+  response_out_.resize(std::max(3 * k, m) * columns);
+  slip_in_.assign(3 * k * columns, 0.0);
+  slip_out_.resize(3 * k * columns);
+  slips_.resize(k);
+  slip_matrix_.resize(4 * k * k);
+  slip_step_.resize(2 * k);
+  slip_pivots_.resize(2 * k);
+}
+
+ActiveSet::~ActiveSet() = default;
+
+RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
+                               ActiveSetMethod method) {
+  PALPATE_DEMAND(rows.size() <= static_cast<std::size_t>(max_rows_));
+  const auto call_start = std::chrono::steady_clock::now();
+  rows_ = rows;
+  message_[0] = '\0';
+  last_ok_ = false;
+  // Held points alone never change: one solve, through the solver and its
+  // cache of factorizations (a grasp held still reuses it from tick to tick).
+  const bool incremental =
+      method == ActiveSetMethod::kIncremental &&
+      std::any_of(rows.begin(), rows.end(), [](const ActiveRow& row) { return row.tip; });
+  const int n = static_cast<int>(rows.size());
+  RequestStatus status = RequestStatus::kOk;
+  if (incremental) {
+    status = check_values();
+    if (status != RequestStatus::kOk) {
+      ++solves_;
+      return status;
+    }
+    number_vertices();
+    factored_ = false;
+  }
+  bool softened = false;
+  const std::uint64_t first_solve = solves_;
+  const int iterations = std::max(1, max_iterations);
+  for (int iteration = 0; iteration < iterations; ++iteration) {
+    // The first solve's time includes reading G for the tick (above).
+    const auto start = solves_ == first_solve ? call_start : std::chrono::steady_clock::now();
+    status = incremental ? solve_incremental() : solve_refactor();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    (solves_ == first_solve ? first_s_ : later_s_) += seconds;
+    later_ += solves_ == first_solve ? 0 : 1;
+    ++solves_;
+    // Sticking points fix three components each: more of them than their
+    // triangles' vertices can move (a tip in a dip meets several triangles
+    // around the same vertices) is a singular system. They slide instead:
+    // one row each, the normal.
+    if (status == RequestStatus::kIllConditioned && !softened) {
+      softened = true;
+      bool any_stick = false;
+      for (ActiveRow& row : rows_) {
+        if (!row.tip || row.kind != Kind::kDisplacement) continue;
+        slide(row);
+        any_stick = true;
+      }
+      if (any_stick) {
+        --iteration;  // the same iteration, on rows that can be solved
+        continue;
+      }
+    }
+    // Still singular (more rows than their vertices can take: points on
+    // edges and corners of the same few vertices, or on triangles whose
+    // other corners are fixed): the shallowest tip contact goes, and the
+    // rest is solved again, within the same iteration.
+    if (status == RequestStatus::kIllConditioned && softened) {
+      int shallowest = -1;
+      double depth = INFINITY;
+      for (int r = 0; r < n; ++r) {
+        const ActiveRow& row = rows_[index(r)];
+        if (!row.tip || row.state != ActiveRow::kActive) continue;
+        if (row.depth < depth) depth = row.depth, shallowest = r;
+      }
+      if (shallowest >= 0) {
+        rows_[index(shallowest)].state = ActiveRow::kReleased;
+        --iteration;
+        continue;
+      }
+    }
+    if (status != RequestStatus::kOk) break;
+    // The last allowed solve stands as solved: the contacts stored are
+    // exactly its constraints, and their forces its forces (changing the
+    // set now would pair each force with another point).
+    if (iteration + 1 == iterations) break;
+    // Adhesion: a tip contact whose force pulls the tissue towards the
+    // tool lets go; a sticking one slides first.
+    bool any = false;
+    for (int r = 0; r < n; ++r) {
+      ActiveRow& row = rows_[index(r)];
+      if (row.state != ActiveRow::kActive || !row.tip) continue;
+      if (force(r).dot(row.normal) >= 0) continue;
+      if (row.kind == Kind::kDisplacement)
+        slide(row);
+      else
+        row.state = ActiveRow::kReleased;
+      any = true;
+    }
+    // Signorini on the watched triangles: one the solve pushed into the
+    // tip (its linearized gap now negative) joins the set.
+    for (int r = 0; r < n; ++r) {
+      ActiveRow& row = rows_[index(r)];
+      if (row.state != ActiveRow::kDormant) continue;
+      const double wanted =
+          row.kind == Kind::kNormalDisplacement ? row.value.x() : row.normal.dot(row.value);
+      if (row.normal.dot(displacement(r)) < wanted - row.join_gap_m) {
+        row.state = ActiveRow::kActive;
+        any = true;
+      }
+    }
+    // Friction, once the set stands (no point joined or left: a set in
+    // the middle of changing can have forces that mean nothing yet): the
+    // sticking points outside their cones slip back onto the edges, their
+    // targets moving in their tangent planes (the set stays).
+    if (!any) {
+      last_incremental_ = incremental;
+      last_ok_ = true;
+      any = slip_onto_cones();
+    }
+    if (!any) break;
+  }
+  last_incremental_ = incremental;
+  last_ok_ = status == RequestStatus::kOk;
+  return status;
+}
+
+bool ActiveSet::slip_onto_cones() {
+  const int n = static_cast<int>(rows_.size());
+  // The sticking points outside their cones beyond 0.1 % of the edge (a
+  // point put on the edge is there but for the round-off of its return).
+  int count = 0;
+  for (int r = 0; r < n; ++r) {
+    const ActiveRow& row = rows_[index(r)];
+    if (row.state != ActiveRow::kActive || !row.tip || row.kind != Kind::kDisplacement) continue;
+    const Vector3d f = force(r);
+    const double normal_force = f.dot(row.normal);
+    const Vector3d tangential = f - normal_force * row.normal;
+    const double edge = row.friction * normal_force;
+    const double magnitude = tangential.norm();
+    if (!(magnitude > edge + 1e-3 * edge + 1e-12)) continue;
+    Slip& slip = slips_[index(count++)];
+    slip.row = r;
+    slip.t = tangential / magnitude;
+    slip.s = row.normal.cross(slip.t);
+    slip.along = slip.t - row.friction * row.normal;
+  }
+  if (count == 0) return false;
+  // Coulomb's return, for all of them together: each one's target moves
+  // in its tangent plane by a_j t_j + b_j s_j (the other rows' targets
+  // staying), which changes every force by Σ_j a_j δf^{t_j} + b_j δf^{s_j}
+  // (the responses B W⁻¹ Bᵀ e, two columns a point from the solve's
+  // factor), so that each is on its cone's edge along its t:
+  //   (t_i − μ n_i)ᵀ (f_i + Σ_j …) = 0,   s_iᵀ (f_i + Σ_j …) = 0.
+  // Exact for the set (the normal forces' change included); t_i stays.
+  const int unknowns = 2 * count;
+  const int batch = ConstraintSolver::kMaxResponseColumns;
+  for (int first = 0; first < unknowns; first += batch) {
+    const int columns = std::min(batch, unknowns - first);
+    for (int c = 0; c < columns; ++c) {
+      const Slip& slip = slips_[index((first + c) / 2)];
+      Eigen::Map<Vector3d>{&slip_in_[3 * index(c * n + slip.row)]} =
+          (first + c) % 2 == 0 ? slip.t : slip.s;
+    }
+    force_response(slip_in_.data(), slip_out_.data(), columns);
+    for (int c = 0; c < columns; ++c) {
+      Eigen::Map<Vector3d>{&slip_in_[3 * index(c * n + slips_[index((first + c) / 2)].row)]}
+          .setZero();
+      double* column = &slip_matrix_[index(first + c) * index(unknowns)];
+      for (int i = 0; i < count; ++i) {
+        const Slip& slip = slips_[index(i)];
+        const Eigen::Map<const Vector3d> df(&slip_out_[3 * index(c * n + slip.row)]);
+        column[2 * i] = slip.along.dot(df);
+        column[2 * i + 1] = slip.s.dot(df);
+      }
+    }
+  }
+  for (int i = 0; i < count; ++i) {
+    const Slip& slip = slips_[index(i)];
+    slip_step_[index(2 * i)] = -slip.along.dot(force(slip.row));
+    slip_step_[index(2 * i + 1)] = -slip.s.dot(force(slip.row));
+  }
+  int info = 0;
+  const int one = 1;
+  dgesv_(&unknowns, &one, slip_matrix_.data(), &unknowns, slip_pivots_.data(), slip_step_.data(),
+         &unknowns, &info);
+  for (int i = 0; i < count; ++i) {
+    const Slip& slip = slips_[index(i)];
+    ActiveRow& row = rows_[index(slip.row)];
+    const double a = slip_step_[index(2 * i)], b = slip_step_[index(2 * i + 1)];
+    if (info == 0 && std::isfinite(a) && std::isfinite(b))
+      row.value += a * slip.t + b * slip.s;
+    else
+      slide(row);  // no such targets (never met): they slide, their tangential force zero
+  }
+  return true;
+}
+
+void ActiveSet::force_response(const double* dvalue, double* dforce, int columns) {
+  PALPATE_DEMAND(last_ok_);
+  PALPATE_DEMAND(columns >= 0 && columns <= ConstraintSolver::kMaxResponseColumns);
+  const int n = static_cast<int>(rows_.size());
+  std::fill_n(dforce, 3 * index(n) * index(columns), 0.0);
+  if (!last_incremental_) {
+    // The solver's constraints are the active rows, in order.
+    int k = 0;
+    for (int r = 0; r < n; ++r) k += rows_[index(r)].state == ActiveRow::kActive ? 1 : 0;
+    for (int c = 0; c < columns; ++c)
+      for (int r = 0, j = 0; r < n; ++r)
+        if (rows_[index(r)].state == ActiveRow::kActive)
+          std::copy_n(&dvalue[3 * index(c * n + r)], 3, &response_in_[3 * index(c * k + j++)]);
+    solver_.force_response(response_in_.data(), response_out_.data(), columns);
+    for (int c = 0; c < columns; ++c)
+      for (int r = 0, j = 0; r < n; ++r)
+        if (rows_[index(r)].state == ActiveRow::kActive)
+          std::copy_n(&response_out_[3 * index(c * k + j++)], 3, &dforce[3 * index(c * n + r)]);
+    return;
+  }
+  // δb_p = d_pᵀ δvalue_r (a sliding row's d is its normal), δφ = W⁻¹ δb from
+  // the factor, δf_r = Σ_p δφ_p d_p over the row's unknowns.
+  const int m = unknowns_;
+  if (m == 0 || columns == 0) return;
+  for (int c = 0; c < columns; ++c)
+    for (int p = 0; p < m; ++p)
+      response_out_[index(c * m + p)] =
+          Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)])
+              .dot(Eigen::Map<const Vector3d>(&dvalue[3 * index(c * n + unknown_row_[index(p)])]));
+  int info = 0;
+  const int ld = max_unknowns_;
+  dpotrs_("L", &m, &columns, L_.data(), &ld, response_out_.data(), &m, &info);
+  PALPATE_DEMAND(info == 0);
+  for (int c = 0; c < columns; ++c)
+    for (int p = 0; p < m; ++p)
+      Eigen::Map<Vector3d>(&dforce[3 * index(c * n + unknown_row_[index(p)])]) +=
+          response_out_[index(c * m + p)] * Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]);
+}
+
+Matrix3d ActiveSet::G_block(int a, int b) const {
+  if (last_incremental_ && used_epoch_[index(a)] == used_clock_ &&
+      used_epoch_[index(b)] == used_clock_) {
+    const int sa = used_slot_[index(a)], sb = used_slot_[index(b)];
+    // A complete column holds every block of it (and, mirrored, of its row).
+    if (complete_[index(sa)] || complete_[index(sb)]) {
+      const int ld = 3 * used_;
+      const Strided G_UU(const_cast<double*>(G_UU_.data()), ld, ld, Eigen::OuterStride<>(ld));
+      return G_UU.block<3, 3>(3 * sa, 3 * sb);
+    }
+  }
+  return model_.G_block(a, b);
+}
+
+// ---- the reference path: every solve from scratch ---------------------------------
+
+RequestStatus ActiveSet::solve_refactor() {
+  const int n = static_cast<int>(rows_.size());
+  int k = 0;
+  for (const ActiveRow& row : rows_) k += row.state == ActiveRow::kActive ? 1 : 0;
+  RequestStatus status = solver_.begin(static_cast<std::size_t>(k));
+  for (int r = 0; r < n && status == RequestStatus::kOk; ++r) {
+    const ActiveRow& row = rows_[index(r)];
+    if (row.state != ActiveRow::kActive) continue;
+    status = solver_.add_surface_point(row.index.data(), row.weights.data(), row.count, row.kind,
+                                       row.value.data(), row.normal.data());
+  }
+  if (status == RequestStatus::kOk) status = solver_.solve();
+  if (status != RequestStatus::kOk) {
+    const std::size_t length = strnlen(solver_.message(), message_.size() - 1);
+    std::copy_n(solver_.message(), length, message_.data());
+    message_[length] = '\0';
+    return status;
+  }
+  const auto f = solver_.forces();
+  const auto u = solver_.displacements();
+  int j = 0;
+  for (int r = 0; r < n; ++r) {
+    const ActiveRow& row = rows_[index(r)];
+    Eigen::Map<Vector3d> fr(&force_[3 * index(r)]), ur(&displacement_[3 * index(r)]);
+    if (row.state == ActiveRow::kActive) {
+      fr = f.segment<3>(3 * j);
+      ur = u.segment<3>(3 * j);
+      ++j;
+    } else {
+      fr.setZero();
+      ur =
+          row.state == ActiveRow::kDormant ? displacement_from_solver_loads(row) : Vector3d::Zero();
+    }
+  }
+  return RequestStatus::kOk;
+}
+
+/// Σ_i w_i Σ_l G_{a_i l} f_l over the solver's loads: a dormant point's
+/// displacement under the solve just made.
+Vector3d ActiveSet::displacement_from_solver_loads(const ActiveRow& row) const {
+  const auto loads = solver_.load_indices();
+  const auto forces = solver_.load_forces();
+  Vector3d u = Vector3d::Zero();
+  for (int i = 0; i < row.count; ++i) {
+    const int v = row.index[index(i)];
+    if (v < 0) continue;
+    Vector3d u_v = Vector3d::Zero();
+    for (std::size_t l = 0; l < loads.size(); ++l)
+      u_v.noalias() += model_.G_block(v, loads[l]) * Eigen::Map<const Vector3d>(&forces[3 * l]);
+    u += row.weights[index(i)] * u_v;
+  }
+  return u;
+}
+
+// ---- the incremental path -------------------------------------------------------
+
+RequestStatus ActiveSet::check_values() {
+  for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
+    ActiveRow& row = rows_[index(r)];
+    PALPATE_DEMAND(row.kind == Kind::kDisplacement || row.kind == Kind::kNormalDisplacement);
+    const bool normal_only = row.kind == Kind::kNormalDisplacement;
+    const double magnitude = normal_only ? std::abs(row.value.x()) : row.value.norm();
+    if (!std::isfinite(magnitude) || !row.normal.allFinite())
+      return fail(message_, RequestStatus::kNonFiniteValue,
+                  "contact {}: its displacement or normal is not finite; finite numbers only", r);
+    if (magnitude > limits_.max_displacement_m)
+      return fail(message_, RequestStatus::kDisplacementTooLarge,
+                  "contact {}: a displacement of {:.4g} m is larger than model '{}' accepts "
+                  "({:.4g} m)",
+                  r, magnitude, model_.id, limits_.max_displacement_m);
+    if (row.tip) {
+      const double length = row.normal.norm();
+      if (!(length > 1e-12))
+        return fail(message_, RequestStatus::kBadConstraint,
+                    "contact {}: normal ({:g}, {:g}, {:g}) has no direction", r, row.normal.x(),
+                    row.normal.y(), row.normal.z());
+      row.normal /= length;
+    }
+  }
+  return RequestStatus::kOk;
+}
+
+void ActiveSet::number_vertices() {
+  if (++used_clock_ == 0) {
+    std::fill(used_epoch_.begin(), used_epoch_.end(), 0);
+    used_clock_ = 1;
+  }
+  used_ = 0;
+  // The vertices of the rows in the set first (slots 0 … pressed_), then
+  // those only watched rows use.
+  for (const bool pressed : {true, false})
+    for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
+      const ActiveRow& row = rows_[index(r)];
+      if ((row.state == ActiveRow::kActive) != pressed) continue;
+      int kept = 0;
+      for (int i = 0; i < 3; ++i) {
+        const int a = i < row.count ? row.index[index(i)] : -1;
+        int& slot = point_slot_[3 * index(r) + index(i)];
+        slot = -1;
+        if (a < 0) continue;
+        PALPATE_DEMAND(a < model_.compliance_vertex_count());
+        const auto aa = index(a);
+        if (used_epoch_[aa] != used_clock_) {
+          used_epoch_[aa] = used_clock_;
+          used_slot_[aa] = used_++;
+          used_index_[index(used_slot_[aa])] = a;
+        }
+        slot = used_slot_[aa];
+        ++kept;
+      }
+      PALPATE_DEMAND(kept > 0);
+      has_Y_[index(r)] = 0;
+      columns_of_[index(r)] = 0;
+    }
+  // G_UU, and the Y after it, packed at the tick's size (a leading
+  // dimension of the largest possible U spreads a small one over many
+  // pages). G is symmetric (G^ba = (G^ab)ᵀ, the compliance of a linear
+  // elastic body): one read gives both blocks. Among the watched rows'
+  // own vertices nothing is read until one of them joins (complete_
+  // marks the columns read in full): their gaps need G only against the
+  // loaded vertices.
+  int pressed = 0;
+  for (int r = 0; r < static_cast<int>(rows_.size()); ++r)
+    if (rows_[index(r)].state == ActiveRow::kActive)
+      for (int i = 0; i < 3; ++i)
+        pressed = std::max(pressed, point_slot_[3 * index(r) + index(i)] + 1);
+  const int ld = 3 * used_;
+  Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
+  for (int b = 0; b < used_; ++b) {
+    complete_[index(b)] = b < pressed ? 1 : 0;
+    for (int a = 0; a <= std::min(b, pressed - 1); ++a) {
+      const Matrix3d block = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
+      G_UU.block<3, 3>(3 * a, 3 * b) = block;
+      if (a != b) G_UU.block<3, 3>(3 * b, 3 * a) = block.transpose();
+    }
+  }
+}
+
+/// Reads the blocks of G_UU's column b not read yet (against the other
+/// watched-only vertices whose columns are not complete).
+void ActiveSet::complete_column(int b) {
+  if (complete_[index(b)]) return;
+  complete_[index(b)] = 1;
+  const int ld = 3 * used_;
+  Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
+  for (int a = 0; a < used_; ++a) {
+    if (complete_[index(a)] && a != b) continue;
+    const Matrix3d block = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
+    G_UU.block<3, 3>(3 * a, 3 * b) = block;
+    if (a != b) G_UU.block<3, 3>(3 * b, 3 * a) = block.transpose();
+  }
+}
+
+/// Y_r = G_UU H_rᵀ (3u × 3): the displacement of U under a unit force at row r's point.
+void ActiveSet::compute_Y(int r) {
+  if (has_Y_[index(r)]) return;
+  has_Y_[index(r)] = 1;
+  const int ld = 3 * used_;
+  const int u3 = 3 * used_;
+  const Strided G_UU(G_UU_.data(), u3, u3, Eigen::OuterStride<>(ld));
+  Strided Y(&Y_[index(ld) * 3 * index(r)], u3, 3, Eigen::OuterStride<>(ld));
+  Y.setZero();
+  const ActiveRow& row = rows_[index(r)];
+  for (int i = 0; i < row.count; ++i) {
+    const int slot = point_slot_[3 * index(r) + index(i)];
+    if (slot < 0) continue;
+    complete_column(slot);
+    Y.noalias() += row.weights[index(i)] * G_UU.middleCols<3>(3 * slot);
+  }
+}
+
+/// P_rs = H_r G H_sᵀ = H_r Y_s (Y_s computed).
+Matrix3d ActiveSet::P_block(int r, int s) {
+  const int ld = 3 * used_;
+  const Strided Y(&Y_[index(ld) * 3 * index(s)], 3 * used_, 3, Eigen::OuterStride<>(ld));
+  const ActiveRow& row = rows_[index(r)];
+  Matrix3d P = Matrix3d::Zero();
+  for (int i = 0; i < row.count; ++i) {
+    const int slot = point_slot_[3 * index(r) + index(i)];
+    if (slot >= 0) P.noalias() += row.weights[index(i)] * Y.middleRows<3>(3 * slot);
+  }
+  return P;
+}
+
+/// Appends the unknowns of every active row not yet in W, fills their
+/// columns of W = Bᵀ P B, and extends the factor: with W = [W11 W12; W21 W22]
+/// and W11 = L11 L11ᵀ, L21 = W21 L11⁻ᵀ and L22 L22ᵀ = W22 − L21 L21ᵀ.
+RequestStatus ActiveSet::append_pending() {
+  const int first = unknowns_;
+  for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
+    const ActiveRow& row = rows_[index(r)];
+    const int count = unknowns_of(row);
+    if (count == 0 || columns_of_[index(r)] > 0) continue;
+    compute_Y(r);
+    for (int c = 0; c < count; ++c) {
+      const auto p = index(unknowns_++);
+      unknown_row_[p] = r;
+      Eigen::Map<Vector3d>{&unknown_dir_[3 * p]} =
+          row.kind == Kind::kDisplacement ? Vector3d(Vector3d::Unit(c)) : row.normal;
+    }
+    columns_of_[index(r)] = count;
+    kind_in_W_[index(r)] = row.kind;
+  }
+  const int m = unknowns_;
+  const int k = m - first;
+  if (k == 0) return RequestStatus::kOk;
+  const int ld = max_unknowns_;
+  Strided W(W_.data(), m, m, Eigen::OuterStride<>(ld));
+  // Column q of W among rows p ≤ q: d_pᵀ H_r (Y_s d_q); a row's unknowns
+  // are adjacent, so H_r Y_s is formed once per pair of rows.
+  int last_r = -1, last_s = -1;
+  Matrix3d P = Matrix3d::Zero();
+  for (int q = first; q < m; ++q) {
+    const int s = unknown_row_[index(q)];
+    const Eigen::Map<const Vector3d> dq(&unknown_dir_[3 * index(q)]);
+    for (int p = 0; p <= q; ++p) {
+      const int r = unknown_row_[index(p)];
+      if (r != last_r || s != last_s) P = P_block(r, s), last_r = r, last_s = s;
+      W(p, q) = W(q, p) = Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]).dot(P * dq);
+    }
+  }
+  Strided L(L_.data(), m, m, Eigen::OuterStride<>(ld));
+  if (first > 0) {
+    // By BLAS in place: Eigen's L21 L21ᵀ is a temporary on the heap past
+    // 20 unknowns (its coefficient-wise product's threshold).
+    const double one = 1, minus_one = -1;
+    L.block(first, 0, k, first) = W.block(first, 0, k, first);
+    dtrsm_("R", "L", "T", "N", &k, &first, &one, &L(0, 0), &ld, &L(first, 0), &ld);
+    L.block(first, first, k, k).triangularView<Eigen::Lower>() = W.block(first, first, k, k);
+    dsyrk_("L", "N", &k, &first, &minus_one, &L(first, 0), &ld, &one, &L(first, first), &ld);
+  } else {
+    L.topLeftCorner(m, m).triangularView<Eigen::Lower>() = W.topLeftCorner(m, m);
+  }
+  int info = 0;
+  dpotrf_("L", &k, &L(first, first), &ld, &info);
+  if (info != 0)
+    return fail(message_, RequestStatus::kIllConditioned,
+                "the {} × {} system of the contacts is singular (column {}): points too close "
+                "together or too many on the same vertices",
+                m, m, first + info);
+  return check_condition();
+}
+
+/// Refuses W when its 1-norm condition estimate exceeds the limit.
+RequestStatus ActiveSet::check_condition() {
+  const int m = unknowns_;
+  if (m == 0) return RequestStatus::kOk;
+  const int ld = max_unknowns_;
+  const Strided W(W_.data(), m, m, Eigen::OuterStride<>(ld));
+  const double norm1 = W.cwiseAbs().colwise().sum().maxCoeff();
+  double rcond = 0;
+  int info = 0;
+  dpocon_("L", &m, L_.data(), &ld, &norm1, &rcond, work_.data(), iwork_.data(), &info);
+  const double condition = rcond > 0 ? 1.0 / rcond : std::numeric_limits<double>::infinity();
+  if (info != 0 || !(condition <= limits_.max_condition))
+    return fail(message_, RequestStatus::kIllConditioned,
+                "the {} × {} system of the contacts has condition estimate {:.3g}, above the "
+                "limit {:.3g}: points too close together, or normals nearly parallel on "
+                "neighbours",
+                m, m, condition, limits_.max_condition);
+  return RequestStatus::kOk;
+}
+
+/// Removes unknown p from W and from its factor. Without row p, L is lower
+/// triangular but for one superdiagonal from column p on; Givens rotations
+/// of columns (i, i+1), i = p … m−2, clear it (they leave L Lᵀ unchanged)
+/// and leave the last column zero.
+void ActiveSet::remove_unknown(int p) {
+  const int m = unknowns_;
+  const int ld = max_unknowns_;
+  Strided W(W_.data(), m, m, Eigen::OuterStride<>(ld));
+  Strided L(L_.data(), m, m, Eigen::OuterStride<>(ld));
+  for (int j = p; j + 1 < m; ++j) W.col(j) = W.col(j + 1);
+  for (int j = 0; j + 1 < m; ++j)
+    for (int i = p; i + 1 < m; ++i) W(i, j) = W(i + 1, j);
+  for (int j = 0; j < m; ++j)
+    for (int i = std::max(p, j - 1); i + 1 < m; ++i) L(i, j) = L(i + 1, j);
+  for (int i = p; i + 1 < m; ++i) {
+    const double a = L(i, i), b = L(i, i + 1);
+    const double r = std::hypot(a, b);
+    if (r == 0) continue;
+    const double c = a / r, s = b / r;
+    for (int t = i; t + 1 < m; ++t) {
+      const double x = L(t, i), y = L(t, i + 1);
+      L(t, i) = c * x + s * y;
+      L(t, i + 1) = c * y - s * x;
+    }
+  }
+  --columns_of_[index(unknown_row_[index(p)])];
+  for (int q = p; q + 1 < m; ++q) {
+    unknown_row_[index(q)] = unknown_row_[index(q) + 1];
+    std::copy_n(&unknown_dir_[3 * index(q) + 3], 3, &unknown_dir_[3 * index(q)]);
+  }
+  --unknowns_;
+}
+
+RequestStatus ActiveSet::solve_incremental() {
+  RequestStatus status = RequestStatus::kOk;
+  if (factored_) {
+    // Unknowns of rows that left, or that slide now, leave W first (removing
+    // rows of an SPD matrix cannot worsen its condition); then the rows that
+    // joined, and the sliding rows' normals, are appended.
+    for (int p = unknowns_ - 1; p >= 0; --p) {
+      const int r = unknown_row_[index(p)];
+      const ActiveRow& row = rows_[index(r)];
+      if (row.state != ActiveRow::kActive || row.kind != kind_in_W_[index(r)]) remove_unknown(p);
+    }
+  } else {
+    unknowns_ = 0;
+    for (std::size_t r = 0; r < rows_.size(); ++r) columns_of_[r] = 0;
+  }
+  status = append_pending();
+  if (status != RequestStatus::kOk) {
+    factored_ = false;
+    return status;
+  }
+  factored_ = true;
+  return finish_incremental();
+}
+
+/// φ = W⁻¹ b from the factor, f_C = B φ, and every row's displacement
+/// u_p = H_p G_UU Hᵀ f_C (the dormant rows' too, for their gaps).
+RequestStatus ActiveSet::finish_incremental() {
+  const int m = unknowns_;
+  const int ld = max_unknowns_;
+  for (int p = 0; p < m; ++p) {
+    const ActiveRow& row = rows_[index(unknown_row_[index(p)])];
+    rhs_[index(p)] = row.kind == Kind::kNormalDisplacement
+                         ? row.value.x()
+                         : Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]).dot(row.value);
+  }
+  if (m > 0) {
+    int info = 0;
+    const int one = 1;
+    dpotrs_("L", &m, &one, L_.data(), &ld, rhs_.data(), &m, &info);
+    if (info != 0)
+      return fail(message_, RequestStatus::kInternalError, "dpotrs failed with info {}", info);
+  }
+  const int n = static_cast<int>(rows_.size());
+  std::fill_n(force_.begin(), 3 * index(n), 0.0);
+  for (int p = 0; p < m; ++p)
+    Eigen::Map<Vector3d>(&force_[3 * index(unknown_row_[index(p)])]) +=
+        rhs_[index(p)] * Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]);
+  // z = G_UU Hᵀ f_C = Σ_r Y_r f_r over the rows in W: 9u flops per row,
+  // not 9u² (U holds every candidate's vertices, most of them unloaded).
+  const int u3 = 3 * used_;
+  const int ld_Y = 3 * used_;
+  Eigen::Map<Eigen::VectorXd> z(z_.data(), u3);
+  z.setZero();
+  bool finite = true;
+  for (int r = 0; r < n; ++r) {
+    if (columns_of_[index(r)] == 0) continue;
+    finite = finite && force(r).allFinite();
+    z.noalias() +=
+        Strided(&Y_[index(ld_Y) * 3 * index(r)], u3, 3, Eigen::OuterStride<>(ld_Y)) * force(r);
+  }
+  for (int r = 0; r < n; ++r) {
+    Eigen::Map<Vector3d> u(&displacement_[3 * index(r)]);
+    u.setZero();
+    if (rows_[index(r)].state == ActiveRow::kReleased) continue;
+    for (int i = 0; i < rows_[index(r)].count; ++i)
+      if (const int slot = point_slot_[3 * index(r) + index(i)]; slot >= 0)
+        u += rows_[index(r)].weights[index(i)] * z.segment<3>(3 * slot);
+    finite = finite && u.allFinite() && force(r).allFinite();
+  }
+  // Finite values can still overflow (a displacement of 1e300 m needs an
+  // infinite force): no reply carries an infinity or a NaN.
+  if (!finite)
+    return fail(message_, RequestStatus::kNonFiniteValue,
+                "the solution overflows (a force or displacement is not finite): the values are "
+                "too large for this model");
+  return RequestStatus::kOk;
+}
+
+}  // namespace palpate::detail
