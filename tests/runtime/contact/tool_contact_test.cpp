@@ -1,4 +1,4 @@
-// Tools on an organ (docs/tools.md) against the direct solves of docs/model.md on
+// Tools on an organ (docs/tools.md) against the direct solves of docs/model/requests.md on
 // the G of a real compliance file: probing, gliding, grasping, two tools,
 // the force limits, the watchdog and refused poses.
 

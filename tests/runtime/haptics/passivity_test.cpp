@@ -1,5 +1,5 @@
 // The rendering between palpated's answers on a simulated device (issue 19;
-// docs/model.md, "Rendering between answers: the local model and
+// docs/model/rendering.md, "Rendering between answers: the local model and
 // passivity"): a hand (SimulatedDevice: handle 0.1 kg, hand 0.2 kg,
 // 300 N/m, 3 N·s/m) presses palpated's default tool into the clamped box
 // through the real ToolContactEngine, holds, and withdraws. The engine
@@ -11,7 +11,7 @@
 // The box is made of a stiff material, 500 kPa (a stiff silicone phantom,
 // or tissue gripped hard): the contact's stiffness is then about 1,500 N/m,
 // and holding an answer T old gives the hand about k T − b ≈ 1,500 × 3.6 ms
-// − 3.2 N·s/m > 0 of negative damping (docs/model.md): the textbook
+// − 3.2 N·s/m > 0 of negative damping (docs/model/rendering.md): the textbook
 // unstable case. On the liver's 85 kPa (300 N/m) holding is stable at
 // 5 ms, and no test could fail.
 
@@ -66,7 +66,7 @@ struct Press {
 // renders that tangential stiffness as late as the normal one. At 0.15 ms
 // the handle then buzzes at 0.07 mm instead of settling, and with the
 // observer at its 50 N·s/m cap, 0.2-0.5 mJ goes back to the hand before
-// the observer has taken it back (docs/model.md, "Rendering between
+// the observer has taken it back (docs/model/rendering.md, "Rendering between
 // answers"). The local model, palpated's default, settles with friction at
 // every round trip (the last test).
 constexpr double kHeldFriction = 0;
@@ -155,7 +155,7 @@ class Passivity : public testing::BoxModelSuite<8, 500> {
   }
 };
 
-/// One line per press, for the record (docs/model.md quotes them).
+/// One line per press, for the record (docs/model/rendering.md quotes them).
 void print(const Press& p, const Outcome& o) {
   std::printf(
       "  %-5s %4.2f ms observer %-3s: k %4.0f N/m, late amplitude %8.4f mm, mean force %5.2f N, "

@@ -2,7 +2,7 @@
 // cuts under load at the served step, for both integrators; the implicit
 // step's feel against the explicit one's under a sliding tip; pliers holding
 // the rest beside the region, the rest's contacts taking the region's push
-// a tick late (docs/model.md, "The implicit step" and "Substeps"). The
+// a tick late (docs/model/hybrid-serving.md, "The implicit step" and "Substeps"). The
 // static checks against K u = f are hybrid_serving_test's.
 
 #include <gtest/gtest.h>
@@ -36,9 +36,9 @@ using testing::rest_vertex_near;
 
 // Random cuts while the region is pressed and the rest loaded, stepped at
 // the served step. Explicit: the step bound must hold after every cut,
-// every release of Γ vertices included (docs/model.md, "Substeps").
+// every release of Γ vertices included (docs/model/hybrid-serving.md, "Substeps").
 // Implicit: every cut's update of the factor (Woodbury, the worker's
-// factorization, or one on the spot) must keep A's solve (docs/model.md,
+// factorization, or one on the spot) must keep A's solve (docs/model/hybrid-serving.md,
 // "The implicit step"). Unstable dynamics or a wrong solve grow without
 // bound within a few hundred steps, so a displacement that stays within
 // ten times the static answer's scale, finite, over thousands of cuts and
@@ -133,7 +133,7 @@ std::pair<double, double> sliding_tip_difference(const Organ& o, double interfac
 // 20 Hz here) are the same to a few per cent, though backward Euler damps
 // what is above it. The interface's dashpot (κ = 1, the default; below)
 // damps the region's motion at Γ more: its feel under a sliding tip differs
-// more, within a fifth (docs/model.md, "The implicit step").
+// more, within a fifth (docs/model/hybrid-serving.md, "The implicit step").
 TEST(HybridServing, TheImplicitStepFeelsAsTheExplicitOneUnderASlidingTip) {
   const Organ o;
   const auto [integrator, rms] = sliding_tip_difference(o, 0);
@@ -221,7 +221,7 @@ std::pair<double, double> grasp_next_to_region(const SurfaceModel& model, Hybrid
 // until every solve failed (tests/daemon/cut_gesture_test.py, before the
 // dashpot); here, alone, it grows by a few per cent over the hold. The
 // interface's dashpot κ S_vv Δt (κ = 1, the default) outweighs it
-// (docs/model.md, "The implicit step").
+// (docs/model/hybrid-serving.md, "The implicit step").
 TEST(HybridServing, PliersHoldingTheRestNextToTheRegionStayStable) {
   const DemoOrgan o;
   HybridRegionSettings undamped;

@@ -2,8 +2,8 @@
 // and the rest's compliance on its boundary (offline/cut_region) stepped by
 // the tensor-mass model coupled through S = G_ΓΓ⁻¹ (runtime/tensor_mass),
 // loaded and damped until it settles, against the pure precomputed answer:
-// the whole organ's surface compliance G_SS (docs/model.md, "The hybrid
-// model", "The tensor-mass model"). The issue asks for 1 %; without a cut
+// the whole organ's surface compliance G_SS (docs/model/hybrid-region.md, "The hybrid
+// model"; docs/model/tensor-mass.md). The issue asks for 1 %; without a cut
 // the two are the same linear problem, so the test holds them to the
 // settling's tolerance.
 

@@ -5,7 +5,7 @@
 // LDLᵀ: no compliance, no condensation, no tensor-mass code). Without a
 // cut the two are the same linear problem; after a cut, against the mesh
 // without the tetrahedra the cut removed, which checks the release of Γ
-// vertices the cut leaves without a region tetrahedron (docs/model.md, "The
+// vertices the cut leaves without a region tetrahedron (docs/model/hybrid-serving.md, "The
 // hybrid model as served"). The dynamics (random cuts, the two integrators,
 // pliers beside the region) are hybrid_dynamics_test's.
 

@@ -4,7 +4,7 @@
 // tensor-mass tensors, before and after tetrahedra are removed, whichever
 // way the change reaches the factor: a Woodbury update, the worker's
 // factorization adopted, or a factorization on the spot
-// (docs/model.md, "The implicit step").
+// (docs/model/hybrid-serving.md, "The implicit step").
 
 #include "palpate/runtime/region/region_implicit_step.hpp"
 

@@ -2,7 +2,7 @@
 // region leaving two parts that exchange no force, cutting through
 // entirely, and 10,000 random cuts between explicit steps that keep the
 // region finite, uninverted and within the energy the load put in
-// (docs/model.md, "The tensor-mass model: a cuttable region"). The queries
+// (docs/model/tensor-mass.md, "The tensor-mass model: a cuttable region"). The queries
 // a cut uses: tensor_mass_query_test.cpp.
 
 #include <gtest/gtest.h>
@@ -134,7 +134,7 @@ TEST(TensorMassCut, SweepAcrossSeparatesTwoParts) {
     q_prev = q;
     q = next;
     // The held part from rest under a constant load: the discrete energy
-    // identity gives |ū|_K ≤ 2 |u_s|_K at the half steps (docs/model.md).
+    // identity gives |ū|_K ≤ 2 |u_s|_K at the half steps (docs/model/tensor-mass.md).
     const VectorXd mid = 0.5 * (u_before + r.model.displacement_m()(dofs));
     largest_held = std::max(largest_held, std::sqrt(mid.dot(k_a * mid)));
     for (int v = 0; v < nv; ++v)

@@ -2,7 +2,7 @@
 // triangle and the swept blade; lib/runtime/src/region/tensor_mass_query.cpp): the
 // index itself (the internal tet_grid) first, the exact triangle–tetrahedron
 // test against an independent one and on hand-made cases, the indexed
-// queries against a scan of every tetrahedron (docs/model.md, "The swept
+// queries against a scan of every tetrahedron (docs/model/tensor-mass.md, "The swept
 // blade"). What a cut does: tensor_mass_cut_test.cpp.
 
 #include <gtest/gtest.h>

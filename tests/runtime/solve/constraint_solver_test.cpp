@@ -1,4 +1,4 @@
-// The run-time algebra (docs/model.md, "The reduced system of a request") against dense
+// The run-time algebra (docs/model/requests.md, "The reduced system of a request") against dense
 // computations on the full G of a real compliance file, every request error, and the reuse of
 // factorizations.
 
@@ -117,7 +117,7 @@ TEST_F(ConstraintSolverTest, ForcesGiveTheColumnsOfG) {
 }
 
 TEST_F(ConstraintSolverTest, ImposedDisplacementsSolveTheCompliance) {
-  // docs/model.md: G_CC F_C = U_C, U_S = G_SC F_C; the reference solves the same
+  // docs/model/requests.md: G_CC F_C = U_C, U_S = G_SC F_C; the reference solves the same
   // system with Eigen's full-pivot LU.
   ConstraintSolver solver(model(), {});
   const std::vector<int> patch{5, 6, 12, 20};

@@ -1,4 +1,4 @@
-// The contact engine on a warped model (docs/model.md, "Large rotations:
+// The contact engine on a warped model (docs/model/warped.md, "Large rotations:
 // warped compliance"; docs/tools.md): the same tick as the linear one with
 // the surface deformed to p + R̃ û and each row in its point's frame. Small
 // presses feel as in the linear model; a flap grasped and swung up about its
@@ -99,7 +99,7 @@ TEST(WarpedTools, ASmallDragWithFrictionFeelsAsInTheLinearModel) {
 // on x = 0), its tip's edge grasped by the
 // pliers and swung up along the arc of a rotation about the clamped edge's
 // mid-thickness axis, the pliers turning with it. The linear engine pushes
-// the pliers back along the flap, as the request path does (docs/model.md:
+// the pliers back along the flap, as the request path does (docs/model/warped.md:
 // 0.215 N against 0.029 N for a pinch at 15°); the warped engine does not.
 TEST(WarpedTools, AFlapSwungUpDoesNotPushBackAlongItsLength) {
   testing::TempDir dir;

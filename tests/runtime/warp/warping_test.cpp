@@ -1,4 +1,4 @@
-// Warped compliance (docs/model.md, "Large rotations: warped compliance"):
+// Warped compliance (docs/model/warped.md, "Large rotations: warped compliance"):
 // the rotations of the surface, the integrated rotation, and warped requests
 // against their definitions on a real compliance file. The comparison with a
 // nonlinear reference is tests/runtime/nonlinear_reference/ (lift_warped).

@@ -34,7 +34,7 @@ using detail::TipCandidate;
 
 struct ToolContactEngine::Impl {
   const SurfaceModel& model;
-  // Warped compliance (docs/model.md, "Large rotations: warped compliance"):
+  // Warped compliance (docs/model/warped.md, "Large rotations: warped compliance"):
   // null for the linear model.
   const RotationField* warping = nullptr;
   ContactSettings settings;
@@ -360,7 +360,7 @@ struct ToolContactEngine::Impl {
       row.normal = normal;
       row_world_normal[b] = normal;
       if (warping != nullptr) {
-        // Into the point's material frame (docs/model.md, "Large rotations:
+        // Into the point's material frame (docs/model/warped.md, "Large rotations:
         // warped compliance"): d̂ = R̃⁻¹ d; a normal n̂ = R̃ᵀ n / s, δ̂ = δ / s.
         const Matrix3d Rt = surface.point_rotation(point);
         row_rotation[b] = Rt;

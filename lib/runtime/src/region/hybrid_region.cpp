@@ -82,7 +82,7 @@ HybridRegion::HybridRegion(const SurfaceModel& model, const HybridRegionSettings
              std::vector<int>(region_of(model).fixed_vertices.begin(),
                               region_of(model).fixed_vertices.end())) {
   const CutRegionData& region = *model.cut_region;
-  // The element bound alone, before the coupling joins it (docs/model.md).
+  // The element bound alone, before the coupling joins it (docs/model/hybrid-serving.md).
   const double element_omega = model_.stable_time_step(0.5, 1).element_omega_rad_s;
   element_omega2_ = element_omega * element_omega;
 

@@ -1,4 +1,4 @@
-// The served region's time stepping (docs/model.md, "The hybrid model as
+// The served region's time stepping (docs/model/hybrid-serving.md, "The hybrid model as
 // served"): a tick's steps, u_Γ⁰ from the rest's loads, the implicit step
 // (the served one) and the explicit substeps (its baseline) with their
 // proven bound, and the push on the rest. The rest of HybridRegion (its
@@ -178,7 +178,7 @@ void HybridRegion::update_explicit_bound() {
   // Two proven bounds on the elastic part, the smaller taken: the element
   // bound with the coupling's, ω² ≤ ω_elements² + λ_max(S) / min m_Γ, and
   // Gershgorin's on M⁻¹ (K + S); then the contacts', max_tips · k / min
-  // m_skin (each term bounds its part's Rayleigh quotient: docs/model.md).
+  // m_skin (each term bounds its part's Rayleigh quotient: docs/model/hybrid-serving.md).
   const double inf = std::numeric_limits<double>::infinity();
   double least_interface_mass = inf, least_skin_mass = inf;
   for (int v : interface_)

@@ -1,6 +1,6 @@
 // The tensor-mass region's topology: the adjacency a cut updates locally
 // (vertex and edge → tetrahedra, faces), the tensors re-summed from it, the
-// boundary, removal, and the connected parts a cut leaves (docs/model.md,
+// boundary, removal, and the connected parts a cut leaves (docs/model/tensor-mass.md,
 // "The tensor-mass model: a cuttable region"; the queries of what a blade
 // meets are tensor_mass_query.cpp's).
 

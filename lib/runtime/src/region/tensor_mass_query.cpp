@@ -1,5 +1,5 @@
 // The tensor-mass region's cut queries: which remaining tetrahedra a
-// cutting blade meets, in the rest geometry (docs/model.md, "The
+// cutting blade meets, in the rest geometry (docs/model/tensor-mass.md, "The
 // tensor-mass model: a cuttable region", "The swept blade"): the exact
 // segment and triangle tests, and the spatial index (tet_grid.hpp) that
 // gives them their candidates.

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The hybrid model as served (docs/model.md, "The hybrid model as served"):
+/// The hybrid model as served (docs/model/hybrid-serving.md, "The hybrid model as served"):
 /// a compliance file's cuttable region (/cut_region) stepped by the
 /// tensor-mass model inside each tool tick, coupled to the precomputed rest
 /// of the organ both ways through the file's own G:
@@ -34,7 +34,7 @@ namespace detail {
 class ImplicitRegionStep;  // lib/runtime/internal/palpate/runtime/region/region_implicit_step.hpp
 }
 
-/// How the region's dynamics are integrated (docs/model.md, "The implicit
+/// How the region's dynamics are integrated (docs/model/hybrid-serving.md, "The implicit
 /// step" and "Substeps").
 enum class RegionIntegrator {
   /// One backward-Euler step of implicit_step_s per tick (stable whatever
@@ -55,10 +55,10 @@ struct HybridRegionSettings {
   int refactor_rank = 48;
   /// κ ≥ 0: the implicit step's dashpot at Γ, κ S_vv Δt per Γ vertex (S_vv
   /// its 3 × 3 block of S), against the negative damping of the rest's
-  /// one-tick-late view of the region's push (docs/model.md).
+  /// one-tick-late view of the region's push (docs/model/hybrid-serving.md).
   double interface_damping = 1;
   /// The explicit substep is this fraction of the stable step's proven bound
-  /// (docs/model.md: the element bound, the coupling and the contacts).
+  /// (docs/model/hybrid-serving.md: the element bound, the coupling and the contacts).
   double step_safety = 0.9;
   /// Stiffness of a tip's push on one region surface vertex (N/m): the
   /// force is k (r − d) along the normal from the tip's axis, d the vertex's
@@ -139,7 +139,7 @@ class HybridRegion {
   int cut(const Blade& before, const Blade& after);
 
   /// The explicit step's proven stable bound now, step_safety × 2/ω bound
-  /// (it can shrink after a cut: docs/model.md); the step (implicit:
+  /// (it can shrink after a cut: docs/model/hybrid-serving.md); the step (implicit:
   /// implicit_step_s; explicit: the bound as loaded, or as shortened by a
   /// cut); the steps the last advance() took.
   double substep_bound_s() const { return substep_bound_s_; }

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The tensor-mass model of a cuttable region (docs/model.md, "The
+/// The tensor-mass model of a cuttable region (docs/model/tensor-mass.md, "The
 /// tensor-mass model: a cuttable region"; Cotin, Delingette & Ayache, IEEE
 /// TVCG 5(1), 1999): linear elasticity on P1 tetrahedra stored the lecture's
 /// way, a 3 × 3 tensor K_ii on each vertex and K_ij on each edge, stepped by
@@ -56,7 +56,7 @@ struct TensorMassMaterial {
 };
 
 /// The largest angular frequency of the undamped region and the time steps
-/// it allows (docs/model.md derives Δt_crit = 2/ω_max, whatever γ).
+/// it allows (docs/model/tensor-mass.md derives Δt_crit = 2/ω_max, whatever γ).
 struct StableTimeStep {
   /// ω_max (rad/s) by power iteration on M^-1/2 (K + S) M^-1/2: a Rayleigh
   /// quotient, so never above the true ω_max; with `converged`, within
@@ -172,7 +172,7 @@ class TensorMassModel {
   /// ω_max of M⁻¹ (K + S) on the moving DOFs by power iteration from a fixed
   /// start, stopped when ‖A y − ρ y‖ ≤ @p tolerance · ρ or after
   /// @p max_iterations; and Gershgorin's bound. Allocates; call it after a
-  /// cut too (a cut can raise ω_max: docs/model.md). When nothing moves
+  /// cut too (a cut can raise ω_max: docs/model/tensor-mass.md). When nothing moves
   /// (every tetrahedron cut, say) the ω are 0 and the steps infinite.
   StableTimeStep stable_time_step(double tolerance = 1e-6, int max_iterations = 100000) const;
 

@@ -94,7 +94,7 @@ class ToolContactEngine {
  public:
   /// @p model must outlive the engine. Sizes every buffer for the tools.
   /// @p warping, when given (and outliving the engine), makes the engine
-  /// warped (docs/model.md, "Large rotations: warped compliance"): the
+  /// warped (docs/model/warped.md, "Large rotations: warped compliance"): the
   /// surface is deformed to p + R̃(ω) û and every contact row is rotated into
   /// its point's frame, with ω from the previous tick's loads (as the
   /// deformation itself); null: the linear model.

@@ -1,6 +1,6 @@
 #pragma once
 // Private to palpate_runtime: loads on the surface the tools do not make
-// (a served cut region's push on the rest, docs/model.md "The hybrid model
+// (a served cut region's push on the rest, docs/model/hybrid-serving.md "The hybrid model
 // as served"), as the contact engine takes them: the displacement
 // u_b = G f_b they give a compliance vertex (memoized per set), and two
 // bounds on how far they move a vertex: from their energy (any vertex), and

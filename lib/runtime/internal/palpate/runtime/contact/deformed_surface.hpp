@@ -9,7 +9,7 @@
 ///
 ///     x_v = p_v + u_v,   u_v = Σ_l G^{v l} f_l      (a fixed vertex stays),
 ///
-/// or p_v + R̃(ω_v) û_v on a warped model (docs/model.md, "Large rotations:
+/// or p_v + R̃(ω_v) û_v on a warped model (docs/model/warped.md, "Large rotations:
 /// warped compliance"), computed once per epoch (the loads change at each
 /// solve). Which vertices and triangles lie near a tool's segment, and a
 /// bound that leaves a triangle out before its corners are deformed.

@@ -3,7 +3,7 @@
 /// A tool's contact wrench linearized about its pose (internal to the
 /// runtime): K = ∂(F, τ)/∂(x, θ) of LocalContactModel, read off the
 /// factorization of the tick's settled contact set (docs/tools.md, "The
-/// local model"; the derivation in docs/model.md, "The local contact model").
+/// local model"; the derivation in docs/model/local-model.md, "The local contact model").
 ///
 /// What K is the derivative of: the engine's tick at a pose near the
 /// answered one, the surface deformed as at that pose (a settled state),

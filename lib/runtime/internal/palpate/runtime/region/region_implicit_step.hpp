@@ -1,6 +1,6 @@
 #pragma once
 // Private to palpate_runtime: the served region's implicit step
-// (docs/model.md, "The implicit step"). One backward-Euler step per tick
+// (docs/model/hybrid-serving.md, "The implicit step"). One backward-Euler step per tick
 // solves A u⁺ = b with
 //
 //   A = c M + K_R + k_s P_skin + h P_held + S on Γ,   c = 1/Δt² + γ/Δt,
@@ -35,7 +35,7 @@ struct ImplicitStepCoefficients {
   double damping_per_s = 0;           ///< γ
   double skin_stiffness_n_per_m = 0;  ///< k_s on each touchable vertex
   /// κ: each Γ vertex's 3 × 3 block of S, times κ, as a proximal term
-  /// κ S_vv (u⁺ − u) (a dashpot κ S_vv Δt at Γ; docs/model.md).
+  /// κ S_vv (u⁺ − u) (a dashpot κ S_vv Δt at Γ; docs/model/hybrid-serving.md).
   double interface_damping = 0;
   double mass_coefficient() const {  ///< c = 1/Δt² + γ/Δt
     return 1 / (time_step_s * time_step_s) + damping_per_s / time_step_s;

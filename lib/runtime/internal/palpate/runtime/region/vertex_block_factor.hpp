@@ -4,7 +4,7 @@
 // L Lᵀ x = b. Eigen's scalar sparse triangular solves spend about 1 ns per
 // entry of the factor on index work and dependent loads; by blocks, the
 // index is read once per nine entries and each block is a fixed-size
-// product (docs/model.md, "The implicit step": the interior's solves).
+// product (docs/model/hybrid-serving.md, "The implicit step": the interior's solves).
 
 #include <Eigen/Core>
 #include <vector>

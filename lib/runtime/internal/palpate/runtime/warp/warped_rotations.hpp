@@ -1,6 +1,6 @@
 #pragma once
 // Private to palpate_runtime: the rotations a warped contact engine needs,
-// vertex by vertex within a tick (docs/model.md, "Large rotations: warped
+// vertex by vertex within a tick (docs/model/warped.md, "Large rotations: warped
 // compliance"; docs/tools.md, "On a warped model").
 
 #include <cstdint>
