@@ -28,7 +28,7 @@
 // Both renderers have the device's limits out of reach (force limit 10⁶ N,
 // slew 10¹² N/s: these are limits of the device, not errors of the model)
 // and no passivity controller (its damping is no error of the model
-// either; tests/runtime/passivity_test.cpp is about it). The error of a
+// either; tests/runtime/haptics/passivity_test.cpp is about it). The error of a
 // tick is |F_rendered − F_reference| (N); the RMS is taken over the ticks
 // where either the reference or the renderings feel a force (free ticks
 // would only dilute it). Printed per gesture and round trip: the RMS of

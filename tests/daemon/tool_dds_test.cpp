@@ -32,7 +32,7 @@ TEST_F(ToolsOverDdsTest, PressingGivesTheDirectSolveAndWithdrawingGivesNothing) 
     // the probe feels −f. The tip also meets the triangles that the dip
     // around v tilts towards it (docs/tools.md, "Tip contacts"): a few
     // per cent more, never less (the exact joint solve is checked in
-    // process, tests/runtime/tool_contact_test.cpp).
+    // process, tests/runtime/contact/tool_contact_test.cpp).
     const Vector3d f = G_->block<3, 3>(3 * v, 3 * v).ldlt().solve(Vector3d(0, 0, -d));
     EXPECT_LT((probe.force() + f).norm(), 0.1 * f.norm()) << "depth " << d;
     EXPECT_GE(probe.force().z(), -f.z() * (1 - 1e-9)) << "depth " << d;

@@ -70,7 +70,7 @@ struct RenderSettings {
   /// reference energy following", IEEE Trans. Control Systems Technology
   /// 13(5), 2005). Without it, a held answer may spend on an oscillation
   /// about the pressed pose all the energy the press stored before the
-  /// controller acts (tests/runtime/passivity_test.cpp).
+  /// controller acts (tests/runtime/haptics/passivity_test.cpp).
   bool reference_energy = true;
   /// Most damping the controller may add: a device's own stable limit.
   double max_damping_n_s_per_m = 50;

@@ -3,7 +3,7 @@
 /// A haptic device's handle held by a human hand, simulated: what the
 /// rendering of palpated's answers is tested and measured against
 /// (docs/model/rendering.md, "Rendering between answers: the local model and
-/// passivity"; tests/runtime/passivity_test.cpp).
+/// passivity"; tests/runtime/haptics/passivity_test.cpp).
 ///
 /// The handle is a mass m_d with viscous damping b_d (the device's own
 /// friction, to ground). The hand grasps it rigidly and is an impedance: a
@@ -40,7 +40,7 @@
 /// the hand's (ω = √(k_h / (m_d + m_h)) ≈ 32 rad/s at the defaults, ω h ≈
 /// 2·10⁻³ per sub-step at 4 kHz), so the integration error is far below
 /// round-off's scale of any measure taken (checked against the closed
-/// form, tests/runtime/simulated_device_test.cpp). A contact's stiffness is
+/// form, tests/runtime/haptics/simulated_device_test.cpp). A contact's stiffness is
 /// not integrated here: it enters through the rendered force, sampled at
 /// the device's rate, which is the point.
 ///
