@@ -29,7 +29,7 @@
 //
 // It uses only ToolContactEngine's public interface, so it builds against
 // the tree before surface contacts too (the same-run baseline of
-// BENCHMARKS.md, "Contact with the surface").
+// docs/benchmarks-history.md, "Contact with the surface").
 //
 // palpated runs OpenBLAS on one thread (set_blas_threads(1)); run this the
 // same way: OPENBLAS_NUM_THREADS=1.

@@ -2,7 +2,7 @@
 // boundary (Γ and its part of the organ's surface) costs against the whole
 // organ's surface compliance, by the same method in the same run, and how
 // the interface Γ grows with the region (a ball of three radii) on the
-// sample organ (BENCHMARKS.md, "The cuttable region").
+// sample organ (docs/benchmarks-history.md, "The cuttable region").
 //
 //   build/bench/palpate_cut_region_bench [mesh_size_m] [repetitions]
 //

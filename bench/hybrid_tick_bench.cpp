@@ -4,7 +4,7 @@
 // surface, then f_Γ = S (u_Γ − u_Γ⁰) — and one cut (HybridRegion::cut: the
 // blade's query, the removals, the Γ vertices released, and the step's
 // update), on the sample organ with balls of two radii at its lower front
-// (BENCHMARKS.md, "The hybrid model as served"). Targets: a tick p99 ≤
+// (docs/benchmarks-history.md, "The hybrid model as served"). Targets: a tick p99 ≤
 // 500 µs at up to 2,000 tetrahedra, a cut ≤ 10 ms. The served step is the
 // implicit one (one backward-Euler step per tick); same-run baselines: the
 // explicit substeps it replaced, on the same loads, and those substeps of

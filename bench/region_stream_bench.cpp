@@ -4,7 +4,7 @@
 // between samples (all, and into each sample that carries a new topology
 // version) and what the region adds to a sample. Run by
 // bench/region_stream.sh, which serves the cut demo's organ and plays the
-// cut gesture meanwhile (BENCHMARKS.md, "The stream while the region is
+// cut gesture meanwhile (docs/benchmarks-history.md, "The stream while the region is
 // cut").
 //
 //   build/bench/palpate_region_stream_bench MODEL SECONDS

@@ -1,6 +1,6 @@
 // How close what a device renders between palpated's answers is to what it
 // should feel (issue 19; docs/model/rendering.md, "Rendering between answers: the
-// local model and passivity"; BENCHMARKS.md, "Rendering between answers").
+// local model and passivity"; docs/benchmarks-history.md, "Rendering between answers").
 //
 // Each gesture (config/gestures/*.toml, its first tool, palpated's default
 // tool: capsule r 4 mm, 15 mm long, friction 0.3) is played as device poses

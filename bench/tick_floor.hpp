@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// The floor of a contact tick (issue 17's 64-point target;
-/// BENCHMARKS.md, "The 64-point tick's floor"), for bench/contact_bench.cpp.
+/// docs/benchmarks-history.md, "The 64-point tick's floor"), for bench/contact_bench.cpp.
 
 #include <benchmark/benchmark.h>
 

@@ -157,7 +157,7 @@ sign() {  # sign XML P7S: S/MIME, clear text, signed by the CA (what Cyclone's a
 # protection: an outsider cannot inject or replay submessages, heartbeats or
 # acknacks included); the samples' payload is encrypted or signed
 # (--protection: AES-GCM or GMAC, the same one pass over the payload, so
-# encrypt costs about what sign does, BENCHMARKS.md "Secured").
+# encrypt costs about what sign does, docs/benchmarks-history.md "Secured").
 governance_xml() {
   cat <<EOF
 <?xml version="1.0" encoding="UTF-8"?>

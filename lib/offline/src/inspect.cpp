@@ -59,7 +59,7 @@ double measure_dgemm() {
   return 2.0 * n * n * n / best / 1e9;
 }
 
-// Shares of dgemm's rate the phases reach (BENCHMARKS.md, "palpate-precompute":
+// Shares of dgemm's rate the phases reach (docs/benchmarks-history.md, "palpate-precompute":
 // the factor about 30 %, the blocked solves 12 to 45 %, dpotri 60 to 110 %),
 // and a write rate: enough for an estimate to the factor of two.
 constexpr double kFactorShare = 0.3, kSolvesShare = 0.15, kInverseShare = 0.6;

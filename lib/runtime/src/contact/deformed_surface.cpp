@@ -142,7 +142,7 @@ const Vector3d& DeformedSurface::deformed(int v) {
 // G^{v l} for one load l and every vertex v lies in G's three columns of l,
 // read downwards with the vertices in ascending order, where deformed()
 // alone reads three columns per vertex and load: a wide tip meets hundreds
-// of vertices under tens of loads (BENCHMARKS.md, "The wide tick").
+// of vertices under tens of loads (docs/benchmarks-history.md, "The wide tick").
 void DeformedSurface::deform_corners(std::span<const int> triangles) {
   if (warping_ != nullptr) return;
   int wanted_count = 0;

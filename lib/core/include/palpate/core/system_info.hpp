@@ -28,7 +28,7 @@ void ensure_optimized_blas(char** argv);
 /// Sets OpenBLAS's thread count (no effect with another BLAS). palpated runs
 /// LAPACK only on the small systems of requests and tool ticks, where
 /// OpenBLAS's worker threads cost more than they give (a 64-point solve
-/// takes ~20 µs longer with them, BENCHMARKS.md "Contact with the surface")
+/// takes ~20 µs longer with them, docs/benchmarks-history.md "Contact with the surface")
 /// and spin on the cores the haptic loop needs: it sets 1.
 void set_blas_threads(int count);
 

@@ -44,8 +44,8 @@ struct RegionSpec {
 };
 
 /// Regions with more tetrahedra than this take over half of a 1 ms haptic
-/// tick as a tensor-mass model on one core (BENCHMARKS.md, "The tensor-mass
-/// region": a coupled step costs about 11 ns per tetrahedron, and a 4 mm
+/// tick as a tensor-mass model on one core (docs/benchmarks-history.md, "The tensor-mass
+/// region: one explicit step": a coupled step costs about 11 ns per tetrahedron, and a 4 mm
 /// liver mesh needs about 10 steps per millisecond, so 4,000 tetrahedra are
 /// about 0.45 ms; 8,000 took the whole tick): split_region() warns, it does
 /// not refuse.
