@@ -23,6 +23,20 @@ target_link_libraries(palpate_cholmod INTERFACE ${CHOLMOD_LIBRARY} ${SUITESPARSE
   LAPACK::LAPACK BLAS::BLAS)
 add_library(SuiteSparse::CHOLMOD ALIAS palpate_cholmod)
 
+# LAPACKE and CBLAS, the C interfaces to LAPACK and BLAS (liblapacke-dev;
+# cblas.h from libopenblas-dev, /usr/include/<arch>/cblas.h, a Debian
+# alternative): their prototypes pass the hidden string lengths a
+# gfortran-built LAPACK takes, which prototypes declared by hand would omit.
+# The BLAS and LAPACK beneath stay BLAS::BLAS and LAPACK::LAPACK (OpenBLAS).
+find_path(LAPACKE_INCLUDE_DIR lapacke.h REQUIRED)
+find_library(LAPACKE_LIBRARY lapacke REQUIRED)
+find_path(CBLAS_INCLUDE_DIR cblas.h REQUIRED)
+add_library(palpate_lapacke INTERFACE IMPORTED)
+target_include_directories(palpate_lapacke SYSTEM INTERFACE ${LAPACKE_INCLUDE_DIR}
+  ${CBLAS_INCLUDE_DIR})
+target_link_libraries(palpate_lapacke INTERFACE ${LAPACKE_LIBRARY} LAPACK::LAPACK BLAS::BLAS)
+add_library(palpate::lapacke ALIAS palpate_lapacke)
+
 # Gmsh SDK (libgmsh-dev ships no CMake package).
 find_path(GMSH_INCLUDE_DIR gmsh.h REQUIRED)
 find_library(GMSH_LIBRARY gmsh REQUIRED)

@@ -13,8 +13,9 @@ packages=(
   # clang 14 and its run-time libraries: the sanitizer builds and libFuzzer
   # (scripts/sanitize.sh, docs/sanitizers.md, docs/fuzzing.md)
   clang libclang-rt-14-dev
-  # numerics: Eigen, CHOLMOD (SuiteSparse) on the optimized OpenBLAS
-  libeigen3-dev libsuitesparse-dev libopenblas-dev libopenblas0-pthread
+  # numerics: Eigen, CHOLMOD (SuiteSparse) on the optimized OpenBLAS, and
+  # LAPACKE, the C interface to LAPACK (OpenBLAS's cblas.h is BLAS's)
+  libeigen3-dev libsuitesparse-dev libopenblas-dev libopenblas0-pthread liblapacke-dev
   # files and meshes
   libhdf5-dev libgmsh-dev
   # command line, configuration, logging, JSON

@@ -1,15 +1,10 @@
 #include "palpate/offline/dense.hpp"
 
+#include <cblas.h>
 #include <fmt/format.h>
+#include <lapacke.h>
 
 #include "palpate/core/error.hpp"
-
-extern "C" {
-void dpotri_(const char* uplo, const int* n, double* a, const int* lda, int* info);
-void dgemm_(const char* transa, const char* transb, const int* m, const int* n, const int* k,
-            const double* alpha, const double* a, const int* lda, const double* b, const int* ldb,
-            const double* beta, double* c, const int* ldc);
-}
 
 namespace palpate {
 
@@ -17,8 +12,8 @@ void invert_from_cholesky(Eigen::Ref<Eigen::MatrixXd> a) {
   PALPATE_DEMAND(a.rows() == a.cols());
   const int n = static_cast<int>(a.rows());
   const int lda = static_cast<int>(a.outerStride());
-  int info = 0;
-  dpotri_("L", &n, a.data(), &lda, &info);
+  // The _work routine: LAPACK's dpotri itself, without LAPACKE's NaN scan.
+  const lapack_int info = LAPACKE_dpotri_work(LAPACK_COL_MAJOR, 'L', n, a.data(), lda);
   if (info > 0)
     throw NumericalError(fmt::format("the Cholesky factor has a zero pivot at row {}", info - 1));
   PALPATE_DEMAND(info == 0);
@@ -31,8 +26,8 @@ void blas_gemm(CRef<Eigen::MatrixXd> A, CRef<Eigen::MatrixXd> B, Eigen::Ref<Eige
             k = static_cast<int>(A.cols());
   const int lda = static_cast<int>(A.outerStride()), ldb = static_cast<int>(B.outerStride()),
             ldc = static_cast<int>(C.outerStride());
-  const double one = 1, zero = 0;
-  dgemm_("N", "N", &m, &n, &k, &one, A.data(), &lda, B.data(), &ldb, &zero, C.data(), &ldc);
+  cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, m, n, k, 1.0, A.data(), lda, B.data(), ldb,
+              0.0, C.data(), ldc);
 }
 
 }  // namespace palpate

@@ -1,6 +1,8 @@
 #include "palpate/runtime/region/region_implicit_step.hpp"
 
+#include <cblas.h>
 #include <fmt/format.h>
+#include <lapacke.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/resource.h>
@@ -14,7 +16,6 @@
 
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/region/vertex_block_factor.hpp"
-#include "palpate/runtime/solve/lapack.hpp"
 
 namespace palpate::detail {
 
@@ -52,9 +53,9 @@ void become_background_thread() {
 void symmetric_product(const Eigen::MatrixXd& a, CRef<VectorXd> x, Eigen::Ref<VectorXd> y) {
   PALPATE_DEMAND(a.rows() == a.cols() && x.size() == a.rows() && y.size() == a.rows() &&
                  x.innerStride() == 1 && y.innerStride() == 1);
-  const int n = static_cast<int>(a.rows()), one = 1;
-  const double alpha = 1, beta = 0;
-  if (n > 0) dsymv_("L", &n, &alpha, a.data(), &n, x.data(), &one, &beta, y.data(), &one);
+  const int n = static_cast<int>(a.rows());
+  if (n > 0)
+    cblas_dsymv(CblasColMajor, CblasLower, n, 1.0, a.data(), n, x.data(), 1, 0.0, y.data(), 1);
 }
 }  // namespace
 
@@ -85,10 +86,12 @@ struct RegionFactorization {
     Eigen::MatrixXd z = s;
     z += Eigen::MatrixXd(f->a.bottomRightCorner(ng, ng));
     const int n_i = static_cast<int>(ni), n_g = static_cast<int>(ng);
-    int info = 0;
+    // LAPACKE's _work routines, column-major: LAPACK itself, no NaN scan.
+    lapack_int info = 0;
     if (ni > 0) {
       Eigen::MatrixXd l(f->a.topLeftCorner(ni, ni));
-      dpotrf_("L", &n_i, l.data(), &n_i, &info);
+      info = LAPACKE_dpotrf_work(LAPACK_COL_MAJOR, 'L', n_i, l.data(), n_i);
+      PALPATE_DEMAND(info >= 0);
       if (info != 0)
         throw InputError(fmt::format(
             "{}: the step matrix of the region's {} interior DOFs is not positive definite; "
@@ -98,14 +101,16 @@ struct RegionFactorization {
       f->a_ig = f->a.block(0, ni, ni, ng);
       if (ng > 0) {
         Eigen::MatrixXd w(f->a_ig);
-        const double one = 1, minus_one = -1;
-        dtrsm_("L", "L", "N", "N", &n_i, &n_g, &one, l.data(), &n_i, w.data(), &n_i);
-        dsyrk_("L", "T", &n_g, &n_i, &minus_one, w.data(), &n_i, &one, z.data(), &n_g);
+        cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasNoTrans, CblasNonUnit, n_i, n_g, 1.0,
+                    l.data(), n_i, w.data(), n_i);
+        cblas_dsyrk(CblasColMajor, CblasLower, CblasTrans, n_g, n_i, -1.0, w.data(), n_i, 1.0,
+                    z.data(), n_g);
       }
     }
     if (ng > 0) {
-      dpotrf_("L", &n_g, z.data(), &n_g, &info);
-      if (info == 0) dpotri_("L", &n_g, z.data(), &n_g, &info);
+      info = LAPACKE_dpotrf_work(LAPACK_COL_MAJOR, 'L', n_g, z.data(), n_g);
+      if (info == 0) info = LAPACKE_dpotri_work(LAPACK_COL_MAJOR, 'L', n_g, z.data(), n_g);
+      PALPATE_DEMAND(info >= 0);
       if (info != 0)
         throw InputError(fmt::format(
             "{}: the step matrix on the region's boundary Γ ({} DOFs) is not positive definite; "
@@ -324,11 +329,9 @@ void ImplicitRegionStep::solve_ordered() {
     weights_.noalias() = d_ * picked_;
     picked_ = capacitance_.solve(weights_);
     // ordered −= Y w (BLAS dgemv: about twice Eigen's own here).
-    const int rows = static_cast<int>(dofs_), columns = rank_, lda = static_cast<int>(y_.rows()),
-              one = 1;
-    const double minus_one = -1, keep = 1;
-    dgemv_("N", &rows, &columns, &minus_one, y_.data(), &lda, picked_.data(), &one, &keep,
-           ordered_.data(), &one);
+    const int rows = static_cast<int>(dofs_), columns = rank_, lda = static_cast<int>(y_.rows());
+    cblas_dgemv(CblasColMajor, CblasNoTrans, rows, columns, -1.0, y_.data(), lda, picked_.data(), 1,
+                1.0, ordered_.data(), 1);
   }
 }
 

@@ -1,6 +1,8 @@
 #include "palpate/runtime/solve/active_set.hpp"
 
+#include <cblas.h>
 #include <fmt/format.h>
+#include <lapacke.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -9,7 +11,6 @@
 #include <limits>
 
 #include "palpate/core/error.hpp"
-#include "palpate/runtime/solve/lapack.hpp"
 #include "palpate/runtime/solve/request_failure.hpp"
 
 namespace palpate::detail {
@@ -248,10 +249,12 @@ bool ActiveSet::slip_onto_cones() {
     slip_step_[index(2 * i)] = -slip.along.dot(force(slip.row));
     slip_step_[index(2 * i + 1)] = -slip.s.dot(force(slip.row));
   }
-  int info = 0;
-  const int one = 1;
-  dgesv_(&unknowns, &one, slip_matrix_.data(), &unknowns, slip_pivots_.data(), slip_step_.data(),
-         &unknowns, &info);
+  // The _work routines of LAPACKE, column-major, call LAPACK directly: no
+  // NaN scan, no allocation.
+  const lapack_int info =
+      LAPACKE_dgesv_work(LAPACK_COL_MAJOR, unknowns, 1, slip_matrix_.data(), unknowns,
+                         slip_pivots_.data(), slip_step_.data(), unknowns);
+  PALPATE_DEMAND(info >= 0);
   for (int i = 0; i < count; ++i) {
     const Slip& slip = slips_[index(i)];
     ActiveRow& row = rows_[index(slip.row)];
@@ -293,9 +296,9 @@ void ActiveSet::force_response(const double* dvalue, double* dforce, int columns
       response_out_[index(c * m + p)] =
           Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)])
               .dot(Eigen::Map<const Vector3d>(&dvalue[3 * index(c * n + unknown_row_[index(p)])]));
-  int info = 0;
   const int ld = max_unknowns_;
-  dpotrs_("L", &m, &columns, L_.data(), &ld, response_out_.data(), &m, &info);
+  const lapack_int info = LAPACKE_dpotrs_work(LAPACK_COL_MAJOR, 'L', m, columns, L_.data(), ld,
+                                              response_out_.data(), m);
   PALPATE_DEMAND(info == 0);
   for (int c = 0; c < columns; ++c)
     for (int p = 0; p < m; ++p)
@@ -544,16 +547,17 @@ RequestStatus ActiveSet::append_pending() {
   if (first > 0) {
     // By BLAS in place: Eigen's L21 L21ᵀ is a temporary on the heap past
     // 20 unknowns (its coefficient-wise product's threshold).
-    const double one = 1, minus_one = -1;
     L.block(first, 0, k, first) = W.block(first, 0, k, first);
-    dtrsm_("R", "L", "T", "N", &k, &first, &one, &L(0, 0), &ld, &L(first, 0), &ld);
+    cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasNonUnit, k, first, 1.0,
+                &L(0, 0), ld, &L(first, 0), ld);
     L.block(first, first, k, k).triangularView<Eigen::Lower>() = W.block(first, first, k, k);
-    dsyrk_("L", "N", &k, &first, &minus_one, &L(first, 0), &ld, &one, &L(first, first), &ld);
+    cblas_dsyrk(CblasColMajor, CblasLower, CblasNoTrans, k, first, -1.0, &L(first, 0), ld, 1.0,
+                &L(first, first), ld);
   } else {
     L.topLeftCorner(m, m).triangularView<Eigen::Lower>() = W.topLeftCorner(m, m);
   }
-  int info = 0;
-  dpotrf_("L", &k, &L(first, first), &ld, &info);
+  const lapack_int info = LAPACKE_dpotrf_work(LAPACK_COL_MAJOR, 'L', k, &L(first, first), ld);
+  PALPATE_DEMAND(info >= 0);
   if (info != 0)
     return fail(message_, RequestStatus::kIllConditioned,
                 "the {} × {} system of the contacts is singular (column {}): points too close "
@@ -570,8 +574,9 @@ RequestStatus ActiveSet::check_condition() {
   const Strided W(W_.data(), m, m, Eigen::OuterStride<>(ld));
   const double norm1 = W.cwiseAbs().colwise().sum().maxCoeff();
   double rcond = 0;
-  int info = 0;
-  dpocon_("L", &m, L_.data(), &ld, &norm1, &rcond, work_.data(), iwork_.data(), &info);
+  const lapack_int info = LAPACKE_dpocon_work(LAPACK_COL_MAJOR, 'L', m, L_.data(), ld, norm1,
+                                              &rcond, work_.data(), iwork_.data());
+  PALPATE_DEMAND(info >= 0);
   const double condition = rcond > 0 ? 1.0 / rcond : std::numeric_limits<double>::infinity();
   if (info != 0 || !(condition <= limits_.max_condition))
     return fail(message_, RequestStatus::kIllConditioned,
@@ -651,9 +656,8 @@ RequestStatus ActiveSet::finish_incremental() {
                          : Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]).dot(row.value);
   }
   if (m > 0) {
-    int info = 0;
-    const int one = 1;
-    dpotrs_("L", &m, &one, L_.data(), &ld, rhs_.data(), &m, &info);
+    const lapack_int info =
+        LAPACKE_dpotrs_work(LAPACK_COL_MAJOR, 'L', m, 1, L_.data(), ld, rhs_.data(), m);
     if (info != 0)
       return fail(message_, RequestStatus::kInternalError, "dpotrs failed with info {}", info);
   }

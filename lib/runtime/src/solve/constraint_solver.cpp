@@ -1,6 +1,7 @@
 #include "palpate/runtime/constraint_solver.hpp"
 
 #include <fmt/format.h>
+#include <lapacke.h>
 
 #include <algorithm>
 #include <array>
@@ -8,7 +9,6 @@
 #include <limits>
 
 #include "palpate/core/error.hpp"
-#include "palpate/runtime/solve/lapack.hpp"
 #include "palpate/runtime/solve/request_failure.hpp"
 
 namespace palpate {
@@ -421,14 +421,18 @@ ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
   double norm1 = 0;
   for (int p = 0; p < m; ++p) norm1 = std::max(norm1, A.col(p).cwiseAbs().sum());
 
-  int info = 0;
-  dpotrf_("L", &m, slot.L.data(), &m, &info);
+  // The _work routines: column-major, they call LAPACK directly, with no
+  // NaN scan and no allocation (the high-level LAPACKE_dpocon allocates).
+  lapack_int info = LAPACKE_dpotrf_work(LAPACK_COL_MAJOR, 'L', m, slot.L.data(), m);
+  PALPATE_DEMAND(info >= 0);
   if (info != 0) {
     slot.condition = std::numeric_limits<double>::infinity();
     return slot;  // not valid: ill-conditioned
   }
   double rcond = 0;
-  dpocon_("L", &m, slot.L.data(), &m, &norm1, &rcond, slot.work.data(), slot.iwork.data(), &info);
+  info = LAPACKE_dpocon_work(LAPACK_COL_MAJOR, 'L', m, slot.L.data(), m, norm1, &rcond,
+                             slot.work.data(), slot.iwork.data());
+  PALPATE_DEMAND(info >= 0);
   slot.condition = rcond > 0 ? 1.0 / rcond : std::numeric_limits<double>::infinity();
   slot.valid = info == 0 && slot.condition <= limits_.max_condition;
   return slot;
@@ -545,9 +549,8 @@ RequestStatus ConstraintSolver::solve() {
                       .dot(Eigen::Map<const Eigen::Vector3d>(
                           &displacement_[3 * static_cast<std::size_t>(slot.unknown_vertex[p])]));
     }
-    int info = 0;
-    const int one = 1;
-    dpotrs_("L", &m, &one, slot.L.data(), &m, rhs.data(), &m, &info);
+    const lapack_int info =
+        LAPACKE_dpotrs_work(LAPACK_COL_MAJOR, 'L', m, 1, slot.L.data(), m, rhs.data(), m);
     if (info != 0)
       return fail(message_, RequestStatus::kInternalError, "dpotrs failed with info {}", info);
     for (int p = 0; p < m; ++p) {
@@ -590,8 +593,8 @@ void ConstraintSolver::force_response(const double* dvalue, double* dforce, int 
           Eigen::Map<const Eigen::Vector3d>(&slot.unknown_dir[3 * p])
               .dot(Eigen::Map<const Eigen::Vector3d>(&dvalue[c * n3 + 3 * j]));
     }
-  int info = 0;
-  dpotrs_("L", &m, &columns, slot.L.data(), &m, response_.data(), &m, &info);
+  const lapack_int info =
+      LAPACKE_dpotrs_work(LAPACK_COL_MAJOR, 'L', m, columns, slot.L.data(), m, response_.data(), m);
   PALPATE_DEMAND(info == 0);
   for (int c = 0; c < columns; ++c)
     for (int p = 0; p < m; ++p) {
