@@ -6,57 +6,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 
 #include "palpate/core/error.hpp"
+#include "palpate/runtime/solve/factorization_cache.hpp"
 #include "palpate/runtime/solve/request_failure.hpp"
 
 namespace palpate {
 
 using detail::fail;
-
-/// One cached factorization: the structure it was built for (points, kinds,
-/// normals), G Hᵀ on the points' distinct vertices U and the Cholesky factor
-/// of Bᵀ P B. P = H G Hᵀ itself is never formed: H is three weights per
-/// point, so P x = H (G Hᵀ x) and Bᵀ P B is read off G Hᵀ B.
-struct ConstraintSolver::Slot {
-  bool valid = false;
-  std::uint64_t last_used = 0;
-  int count = 0;                     // k
-  int unknowns = 0;                  // m
-  std::vector<int> point_count;      // k
-  std::vector<int> point_index;      // 3k
-  std::vector<double> point_weight;  // 3k
-  std::vector<ConstraintKind> kind;  // k
-  std::vector<double> normal;        // 3k
-  std::vector<int> unknown_vertex;   // m: which constraint an unknown belongs to
-  std::vector<int> unknown_value;    // m: where its prescribed displacement is in value_
-  std::vector<double> unknown_dir;   // 3m: its unit direction (a column of B)
-  int used = 0;                      // u, the distinct vertices of the points
-  std::vector<int> point_slot;       // 3k: each point vertex's place in U
-  std::vector<double> GHt;           // 3u × 3k, column-major: G_U· Hᵀ
-  std::vector<double> L;             // m × m, Cholesky factor of Bᵀ G_CC B (lower)
-  std::vector<double> work;          // 3m for dpocon
-  std::vector<int> iwork;            // m
-  double condition = 1;
-
-  explicit Slot(int max_constraints) {
-    const auto k = static_cast<std::size_t>(max_constraints);
-    point_count.resize(k);
-    point_index.resize(3 * k);
-    point_weight.resize(3 * k);
-    kind.resize(k);
-    normal.resize(3 * k);
-    unknown_vertex.resize(3 * k);
-    unknown_value.resize(3 * k);
-    unknown_dir.resize(9 * k);
-    point_slot.resize(3 * k);
-    GHt.resize(27 * k * k);
-    L.resize(9 * k * k);
-    work.resize(9 * k);
-    iwork.resize(3 * k);
-  }
-};
 
 ConstraintSolver::ConstraintSolver(const SurfaceModel& model, const SolverLimits& limits)
     : model_(model), limits_(limits) {
@@ -78,9 +35,7 @@ ConstraintSolver::ConstraintSolver(const SurfaceModel& model, const SolverLimits
   seen_.assign(n, 0);
   used_epoch_.assign(n, 0);
   used_slot_.assign(n, 0);
-  used_index_.resize(3 * k);
-  G_UU_.resize(81 * k * k);
-  GHt_.resize(27 * k * k);  // G Hᵀ B for the factorization (3u × m)
+  z_.resize(9 * k);  // 3 per distinct vertex of the points, u ≤ 3k
   load_index_.resize(3 * k);
   load_force_.resize(9 * k);
   // The surface's triangles and edges by mesh vertex ids, for add_point.
@@ -101,8 +56,7 @@ ConstraintSolver::ConstraintSolver(const SurfaceModel& model, const SolverLimits
   std::sort(surface_edges_.begin(), surface_edges_.end());
   surface_edges_.erase(std::unique(surface_edges_.begin(), surface_edges_.end()),
                        surface_edges_.end());
-  slots_.reserve(static_cast<std::size_t>(limits.cache_slots));
-  for (int s = 0; s < limits.cache_slots; ++s) slots_.emplace_back(limits.max_constraints);
+  cache_ = std::make_unique<detail::FactorizationCache>(model, limits);
 }
 
 ConstraintSolver::~ConstraintSolver() = default;
@@ -334,148 +288,9 @@ RequestStatus ConstraintSolver::check_values(int j, std::uint32_t vertex_id, std
   return RequestStatus::kOk;
 }
 
-ConstraintSolver::Slot& ConstraintSolver::find_or_build_slot() {
-  const int k = count_;
-  auto matches = [&](const Slot& slot) {
-    if (!slot.valid || slot.count != k) return false;
-    for (int j = 0; j < k; ++j) {
-      const int c = point_count_[j];
-      if (slot.point_count[j] != c || slot.kind[j] != kind_[j]) return false;
-      if (!std::equal(&point_index_[3 * j], &point_index_[3 * j + c], &slot.point_index[3 * j]) ||
-          !std::equal(&point_weight_[3 * j], &point_weight_[3 * j + c], &slot.point_weight[3 * j]))
-        return false;
-      if (kind_[j] == ConstraintKind::kNormalDisplacement &&
-          !std::equal(&normal_[3 * j], &normal_[3 * j + 3], &slot.normal[3 * j]))
-        return false;
-    }
-    return true;
-  };
-  Slot* oldest = &slots_.front();
-  for (Slot& slot : slots_) {
-    if (matches(slot)) {
-      reused_ = true;
-      slot.last_used = ++clock_;
-      return slot;
-    }
-    if (!slot.valid || (oldest->valid && slot.last_used < oldest->last_used)) oldest = &slot;
-  }
-
-  Slot& slot = *oldest;
-  reused_ = false;
-  slot.valid = false;
-  slot.last_used = ++clock_;
-  slot.count = k;
-  std::copy_n(point_count_.begin(), k, slot.point_count.begin());
-  std::copy_n(point_index_.begin(), 3 * k, slot.point_index.begin());
-  std::copy_n(point_weight_.begin(), 3 * k, slot.point_weight.begin());
-  std::copy_n(kind_.begin(), k, slot.kind.begin());
-  std::copy_n(normal_.begin(), 3 * k, slot.normal.begin());
-  assemble_point_compliance(slot);
-
-  // B: one unit column per unknown force component.
-  const int n3 = 3 * k;
-  int m = 0;
-  for (int j = 0; j < k; ++j) {
-    if (kind_[j] == ConstraintKind::kDisplacement) {
-      for (int d = 0; d < 3; ++d, ++m) {
-        slot.unknown_vertex[m] = j;
-        slot.unknown_value[m] = 3 * j + d;
-        for (int e = 0; e < 3; ++e) slot.unknown_dir[3 * m + e] = d == e ? 1.0 : 0.0;
-      }
-    } else if (kind_[j] == ConstraintKind::kNormalDisplacement) {
-      slot.unknown_vertex[m] = j;
-      slot.unknown_value[m] = 3 * j;
-      std::copy_n(&normal_[3 * j], 3, &slot.unknown_dir[3 * m]);
-      ++m;
-    }
-  }
-  slot.unknowns = m;
-  slot.condition = 1;
-  if (m == 0) {
-    slot.valid = true;
-    return slot;
-  }
-
-  // Y = (G Hᵀ) B, then Bᵀ P B = (H Y) read at the unknowns' directions,
-  // into L, which dpotrf factors in place.
-  const int u3 = 3 * slot.used;
-  const Eigen::Map<const Eigen::MatrixXd> GHt(slot.GHt.data(), u3, n3);
-  Eigen::Map<Eigen::MatrixXd> Y(GHt_.data(), u3, m);
-  Eigen::Map<Eigen::MatrixXd> A(slot.L.data(), m, m);
-  for (int p = 0; p < m; ++p) {
-    const Eigen::Map<const Eigen::Vector3d> dir(&slot.unknown_dir[3 * p]);
-    Y.col(p).noalias() = GHt.middleCols<3>(3 * slot.unknown_vertex[p]) * dir;
-  }
-  // The lower triangle (what dpotrf reads), mirrored for the 1-norm.
-  for (int p = 0; p < m; ++p)
-    for (int q = p; q < m; ++q) {
-      const Eigen::Map<const Eigen::Vector3d> dir(&slot.unknown_dir[3 * q]);
-      const int j = slot.unknown_vertex[q];
-      double a = 0;
-      for (int i = 0; i < point_count_[j]; ++i)
-        a +=
-            point_weight_[3 * j + i] * dir.dot(Y.col(p).segment<3>(3 * slot.point_slot[3 * j + i]));
-      A(q, p) = a;
-      A(p, q) = a;
-    }
-  double norm1 = 0;
-  for (int p = 0; p < m; ++p) norm1 = std::max(norm1, A.col(p).cwiseAbs().sum());
-
-  // The _work routines: column-major, they call LAPACK directly, with no
-  // NaN scan and no allocation (the high-level LAPACKE_dpocon allocates).
-  lapack_int info = LAPACKE_dpotrf_work(LAPACK_COL_MAJOR, 'L', m, slot.L.data(), m);
-  PALPATE_DEMAND(info >= 0);
-  if (info != 0) {
-    slot.condition = std::numeric_limits<double>::infinity();
-    return slot;  // not valid: ill-conditioned
-  }
-  double rcond = 0;
-  info = LAPACKE_dpocon_work(LAPACK_COL_MAJOR, 'L', m, slot.L.data(), m, norm1, &rcond,
-                             slot.work.data(), slot.iwork.data());
-  PALPATE_DEMAND(info >= 0);
-  slot.condition = rcond > 0 ? 1.0 / rcond : std::numeric_limits<double>::infinity();
-  slot.valid = info == 0 && slot.condition <= limits_.max_condition;
-  return slot;
-}
-
-void ConstraintSolver::assemble_point_compliance(Slot& slot) {
-  const int k = count_;
-  const int n3 = 3 * k;
-  // Number the distinct vertices U of the points.
-  if (++used_clock_ == 0) {
-    std::fill(used_epoch_.begin(), used_epoch_.end(), 0);
-    used_clock_ = 1;
-  }
-  int u = 0;
-  for (int j = 0; j < k; ++j)
-    for (int i = 0; i < point_count_[j]; ++i) {
-      const auto a = static_cast<std::size_t>(point_index_[3 * j + i]);
-      if (used_epoch_[a] != used_clock_) {
-        used_epoch_[a] = used_clock_;
-        used_slot_[a] = u;
-        used_index_[static_cast<std::size_t>(u++)] = static_cast<int>(a);
-      }
-      slot.point_slot[3 * j + i] = used_slot_[a];
-    }
-  slot.used = u;
-  // G_UU, each 3×3 block of G read once.
-  const int u3 = 3 * u;
-  Eigen::Map<Eigen::MatrixXd> G_UU(G_UU_.data(), u3, u3);
-  for (int b = 0; b < u; ++b)
-    for (int a = 0; a < u; ++a)
-      G_UU.block<3, 3>(3 * a, 3 * b) = model_.G_block(used_index_[a], used_index_[b]);
-  // G Hᵀ (3u × 3k): column block q = Σ_j w_qj G_U,a_qj. A vertex point (one
-  // vertex, weight 1) copies its blocks exactly.
-  Eigen::Map<Eigen::MatrixXd> GHt(slot.GHt.data(), u3, n3);
-  GHt.setZero();
-  for (int q = 0; q < k; ++q)
-    for (int i = 0; i < point_count_[q]; ++i)
-      GHt.middleCols<3>(3 * q) +=
-          point_weight_[3 * q + i] * G_UU.middleCols<3>(3 * slot.point_slot[3 * q + i]);
-}
-
 /// x_C = H z: the points' values of a field z on U (3 per vertex).
-void ConstraintSolver::points_of(const Slot& slot, const double* z, double* x) const {
+void ConstraintSolver::points_of(const detail::CachedFactorization& slot, const double* z,
+                                 double* x) const {
   for (int j = 0; j < count_; ++j) {
     Eigen::Map<Eigen::Vector3d> xj(x + 3 * j);
     xj.setZero();
@@ -515,7 +330,13 @@ RequestStatus ConstraintSolver::solve() {
     return fail(message_, RequestStatus::kInternalError, "solve() after {} of {} constraints",
                 added_, count_);
   const int k = count_;
-  const Slot& slot = find_or_build_slot();
+  const detail::CachedFactorization& slot =
+      cache_->find_or_build({.count = k,
+                             .point_count = point_count_.data(),
+                             .point_index = point_index_.data(),
+                             .point_weight = point_weight_.data(),
+                             .kind = kind_.data(),
+                             .normal = normal_.data()});
   condition_ = slot.condition;
   if (!slot.valid)
     return fail(message_, RequestStatus::kIllConditioned,
@@ -541,7 +362,7 @@ RequestStatus ConstraintSolver::solve() {
     if (any_known_force) {
       // (P B)ᵀ f_known = Bᵀ H (G Hᵀ f_known).
       const Eigen::Map<const Eigen::MatrixXd> GHt(slot.GHt.data(), 3 * slot.used, n3);
-      Eigen::Map<Eigen::VectorXd> z(GHt_.data(), 3 * slot.used);
+      Eigen::Map<Eigen::VectorXd> z(z_.data(), 3 * slot.used);
       z.noalias() = GHt * f;
       points_of(slot, z.data(), displacement_.data());
       for (int p = 0; p < m; ++p)
@@ -561,7 +382,7 @@ RequestStatus ConstraintSolver::solve() {
 
   // u_C = P f_C = H (G Hᵀ f_C).
   const Eigen::Map<const Eigen::MatrixXd> GHt(slot.GHt.data(), 3 * slot.used, n3);
-  Eigen::Map<Eigen::VectorXd> z(GHt_.data(), 3 * slot.used);
+  Eigen::Map<Eigen::VectorXd> z(z_.data(), 3 * slot.used);
   z.noalias() = GHt * f;
   points_of(slot, z.data(), displacement_.data());
   const Eigen::Map<const Eigen::VectorXd> u(displacement_.data(), n3);
@@ -580,7 +401,7 @@ RequestStatus ConstraintSolver::solve() {
 void ConstraintSolver::force_response(const double* dvalue, double* dforce, int columns) {
   PALPATE_DEMAND(solved_ && solved_slot_ != nullptr);
   PALPATE_DEMAND(columns >= 0 && columns <= kMaxResponseColumns);
-  const Slot& slot = *solved_slot_;
+  const detail::CachedFactorization& slot = *solved_slot_;
   const int n3 = 3 * count_;
   const int m = slot.unknowns;
   std::fill_n(dforce, static_cast<std::size_t>(n3) * static_cast<std::size_t>(columns), 0.0);
@@ -604,6 +425,8 @@ void ConstraintSolver::force_response(const double* dvalue, double* dforce, int 
           Eigen::Map<const Eigen::Vector3d>(&slot.unknown_dir[3 * p]);
     }
 }
+
+bool ConstraintSolver::reused_factorization() const { return cache_->reused(); }
 
 Eigen::Vector3d ConstraintSolver::total_force() const {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();

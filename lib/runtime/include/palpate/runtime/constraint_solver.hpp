@@ -23,6 +23,11 @@
 
 namespace palpate {
 
+namespace detail {
+class FactorizationCache;
+struct CachedFactorization;
+}  // namespace detail
+
 /// Limits of one solver, from the daemon's configuration.
 struct SolverLimits {
   int max_constraints = 64;     ///< constrained vertices per request
@@ -137,7 +142,9 @@ class ConstraintSolver {
   /// factor. At most kMaxResponseColumns; allocation-free.
   void force_response(const double* dvalue, double* dforce, int columns);
   double condition_estimate() const { return condition_; }  ///< of Bᵀ G_CC B (1 when m = 0)
-  bool reused_factorization() const { return reused_; }
+  /// Whether the last solve reused a kept factorization (the same points,
+  /// kinds and normals as one of the last `cache_slots` structures).
+  bool reused_factorization() const;
 
   /// Displacement of every compliance vertex after the last successful solve
   /// (u_S = G f_S with the loads above), 3N_S, m; on two threads when
@@ -147,10 +154,7 @@ class ConstraintSolver {
   const SurfaceModel& model() const { return model_; }
 
  private:
-  struct Slot;
-  Slot& find_or_build_slot();
-  void assemble_point_compliance(Slot& slot);
-  void points_of(const Slot& slot, const double* z, double* x) const;
+  void points_of(const detail::CachedFactorization& slot, const double* z, double* x) const;
   void gather_loads();
   RequestStatus check_values(int j, std::uint32_t vertex_id, std::int32_t kind, const double* value,
                              const double* normal);
@@ -170,25 +174,24 @@ class ConstraintSolver {
   std::vector<double> normal_;       // 3 per constraint, unit
   std::vector<std::uint32_t> seen_;  // per compliance vertex: epoch of the request naming it
   std::uint32_t epoch_ = 0;
-  // The distinct vertices of the points: per compliance vertex, the epoch it
-  // was last numbered in and its number; G among them (3u × 3u) and G Hᵀ.
+  // The loads' distinct vertices (gather_loads): per compliance vertex, the
+  // epoch it was last numbered in and its number.
   std::vector<std::uint32_t> used_epoch_;
   std::vector<int> used_slot_;
   std::uint32_t used_clock_ = 0;
-  std::vector<int> used_index_;
-  std::vector<double> G_UU_, GHt_;
+  std::vector<double> z_;  // G Hᵀ f, 3 per distinct vertex of the points
   int load_count_ = 0;
   std::vector<int> load_index_;                                  // up to 3k
   std::vector<double> load_force_;                               // 3 per load
   std::vector<std::array<std::uint32_t, 3>> surface_triangles_;  // sorted ids, sorted list
   std::vector<std::array<std::uint32_t, 2>> surface_edges_;
-  std::vector<Slot> slots_;
-  std::uint64_t clock_ = 0;
+  // The factorizations kept for reuse (palpate/runtime/solve/factorization_cache.hpp).
+  std::unique_ptr<detail::FactorizationCache> cache_;
   std::vector<double> force_, displacement_, rhs_;
-  const Slot* solved_slot_ = nullptr;  // the factor of the last successful solve
-  std::vector<double> response_;       // m × kMaxResponseColumns
+  // The factor of the last successful solve.
+  const detail::CachedFactorization* solved_slot_ = nullptr;
+  std::vector<double> response_;  // m × kMaxResponseColumns
   double condition_ = 1;
-  bool reused_ = false;
   bool solved_ = false;
   std::array<char, 256> message_{};
   std::unique_ptr<SplitSurfaceProduct> split_;  // when surface_threads is 2
