@@ -1,6 +1,5 @@
 #include "palpate/runtime/solve/active_set.hpp"
 
-#include <cblas.h>
 #include <fmt/format.h>
 #include <lapacke.h>
 
@@ -8,7 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <limits>
+#include <optional>
 
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/solve/request_failure.hpp"
@@ -19,7 +18,6 @@ namespace {
 
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
-using Strided = Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
 using Kind = ConstraintKind;
 
 /// A sticking point starts to slide: its three rows become the normal one,
@@ -37,7 +35,11 @@ int unknowns_of(const ActiveRow& row) {
 }  // namespace
 
 ActiveSet::ActiveSet(const SurfaceModel& model, const SolverLimits& limits)
-    : model_(model), limits_(limits), solver_(model, limits) {
+    : model_(model),
+      limits_(limits),
+      solver_(model, limits),
+      compliance_(model, limits.max_constraints),
+      factor_(3 * limits.max_constraints) {
   max_rows_ = limits.max_constraints;
   max_unknowns_ = 3 * max_rows_;
   max_used_ = 3 * max_rows_;
@@ -46,25 +48,12 @@ ActiveSet::ActiveSet(const SurfaceModel& model, const SolverLimits& limits)
   const auto u3 = 3 * index(max_used_);
   force_.resize(3 * k);
   displacement_.resize(3 * k);
-  const auto n = index(model.compliance_vertex_count());
-  used_epoch_.assign(n, 0);
-  used_slot_.assign(n, 0);
-  used_index_.resize(index(max_used_));
-  point_slot_.resize(3 * k);
-  G_UU_.resize(u3 * u3);
-  Y_.resize(u3 * 3 * k);
-  has_Y_.resize(k);
   unknown_row_.resize(m);
   unknown_dir_.resize(3 * m);
   columns_of_.resize(k);
   kind_in_W_.resize(k);
-  W_.resize(m * m);
-  L_.resize(m * m);
   rhs_.resize(m);
-  work_.resize(3 * m);
-  iwork_.resize(m);
   z_.resize(u3);
-  complete_.resize(index(max_used_));
   const auto columns = index(ConstraintSolver::kMaxResponseColumns);
   response_in_.resize(3 * k * columns);
   response_out_.resize(std::max(3 * k, m) * columns);
@@ -98,8 +87,8 @@ RequestStatus ActiveSet::solve(std::span<ActiveRow> rows, int max_iterations,
       ++solves_;
       return status;
     }
-    number_vertices();
-    factored_ = false;
+    compliance_.number(rows_);
+    factored_ = false;  // the first solve_incremental starts W (and columns_of_) afresh
   }
   bool softened = false;
   const std::uint64_t first_solve = solves_;
@@ -289,16 +278,14 @@ void ActiveSet::force_response(const double* dvalue, double* dforce, int columns
   }
   // δb_p = d_pᵀ δvalue_r (a sliding row's d is its normal), δφ = W⁻¹ δb from
   // the factor, δf_r = Σ_p δφ_p d_p over the row's unknowns.
-  const int m = unknowns_;
+  const int m = factor_.size();
   if (m == 0 || columns == 0) return;
   for (int c = 0; c < columns; ++c)
     for (int p = 0; p < m; ++p)
       response_out_[index(c * m + p)] =
           Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)])
               .dot(Eigen::Map<const Vector3d>(&dvalue[3 * index(c * n + unknown_row_[index(p)])]));
-  const int ld = max_unknowns_;
-  const lapack_int info = LAPACKE_dpotrs_work(LAPACK_COL_MAJOR, 'L', m, columns, L_.data(), ld,
-                                              response_out_.data(), m);
+  const int info = factor_.solve(response_out_.data(), columns);
   PALPATE_DEMAND(info == 0);
   for (int c = 0; c < columns; ++c)
     for (int p = 0; p < m; ++p)
@@ -307,16 +294,8 @@ void ActiveSet::force_response(const double* dvalue, double* dforce, int columns
 }
 
 Matrix3d ActiveSet::G_block(int a, int b) const {
-  if (last_incremental_ && used_epoch_[index(a)] == used_clock_ &&
-      used_epoch_[index(b)] == used_clock_) {
-    const int sa = used_slot_[index(a)], sb = used_slot_[index(b)];
-    // A complete column holds every block of it (and, mirrored, of its row).
-    if (complete_[index(sa)] || complete_[index(sb)]) {
-      const int ld = 3 * used_;
-      const Strided G_UU(const_cast<double*>(G_UU_.data()), ld, ld, Eigen::OuterStride<>(ld));
-      return G_UU.block<3, 3>(3 * sa, 3 * sb);
-    }
-  }
+  if (last_incremental_)
+    if (const std::optional<Matrix3d> block = compliance_.read_block(a, b)) return *block;
   return model_.G_block(a, b);
 }
 
@@ -404,120 +383,18 @@ RequestStatus ActiveSet::check_values() {
   return RequestStatus::kOk;
 }
 
-void ActiveSet::number_vertices() {
-  if (++used_clock_ == 0) {
-    std::fill(used_epoch_.begin(), used_epoch_.end(), 0);
-    used_clock_ = 1;
-  }
-  used_ = 0;
-  // The vertices of the rows in the set first (slots 0 … pressed_), then
-  // those only watched rows use.
-  for (const bool pressed : {true, false})
-    for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
-      const ActiveRow& row = rows_[index(r)];
-      if ((row.state == ActiveRow::kActive) != pressed) continue;
-      int kept = 0;
-      for (int i = 0; i < 3; ++i) {
-        const int a = i < row.count ? row.index[index(i)] : -1;
-        int& slot = point_slot_[3 * index(r) + index(i)];
-        slot = -1;
-        if (a < 0) continue;
-        PALPATE_DEMAND(a < model_.compliance_vertex_count());
-        const auto aa = index(a);
-        if (used_epoch_[aa] != used_clock_) {
-          used_epoch_[aa] = used_clock_;
-          used_slot_[aa] = used_++;
-          used_index_[index(used_slot_[aa])] = a;
-        }
-        slot = used_slot_[aa];
-        ++kept;
-      }
-      PALPATE_DEMAND(kept > 0);
-      has_Y_[index(r)] = 0;
-      columns_of_[index(r)] = 0;
-    }
-  // G_UU, and the Y after it, packed at the tick's size (a leading
-  // dimension of the largest possible U spreads a small one over many
-  // pages). G is symmetric (G^ba = (G^ab)ᵀ, the compliance of a linear
-  // elastic body): one read gives both blocks. Among the watched rows'
-  // own vertices nothing is read until one of them joins (complete_
-  // marks the columns read in full): their gaps need G only against the
-  // loaded vertices.
-  int pressed = 0;
-  for (int r = 0; r < static_cast<int>(rows_.size()); ++r)
-    if (rows_[index(r)].state == ActiveRow::kActive)
-      for (int i = 0; i < 3; ++i)
-        pressed = std::max(pressed, point_slot_[3 * index(r) + index(i)] + 1);
-  const int ld = 3 * used_;
-  Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
-  for (int b = 0; b < used_; ++b) {
-    complete_[index(b)] = b < pressed ? 1 : 0;
-    for (int a = 0; a <= std::min(b, pressed - 1); ++a) {
-      const Matrix3d block = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
-      G_UU.block<3, 3>(3 * a, 3 * b) = block;
-      if (a != b) G_UU.block<3, 3>(3 * b, 3 * a) = block.transpose();
-    }
-  }
-}
-
-/// Reads the blocks of G_UU's column b not read yet (against the other
-/// watched-only vertices whose columns are not complete).
-void ActiveSet::complete_column(int b) {
-  if (complete_[index(b)]) return;
-  complete_[index(b)] = 1;
-  const int ld = 3 * used_;
-  Strided G_UU(G_UU_.data(), 3 * used_, 3 * used_, Eigen::OuterStride<>(ld));
-  for (int a = 0; a < used_; ++a) {
-    if (complete_[index(a)] && a != b) continue;
-    const Matrix3d block = model_.G_block(used_index_[index(a)], used_index_[index(b)]);
-    G_UU.block<3, 3>(3 * a, 3 * b) = block;
-    if (a != b) G_UU.block<3, 3>(3 * b, 3 * a) = block.transpose();
-  }
-}
-
-/// Y_r = G_UU H_rᵀ (3u × 3): the displacement of U under a unit force at row r's point.
-void ActiveSet::compute_Y(int r) {
-  if (has_Y_[index(r)]) return;
-  has_Y_[index(r)] = 1;
-  const int ld = 3 * used_;
-  const int u3 = 3 * used_;
-  const Strided G_UU(G_UU_.data(), u3, u3, Eigen::OuterStride<>(ld));
-  Strided Y(&Y_[index(ld) * 3 * index(r)], u3, 3, Eigen::OuterStride<>(ld));
-  Y.setZero();
-  const ActiveRow& row = rows_[index(r)];
-  for (int i = 0; i < row.count; ++i) {
-    const int slot = point_slot_[3 * index(r) + index(i)];
-    if (slot < 0) continue;
-    complete_column(slot);
-    Y.noalias() += row.weights[index(i)] * G_UU.middleCols<3>(3 * slot);
-  }
-}
-
-/// P_rs = H_r G H_sᵀ = H_r Y_s (Y_s computed).
-Matrix3d ActiveSet::P_block(int r, int s) {
-  const int ld = 3 * used_;
-  const Strided Y(&Y_[index(ld) * 3 * index(s)], 3 * used_, 3, Eigen::OuterStride<>(ld));
-  const ActiveRow& row = rows_[index(r)];
-  Matrix3d P = Matrix3d::Zero();
-  for (int i = 0; i < row.count; ++i) {
-    const int slot = point_slot_[3 * index(r) + index(i)];
-    if (slot >= 0) P.noalias() += row.weights[index(i)] * Y.middleRows<3>(3 * slot);
-  }
-  return P;
-}
-
-/// Appends the unknowns of every active row not yet in W, fills their
-/// columns of W = Bᵀ P B, and extends the factor: with W = [W11 W12; W21 W22]
-/// and W11 = L11 L11ᵀ, L21 = W21 L11⁻ᵀ and L22 L22ᵀ = W22 − L21 L21ᵀ.
+/// Appends the unknowns of every active row not yet in W, their columns of
+/// W = Bᵀ P B, and extends the factor (IncrementalFactor::append).
 RequestStatus ActiveSet::append_pending() {
-  const int first = unknowns_;
+  const int first = factor_.size();
+  int m = first;
   for (int r = 0; r < static_cast<int>(rows_.size()); ++r) {
     const ActiveRow& row = rows_[index(r)];
     const int count = unknowns_of(row);
     if (count == 0 || columns_of_[index(r)] > 0) continue;
-    compute_Y(r);
+    compliance_.compute_Y(r);
     for (int c = 0; c < count; ++c) {
-      const auto p = index(unknowns_++);
+      const auto p = index(m++);
       unknown_row_[p] = r;
       Eigen::Map<Vector3d>{&unknown_dir_[3 * p]} =
           row.kind == Kind::kDisplacement ? Vector3d(Vector3d::Unit(c)) : row.normal;
@@ -525,39 +402,19 @@ RequestStatus ActiveSet::append_pending() {
     columns_of_[index(r)] = count;
     kind_in_W_[index(r)] = row.kind;
   }
-  const int m = unknowns_;
   const int k = m - first;
   if (k == 0) return RequestStatus::kOk;
-  const int ld = max_unknowns_;
-  Strided W(W_.data(), m, m, Eigen::OuterStride<>(ld));
   // Column q of W among rows p ≤ q: d_pᵀ H_r (Y_s d_q); a row's unknowns
   // are adjacent, so H_r Y_s is formed once per pair of rows.
   int last_r = -1, last_s = -1;
   Matrix3d P = Matrix3d::Zero();
-  for (int q = first; q < m; ++q) {
+  const int info = factor_.append(k, [&](int p, int q) {
     const int s = unknown_row_[index(q)];
     const Eigen::Map<const Vector3d> dq(&unknown_dir_[3 * index(q)]);
-    for (int p = 0; p <= q; ++p) {
-      const int r = unknown_row_[index(p)];
-      if (r != last_r || s != last_s) P = P_block(r, s), last_r = r, last_s = s;
-      W(p, q) = W(q, p) = Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]).dot(P * dq);
-    }
-  }
-  Strided L(L_.data(), m, m, Eigen::OuterStride<>(ld));
-  if (first > 0) {
-    // By BLAS in place: Eigen's L21 L21ᵀ is a temporary on the heap past
-    // 20 unknowns (its coefficient-wise product's threshold).
-    L.block(first, 0, k, first) = W.block(first, 0, k, first);
-    cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasNonUnit, k, first, 1.0,
-                &L(0, 0), ld, &L(first, 0), ld);
-    L.block(first, first, k, k).triangularView<Eigen::Lower>() = W.block(first, first, k, k);
-    cblas_dsyrk(CblasColMajor, CblasLower, CblasNoTrans, k, first, -1.0, &L(first, 0), ld, 1.0,
-                &L(first, first), ld);
-  } else {
-    L.topLeftCorner(m, m).triangularView<Eigen::Lower>() = W.topLeftCorner(m, m);
-  }
-  const lapack_int info = LAPACKE_dpotrf_work(LAPACK_COL_MAJOR, 'L', k, &L(first, first), ld);
-  PALPATE_DEMAND(info >= 0);
+    const int r = unknown_row_[index(p)];
+    if (r != last_r || s != last_s) P = compliance_.P_block(r, s), last_r = r, last_s = s;
+    return Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]).dot(P * dq);
+  });
   if (info != 0)
     return fail(message_, RequestStatus::kIllConditioned,
                 "the {} × {} system of the contacts is singular (column {}): points too close "
@@ -568,17 +425,10 @@ RequestStatus ActiveSet::append_pending() {
 
 /// Refuses W when its 1-norm condition estimate exceeds the limit.
 RequestStatus ActiveSet::check_condition() {
-  const int m = unknowns_;
+  const int m = factor_.size();
   if (m == 0) return RequestStatus::kOk;
-  const int ld = max_unknowns_;
-  const Strided W(W_.data(), m, m, Eigen::OuterStride<>(ld));
-  const double norm1 = W.cwiseAbs().colwise().sum().maxCoeff();
-  double rcond = 0;
-  const lapack_int info = LAPACKE_dpocon_work(LAPACK_COL_MAJOR, 'L', m, L_.data(), ld, norm1,
-                                              &rcond, work_.data(), iwork_.data());
-  PALPATE_DEMAND(info >= 0);
-  const double condition = rcond > 0 ? 1.0 / rcond : std::numeric_limits<double>::infinity();
-  if (info != 0 || !(condition <= limits_.max_condition))
+  const double condition = factor_.condition_estimate();
+  if (!(condition <= limits_.max_condition))
     return fail(message_, RequestStatus::kIllConditioned,
                 "the {} × {} system of the contacts has condition estimate {:.3g}, above the "
                 "limit {:.3g}: points too close together, or normals nearly parallel on "
@@ -587,37 +437,15 @@ RequestStatus ActiveSet::check_condition() {
   return RequestStatus::kOk;
 }
 
-/// Removes unknown p from W and from its factor. Without row p, L is lower
-/// triangular but for one superdiagonal from column p on; Givens rotations
-/// of columns (i, i+1), i = p … m−2, clear it (they leave L Lᵀ unchanged)
-/// and leave the last column zero.
+/// Removes unknown p from W and its factor, and from the unknowns' list.
 void ActiveSet::remove_unknown(int p) {
-  const int m = unknowns_;
-  const int ld = max_unknowns_;
-  Strided W(W_.data(), m, m, Eigen::OuterStride<>(ld));
-  Strided L(L_.data(), m, m, Eigen::OuterStride<>(ld));
-  for (int j = p; j + 1 < m; ++j) W.col(j) = W.col(j + 1);
-  for (int j = 0; j + 1 < m; ++j)
-    for (int i = p; i + 1 < m; ++i) W(i, j) = W(i + 1, j);
-  for (int j = 0; j < m; ++j)
-    for (int i = std::max(p, j - 1); i + 1 < m; ++i) L(i, j) = L(i + 1, j);
-  for (int i = p; i + 1 < m; ++i) {
-    const double a = L(i, i), b = L(i, i + 1);
-    const double r = std::hypot(a, b);
-    if (r == 0) continue;
-    const double c = a / r, s = b / r;
-    for (int t = i; t + 1 < m; ++t) {
-      const double x = L(t, i), y = L(t, i + 1);
-      L(t, i) = c * x + s * y;
-      L(t, i + 1) = c * y - s * x;
-    }
-  }
+  const int m = factor_.size();
+  factor_.remove(p);
   --columns_of_[index(unknown_row_[index(p)])];
   for (int q = p; q + 1 < m; ++q) {
     unknown_row_[index(q)] = unknown_row_[index(q) + 1];
     std::copy_n(&unknown_dir_[3 * index(q) + 3], 3, &unknown_dir_[3 * index(q)]);
   }
-  --unknowns_;
 }
 
 RequestStatus ActiveSet::solve_incremental() {
@@ -626,13 +454,13 @@ RequestStatus ActiveSet::solve_incremental() {
     // Unknowns of rows that left, or that slide now, leave W first (removing
     // rows of an SPD matrix cannot worsen its condition); then the rows that
     // joined, and the sliding rows' normals, are appended.
-    for (int p = unknowns_ - 1; p >= 0; --p) {
+    for (int p = factor_.size() - 1; p >= 0; --p) {
       const int r = unknown_row_[index(p)];
       const ActiveRow& row = rows_[index(r)];
       if (row.state != ActiveRow::kActive || row.kind != kind_in_W_[index(r)]) remove_unknown(p);
     }
   } else {
-    unknowns_ = 0;
+    factor_.clear();
     for (std::size_t r = 0; r < rows_.size(); ++r) columns_of_[r] = 0;
   }
   status = append_pending();
@@ -647,8 +475,7 @@ RequestStatus ActiveSet::solve_incremental() {
 /// φ = W⁻¹ b from the factor, f_C = B φ, and every row's displacement
 /// u_p = H_p G_UU Hᵀ f_C (the dormant rows' too, for their gaps).
 RequestStatus ActiveSet::finish_incremental() {
-  const int m = unknowns_;
-  const int ld = max_unknowns_;
+  const int m = factor_.size();
   for (int p = 0; p < m; ++p) {
     const ActiveRow& row = rows_[index(unknown_row_[index(p)])];
     rhs_[index(p)] = row.kind == Kind::kNormalDisplacement
@@ -656,8 +483,7 @@ RequestStatus ActiveSet::finish_incremental() {
                          : Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]).dot(row.value);
   }
   if (m > 0) {
-    const lapack_int info =
-        LAPACKE_dpotrs_work(LAPACK_COL_MAJOR, 'L', m, 1, L_.data(), ld, rhs_.data(), m);
+    const int info = factor_.solve(rhs_.data(), 1);
     if (info != 0)
       return fail(message_, RequestStatus::kInternalError, "dpotrs failed with info {}", info);
   }
@@ -668,23 +494,21 @@ RequestStatus ActiveSet::finish_incremental() {
         rhs_[index(p)] * Eigen::Map<const Vector3d>(&unknown_dir_[3 * index(p)]);
   // z = G_UU Hᵀ f_C = Σ_r Y_r f_r over the rows in W: 9u flops per row,
   // not 9u² (U holds every candidate's vertices, most of them unloaded).
-  const int u3 = 3 * used_;
-  const int ld_Y = 3 * used_;
+  const int u3 = 3 * compliance_.used();
   Eigen::Map<Eigen::VectorXd> z(z_.data(), u3);
   z.setZero();
   bool finite = true;
   for (int r = 0; r < n; ++r) {
     if (columns_of_[index(r)] == 0) continue;
     finite = finite && force(r).allFinite();
-    z.noalias() +=
-        Strided(&Y_[index(ld_Y) * 3 * index(r)], u3, 3, Eigen::OuterStride<>(ld_Y)) * force(r);
+    z.noalias() += compliance_.Y(r) * force(r);
   }
   for (int r = 0; r < n; ++r) {
     Eigen::Map<Vector3d> u(&displacement_[3 * index(r)]);
     u.setZero();
     if (rows_[index(r)].state == ActiveRow::kReleased) continue;
     for (int i = 0; i < rows_[index(r)].count; ++i)
-      if (const int slot = point_slot_[3 * index(r) + index(i)]; slot >= 0)
+      if (const int slot = compliance_.slot(r, i); slot >= 0)
         u += rows_[index(r)].weights[index(i)] * z.segment<3>(3 * slot);
     finite = finite && u.allFinite() && force(r).allFinite();
   }

@@ -31,7 +31,7 @@
 ///  - a singular W first makes every sticking tip point slide, then drops
 ///    the shallowest tip point until it solves.
 ///
-/// Two ways to solve, equal to round-off (tests/runtime/active_set_test.cpp):
+/// Two ways to solve, equal to round-off (tests/runtime/solve/active_set_test.cpp):
 /// `kRefactor` builds and factors W from scratch at every solve (through
 /// ConstraintSolver); `kIncremental` factors W = L Lᵀ once and then edits
 /// the factor: an unknown that leaves is removed from L by Givens rotations
@@ -40,7 +40,9 @@
 /// point's three columns leaving and its normal column joining. G is read
 /// once per tick, on the distinct vertices of every candidate point. A set
 /// of held points only (nothing can change) is solved by ConstraintSolver
-/// either way, whose cache keeps a still grasp's factorization.
+/// either way, whose cache keeps a still grasp's factorization. The factor
+/// and its edits are IncrementalFactor's (incremental_factor.hpp), G on the
+/// candidates' vertices PointCompliance's (point_compliance.hpp).
 /// Allocation-free after construction.
 
 #include <array>
@@ -51,29 +53,15 @@
 #include "palpate/core/eigen.hpp"
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/request_status.hpp"
+#include "palpate/runtime/solve/active_row.hpp"
+#include "palpate/runtime/solve/incremental_factor.hpp"
+#include "palpate/runtime/solve/point_compliance.hpp"
 #include "palpate/runtime/surface_model.hpp"
 
 namespace palpate::detail {
 
 /// How the active set solves its systems.
 enum class ActiveSetMethod { kIncremental, kRefactor };
-
-/// One candidate contact of a tick.
-struct ActiveRow {
-  static constexpr char kActive = 0, kReleased = 1, kDormant = 2;
-  int count = 1;                    ///< vertices of the point, 1 to 3
-  std::array<int, 3> index{};       ///< compliance indices, −1 for a fixed vertex
-  std::array<double, 3> weights{};  ///< barycentric
-  ConstraintKind kind = ConstraintKind::kDisplacement;  ///< displacement or normal displacement
-  /// Imposed displacement, m (a normal displacement: value.x(), along normal).
-  Eigen::Vector3d value = Eigen::Vector3d::Zero();
-  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit for a tip point; zero when held
-  bool tip = false;       ///< a tip point: may slide, leave or join; a held one never changes
-  double friction = 0;    ///< Coulomb coefficient μ of its tool
-  double depth = 0;       ///< penetration, m: the shallowest goes first when singular
-  double join_gap_m = 0;  ///< a dormant point joins when pushed this far into the tip
-  char state = kActive;   ///< kActive, kReleased (let go this tick) or kDormant (watched)
-};
 
 class ActiveSet {
  public:
@@ -122,11 +110,6 @@ class ActiveSet {
   static std::size_t index(int r) { return static_cast<std::size_t>(r); }
   RequestStatus solve_refactor();
   RequestStatus solve_incremental();
-  void number_vertices();
-  void complete_column(int b);
-  void compute_Y(int r);
-  Eigen::Matrix3d P_block(int r, int s);
-  RequestStatus factor_all();
   RequestStatus append_pending();
   void remove_unknown(int p);
   RequestStatus check_condition();
@@ -147,26 +130,16 @@ class ActiveSet {
   // kIncremental: the distinct vertices U of every row, G_UU, and per row
   // Y_r = G_UU H_rᵀ (3u × 3), computed when the row first enters W.
   int max_rows_ = 0, max_unknowns_ = 0, max_used_ = 0;
-  std::vector<std::uint32_t> used_epoch_;
-  std::vector<int> used_slot_;  // per compliance vertex
-  std::uint32_t used_clock_ = 0;
-  int used_ = 0;
-  std::vector<int> used_index_;
-  std::vector<int> point_slot_;  // 3 per row: place of each vertex in U, −1 fixed
-  std::vector<double> G_UU_;     // 3·max_used × 3·max_used, column-major
-  std::vector<double> Y_;        // 3·max_used × 3 per row
-  std::vector<char> has_Y_;
-  std::vector<char> complete_;  // per slot of U: its column of G_UU read in full
-  // W's unknowns in order: row, unit direction; W itself and its factor L
-  // (lower), both max_unknowns × max_unknowns column-major.
-  int unknowns_ = 0;
+  PointCompliance compliance_;
+  // W's unknowns in order (as many as factor_.size()): row, unit direction;
+  // W itself and its factor L.
   std::vector<int> unknown_row_;
   std::vector<double> unknown_dir_;  // 3 per unknown
   std::vector<int> columns_of_;      // per row: its unknowns in W now (0, 1 or 3)
   std::vector<ConstraintKind> kind_in_W_;
-  std::vector<double> W_, L_, rhs_, work_, z_;
-  std::vector<int> iwork_;
-  bool factored_ = false;  // L holds W's factor; else the next solve factors afresh
+  IncrementalFactor factor_;
+  std::vector<double> rhs_, z_;
+  bool factored_ = false;  // factor_ holds W's factor; else the next solve factors afresh
   // How the last successful call solved: its factor is the incremental
   // path's L or the solver's (for force_response), and the rows in it.
   bool last_incremental_ = false;
