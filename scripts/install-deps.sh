@@ -13,6 +13,8 @@ packages=(
   # clang 14 and its run-time libraries: the sanitizer builds and libFuzzer
   # (scripts/sanitize.sh, docs/sanitizers.md, docs/fuzzing.md)
   clang libclang-rt-14-dev
+  # the suite's linker (scripts/suite_stages.sh)
+  lld
   # numerics: Eigen, CHOLMOD (SuiteSparse) on the optimized OpenBLAS, and
   # LAPACKE, the C interface to LAPACK (OpenBLAS's cblas.h is BLAS's)
   libeigen3-dev libsuitesparse-dev libopenblas-dev libopenblas0-pthread liblapacke-dev

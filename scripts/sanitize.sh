@@ -21,6 +21,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
+. scripts/suite_stages.sh
 
 which=${1:-all}
 [ $# -gt 0 ] && shift
@@ -40,7 +41,7 @@ configure() { # DIR SANITIZERS [cmake options...]
   shift 2
   CC=clang CXX=clang++ cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Debug \
     -DCMAKE_C_FLAGS_DEBUG="$flags" -DCMAKE_CXX_FLAGS_DEBUG="$flags" \
-    -DPALPATE_SANITIZE="$sanitizers" -DPALPATE_BUILD_BENCHMARKS=OFF "$@" >/dev/null
+    -DPALPATE_SANITIZE="$sanitizers" -DPALPATE_BUILD_BENCHMARKS=OFF $PALPATE_LINK_FLAGS "$@" >/dev/null
 }
 run_ctest() { # DIR [ctest arguments...]
   unshare --net -- sh -c 'ip link set lo up && exec ctest --test-dir "$0" --output-on-failure "$@"' "$@"
@@ -59,8 +60,8 @@ status=0
 if [ "$which" = asan ] || [ "$which" = all ]; then
   dir=${PALPATE_ASAN_BUILD_DIR:-build-asan}
   echo "sanitize: ASan+UBSan build in $dir"
-  configure "$dir" address,undefined -DPALPATE_FUZZ=ON
-  cmake --build "$dir" -j2
+  stage "asan configure" configure "$dir" address,undefined -DPALPATE_FUZZ=ON
+  stage "asan build" cmake --build "$dir" -j2
   echo "sanitize: the whole suite under ASan+UBSan"
   # load_short is left out: 8 instrumented tools at 1 kHz, 4 viewers and
   # 100 requests/s saturate two cores, and what it then reports is the
@@ -69,13 +70,13 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # windows (no feedback for the surviving tool around the kill) in about
   # one run of two, with contact ticks of ~1 ms instrumented
   # (docs/sanitizers.md). Both run in the Release suite.
-  PALPATE_TEST_TIME_SCALE=3 run_ctest "$dir" -j2 -E '^(load_short|faults_end_to_end)$' "$@" || status=1
+  PALPATE_TEST_TIME_SCALE=3 stage "asan tests" run_ctest "$dir" -j2 -E '^(load_short|faults_end_to_end)$' "$@" || status=1
 fi
 if [ "$which" = tsan ] || [ "$which" = all ]; then
   dir=${PALPATE_TSAN_BUILD_DIR:-build-tsan}
   echo "sanitize: TSan build in $dir (palpated and its end-to-end tests only)"
-  configure "$dir" thread
-  cmake --build "$dir" -j2 --target palpated palpate_dds_tests
+  stage "tsan configure" configure "$dir" thread
+  stage "tsan build" cmake --build "$dir" -j2 --target palpated palpate_dds_tests
   # CHOLMOD's OpenMP regions (libgomp) and OpenBLAS's threads synchronise in
   # uninstrumented code TSan cannot see: one thread each keeps them out of
   # the reports (CHOLMOD asks for 4 OpenMP threads whatever OMP_NUM_THREADS
@@ -87,7 +88,9 @@ if [ "$which" = tsan ] || [ "$which" = all ]; then
     aslr="setarch $(uname -m) -R"
   fi
   echo "sanitize: the daemon's concurrent tests under TSan"
-  OMP_THREAD_LIMIT=1 OPENBLAS_NUM_THREADS=1 PALPATE_TEST_TIME_SCALE=5 $aslr run_ctest "$dir" "$@" \
+  OMP_THREAD_LIMIT=1 OPENBLAS_NUM_THREADS=1 PALPATE_TEST_TIME_SCALE=5 stage "tsan tests" $aslr run_ctest "$dir" "$@" \
     -R '^palpated_end_to_end$' || status=1
 fi
+# Run alone (not from scripts/test.sh, which prints the whole run's): its stages.
+[ -n "${PALPATE_SUITE_STAGES_PARENT:-}" ] || stages_summary
 exit $status
