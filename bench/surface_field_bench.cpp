@@ -35,6 +35,7 @@
 //        (or PALPATE_BENCH_MODEL=MODEL.h5); without a model it says so and exits 0.
 
 #include <benchmark/benchmark.h>
+#include <cblas.h>
 #include <immintrin.h>
 #include <sys/mman.h>
 
@@ -54,10 +55,6 @@
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "patch.hpp"
-
-extern "C" void dgemv_(const char* trans, const int* m, const int* n, const double* alpha,
-                       const double* a, const int* lda, const double* x, const int* incx,
-                       const double* beta, double* y, const int* incy);
 
 namespace {
 
@@ -275,8 +272,8 @@ void BM_blas_dgemv(benchmark::State& state) {
     for (std::size_t j = 0; j < problem->indices.size(); ++j) {
       const double* panel =
           problem->model.G.data() + 3 * static_cast<Index>(problem->indices[j]) * m;
-      dgemv_("N", &m, &three, &alpha, panel, &m, problem->forces.data() + 3 * j, &one,
-             j == 0 ? &zero : &alpha, u, &one);
+      cblas_dgemv(CblasColMajor, CblasNoTrans, m, three, alpha, panel, m,
+                  problem->forces.data() + 3 * j, one, j == 0 ? zero : alpha, u, one);
     }
   });
 }

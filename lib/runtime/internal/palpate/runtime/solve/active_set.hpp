@@ -4,7 +4,7 @@
 ///
 /// What it solves: the tick's candidate contacts are rows at points of
 /// surface triangles, u_p = Σ_i w_pi u_{a_pi}, with the points' compliance
-/// P = H G Hᵀ (docs/model.md, "The reduced system of a request"). Held
+/// P = H G Hᵀ (docs/model/requests.md, "The reduced system of a request"). Held
 /// points and sticking tip points impose their three displacement
 /// components (three unknown force components each); sliding tip points
 /// impose their normal displacement only (one unknown, the force along the
