@@ -3,15 +3,10 @@
 #include <cblas.h>
 #include <fmt/format.h>
 #include <lapacke.h>
-#include <pthread.h>
-#include <sched.h>
-#include <sys/resource.h>
-#include <unistd.h>
 
 #include <Eigen/OrderingMethods>
 #include <algorithm>
 #include <chrono>
-#include <mutex>
 #include <utility>
 
 #include "palpate/core/error.hpp"
@@ -32,22 +27,6 @@ constexpr int kWaitFactor = 4;
 }  // namespace
 
 namespace {
-// The worker thread inherits the haptic thread's scheduling: SCHED_FIFO
-// and its CPUs, where a factorization of hundreds of milliseconds would
-// starve the tick it serves. It runs as an ordinary thread instead, at
-// nice 10, on any CPU (docs/realtime.md).
-void become_background_thread() {
-  sched_param normal{};
-  normal.sched_priority = 0;
-  pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
-  cpu_set_t every;
-  CPU_ZERO(&every);
-  const long cpus = sysconf(_SC_NPROCESSORS_CONF);
-  for (long c = 0; c < cpus && c < CPU_SETSIZE; ++c) CPU_SET(static_cast<int>(c), &every);
-  pthread_setaffinity_np(pthread_self(), sizeof every, &every);
-  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 10);
-}
-
 // y = A x for a symmetric @p a, reading its lower half (BLAS dsymv: several
 // times Eigen's own on this machine). Allocates nothing.
 void symmetric_product(const Eigen::MatrixXd& a, CRef<VectorXd> x, Eigen::Ref<VectorXd> y) {
@@ -153,13 +132,6 @@ void base_solve(const RegionFactorization& f, Index ni, Eigen::Ref<VectorXd> x, 
 
 }  // namespace
 
-// The worker's queue: the vertices cut since its snapshot, until it closes it.
-struct RefactorQueue {
-  std::mutex mutex;
-  std::vector<int> vertices;
-  bool closed = false;
-};
-
 // What the worker hands over: the factorization and Y's columns for the
 // vertices it took from the queue (each vertex's three DOFs in a row).
 struct RegionRefactor {
@@ -250,9 +222,8 @@ ImplicitRegionStep::ImplicitRegionStep(const TensorMassModel& model, std::span<c
   refresh_capacitance(on_skin);
 }
 
-ImplicitRegionStep::~ImplicitRegionStep() {
-  if (pending_.valid()) pending_.wait();
-}
+// The worker_'s destructor waits for a factorization under way.
+ImplicitRegionStep::~ImplicitRegionStep() = default;
 
 Matrix3d ImplicitRegionStep::diagonal_block(int v, const std::vector<char>& on_skin) const {
   const double diagonal = coefficients_.mass_coefficient() * model_.mass_kg(v) +
@@ -406,77 +377,58 @@ void ImplicitRegionStep::adopt(std::unique_ptr<RegionRefactor> refactor,
   rank_ = static_cast<int>(update_dofs_.size());
   for (int k = 0; k < rank_; ++k) dof_slot_[update_dofs_[k]] = k;
   y_ = std::move(refactor->y);
-  add_update_dofs(after_worker_);
-  after_worker_.clear();
-  queue_.reset();
+  add_update_dofs(worker_.cut_after());
   refresh_capacitance(on_skin);
 }
 
 void ImplicitRegionStep::finish_background_work(const std::vector<char>& on_skin) {
-  if (pending_.valid()) adopt(pending_.get(), on_skin);
+  if (worker_.running()) adopt(worker_.take(), on_skin);
 }
 
 double ImplicitRegionStep::last_factorization_s() const { return factor_->seconds; }
 
-// A snapshot of A now, factored on a worker thread, which then computes
-// Y's columns for the vertices the ticks cut meanwhile (queue_) until none
+// A snapshot of A now, factored on the worker's thread, which then computes
+// Y's columns for the vertices the ticks cut meanwhile (its queue) until none
 // is left, and closes the queue: the cut that adopts it has only those cut
 // after that to compute.
 void ImplicitRegionStep::launch_refactor(const std::vector<char>& on_skin) {
-  queue_ = std::make_shared<RefactorQueue>();
-  after_worker_.clear();
-  pending_ =
-      std::async(std::launch::async, [a = assemble(on_skin), &s = coupling_, ni = interior_dofs_,
-                                      first_dof = first_dof_, queue = queue_]() mutable {
-        become_background_thread();
-        auto out = std::make_unique<RegionRefactor>();
-        out->factor = RegionFactorization::make(std::move(a), s, ni);
-        const Index n = out->factor->a.rows();
-        SolveScratch scratch;
-        scratch.size(ni, n - ni);
-        std::vector<char> done(first_dof.size(), 0);
-        VectorXd x(n);
-        for (;;) {
-          std::vector<int> batch;
-          {
-            const std::lock_guard lock(queue->mutex);
-            if (queue->vertices.empty()) {
-              queue->closed = true;
-              return out;
-            }
-            batch.swap(queue->vertices);
-          }
-          for (int v : batch) {
-            if (first_dof[v] < 0 || done[v] != 0) continue;
-            done[v] = 1;
-            const auto k = static_cast<Index>(out->dofs.size());
-            out->y.conservativeResize(n, k + 3);
-            for (int axis = 0; axis < 3; ++axis) {
-              x.setZero();
-              x[first_dof[v] + axis] = 1;
-              base_solve(*out->factor, ni, x, scratch);
-              out->y.col(k + axis) = x;
-              out->dofs.push_back(first_dof[v] + axis);
-            }
-          }
+  worker_.start([a = assemble(on_skin), &s = coupling_, ni = interior_dofs_,
+                 first_dof = first_dof_](CutQueue& cuts) mutable {
+    auto out = std::make_unique<RegionRefactor>();
+    out->factor = RegionFactorization::make(std::move(a), s, ni);
+    const Index n = out->factor->a.rows();
+    SolveScratch scratch;
+    scratch.size(ni, n - ni);
+    std::vector<char> done(first_dof.size(), 0);
+    VectorXd x(n);
+    std::vector<int> batch;
+    while (cuts.take(batch)) {
+      for (int v : batch) {
+        if (first_dof[v] < 0 || done[v] != 0) continue;
+        done[v] = 1;
+        const auto k = static_cast<Index>(out->dofs.size());
+        out->y.conservativeResize(n, k + 3);
+        for (int axis = 0; axis < 3; ++axis) {
+          x.setZero();
+          x[first_dof[v] + axis] = 1;
+          base_solve(*out->factor, ni, x, scratch);
+          out->y.col(k + axis) = x;
+          out->dofs.push_back(first_dof[v] + axis);
         }
-      });
+      }
+    }
+    return out;
+  });
 }
 
 void ImplicitRegionStep::update(std::span<const int> touched, const std::vector<char>& on_skin) {
-  using namespace std::chrono_literals;
-  if (pending_.valid()) {
-    // The worker takes these vertices if its queue is still open.
-    const std::lock_guard lock(queue_->mutex);
-    auto& to = queue_->closed ? after_worker_ : queue_->vertices;
-    to.insert(to.end(), touched.begin(), touched.end());
-  }
-  if (pending_.valid() && pending_.wait_for(0s) == std::future_status::ready)
-    finish_background_work(on_skin);
+  // The worker takes these vertices if its queue is still open.
+  if (worker_.running()) worker_.note_cut(touched);
+  if (worker_.finished()) finish_background_work(on_skin);
   add_update_dofs(touched);
   if (rank_ >= kWaitFactor * refactor_rank_) {
     // Past kWaitFactor times the bound: the worker's, if under way, else factored now.
-    if (pending_.valid()) {
+    if (worker_.running()) {
       finish_background_work(on_skin);
     } else {
       for (Index dof : update_dofs_) dof_slot_[dof] = -1;
@@ -485,7 +437,7 @@ void ImplicitRegionStep::update(std::span<const int> touched, const std::vector<
       factor_ = RegionFactorization::make(assemble(on_skin), coupling_, interior_dofs_);
       ++factorizations_;
     }
-  } else if (rank_ >= refactor_rank_ && !pending_.valid()) {
+  } else if (rank_ >= refactor_rank_ && !worker_.running()) {
     launch_refactor(on_skin);
   }
   refresh_capacitance(on_skin);

@@ -14,17 +14,18 @@
 // of the interior block and a dense Cholesky of its Schur complement on Γ.
 // A cut changes A on the vertices of the tetrahedra it removed only, and
 // that low-rank change is applied by the Woodbury identity; when it grows,
-// A is factored again on a worker thread while the ticks go on.
+// A is factored again on a worker thread while the ticks go on
+// (refactor_worker.hpp).
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/LU>
-#include <future>
 #include <memory>
 #include <span>
 #include <vector>
 
 #include "palpate/core/eigen.hpp"
+#include "palpate/runtime/region/refactor_worker.hpp"
 #include "palpate/runtime/tensor_mass.hpp"
 
 namespace palpate::detail {
@@ -44,10 +45,9 @@ struct ImplicitStepCoefficients {
 
 /// A factored once: the matrix it is of, and its two Cholesky factors.
 struct RegionFactorization;
-/// A factorization the worker thread makes, and the columns of Y it adds
-/// for the cuts made meanwhile (region_implicit_step.cpp).
+/// What the worker hands over: a factorization of a snapshot of A, and the
+/// columns of Y it adds for the cuts made meanwhile (region_implicit_step.cpp).
 struct RegionRefactor;
-struct RefactorQueue;
 
 /// Work vectors of one solve with a factorization (one set per thread).
 struct SolveScratch {
@@ -134,12 +134,10 @@ class ImplicitRegionStep {
   Eigen::Index interior_dofs_ = 0, dofs_ = 0;
 
   std::unique_ptr<RegionFactorization> factor_;
-  // The worker: its result, and the queue of the vertices cut since its
-  // snapshot, whose columns it computes once it has factored; those cut
-  // after it has emptied the queue and closed it wait in after_worker_.
-  std::future<std::unique_ptr<RegionRefactor>> pending_;
-  std::shared_ptr<RefactorQueue> queue_;
-  std::vector<int> after_worker_;
+  // The worker: it factors a snapshot of A, then computes the columns of
+  // the vertices cut since the snapshot until its queue is empty; those cut
+  // after it closed the queue are its cut_after(), for adopt().
+  RefactorWorker<std::unique_ptr<RegionRefactor>> worker_;
   int factorizations_ = 0, background_factorizations_ = 0;
 
   // A = A₀ + E D Eᵀ: E the update's DOFs (ordered), Y = A₀⁻¹ E, the
