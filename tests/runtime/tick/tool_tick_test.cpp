@@ -71,7 +71,8 @@ Press press_the_region(ToolTick& tick, int ticks, SessionRecorder* recorder) {
 // The region's push on the tip arrives in one tick; the force sent may
 // change by at most max_force_rate_n_per_s × Δt per tick whatever it comes
 // from (before ToolTick, the daemon added the push after the slew limit:
-// the force stepped by the whole push, 0.3 N, in one tick).
+// the force stepped by the whole push, 0.53 N, in one tick, against the
+// 10 mN allowed).
 TEST(ToolTick, TheRegionsPushIsSlewLimitedLikeTheContacts) {
   const testing::Organ o;
   HybridRegion region(o.model);
