@@ -89,15 +89,11 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
                                                 : Vector3d(-surface.vertex_normal_of(corner));
     if (pair.distance > 1e-9 * r && (p - pair.on_segment).dot(outward) <= 0)
       normal = (p - pair.on_segment) / pair.distance;
-    TipCandidate candidate{tri,
-                           0,
-                           {},
-                           {},
+    TipCandidate candidate{{tri, 0, {}, {}, Vector3d::Zero()},
                            r - pair.distance,
                            normal,
                            pair.on_segment + r * normal,
                            p,
-                           Vector3d::Zero(),
                            active};
     bool movable = false;
     for (int i = 0; i < 3; ++i) {

@@ -325,8 +325,8 @@ struct ToolContactEngine::Impl {
   RequestStatus solve_all() {
     building = 0;
     // A point on its vertices, a fixed one as −1 (its share goes to the attachment).
-    auto add = [&](int t, int tip, int held, const auto& point, ConstraintKind kind, Vector3d value,
-                   const Vector3d& normal, const Vector3d& lever) {
+    auto add = [&](int t, int tip, int held, const detail::SurfacePoint& point, ConstraintKind kind,
+                   Vector3d value, const Vector3d& normal, const Vector3d& lever) {
       // The background loads move the point by H u_b already: the tools'
       // forces make the rest (linear engines only: set_background_loads).
       if (background.count() > 0) {
@@ -473,7 +473,7 @@ struct ToolContactEngine::Impl {
       point.tool = t;
       point.held = b_tip[bb] < 0;
       // A held point and a tip's point are both a point of a triangle.
-      const auto take = [&point](const auto& from) {
+      const auto take = [&point](const detail::SurfacePoint& from) {
         point.triangle = from.triangle;
         point.vertex_count = from.count;
         point.vertices = from.vertices;
@@ -579,8 +579,8 @@ struct ToolContactEngine::Impl {
       local_model(t, out.local);
     else
       out.local = tool.out.local;
-    const bool pushed = tool.alive && (added.force_n.squaredNorm() > 0 ||
-                                       added.torque_nm.squaredNorm() > 0);
+    const bool pushed =
+        tool.alive && (added.force_n.squaredNorm() > 0 || added.torque_nm.squaredNorm() > 0);
     const Vector3d raw_force = pushed ? Vector3d(tool.raw_force + added.force_n) : tool.raw_force;
     const Vector3d raw_torque =
         pushed ? Vector3d(tool.raw_torque + added.torque_nm) : tool.raw_torque;

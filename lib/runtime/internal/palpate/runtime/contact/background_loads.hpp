@@ -15,6 +15,7 @@
 #include <span>
 #include <vector>
 
+#include "palpate/runtime/contact/surface_point.hpp"
 #include "palpate/runtime/surface_model.hpp"
 
 namespace palpate::detail {
@@ -95,10 +96,9 @@ class BackgroundLoads {
     drift = drift_ - u_drift_[slot];
     return true;
   }
-  /// H u_b at a point given by vertices and weights (fixed vertices, index
+  /// H u_b at a point of a surface triangle (fixed vertices, index
   /// ≥ @p compliance_count, do not move).
-  template <typename Point>
-  Eigen::Vector3d at_point(const Point& point, int compliance_count) {
+  Eigen::Vector3d at_point(const SurfacePoint& point, int compliance_count) {
     Eigen::Vector3d u = Eigen::Vector3d::Zero();
     for (int i = 0; i < point.count; ++i) {
       const int v = point.vertices[static_cast<std::size_t>(i)];

@@ -24,6 +24,7 @@
 
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/contact/background_loads.hpp"
+#include "palpate/runtime/contact/surface_point.hpp"
 #include "palpate/runtime/model/vertex_grid.hpp"
 #include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/surface_model.hpp"
@@ -84,11 +85,10 @@ class DeformedSurface {
   /// in this epoch, as deformed() computes them (the same sums in the same
   /// order), load by load (linear model; the warped one: nothing).
   void deform_corners(std::span<const int> triangles);
-  /// Warped: ω of compliance vertex @p v; R̃ of a point (count vertices
-  /// with weights) from the weighted mean of its vertices' ω.
+  /// Warped: ω of compliance vertex @p v; R̃ of a point of a triangle from
+  /// the weighted mean of its vertices' ω.
   const Eigen::Vector3d& rotation_vector(int v);
-  template <typename Point>
-  Eigen::Matrix3d point_rotation(const Point& point) {
+  Eigen::Matrix3d point_rotation(const SurfacePoint& point) {
     Eigen::Vector3d w = Eigen::Vector3d::Zero();
     for (int i = 0; i < point.count; ++i) {
       const int v = point.vertices[static_cast<std::size_t>(i)];

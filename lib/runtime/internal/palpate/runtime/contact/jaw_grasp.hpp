@@ -12,17 +12,13 @@
 #include <vector>
 
 #include "palpate/core/eigen.hpp"
+#include "palpate/runtime/contact/surface_point.hpp"
 #include "palpate/runtime/tool_geometry.hpp"
 
 namespace palpate::detail {
 
-/// A surface point held by a tool's jaws.
-struct HeldPoint {
-  int triangle = -1;              ///< drawn triangle
-  int count = 0;                  ///< vertices with a non-zero weight, 1 to 3
-  std::array<int, 3> vertices{};  ///< drawn vertices
-  std::array<double, 3> weights{};
-  Eigen::Vector3d rest = Eigen::Vector3d::Zero();   ///< Σ w_i rest_i, m
+/// A surface point held by a tool's jaws, and where it is in the tool frame.
+struct HeldPoint : SurfacePoint {
   Eigen::Vector3d local = Eigen::Vector3d::Zero();  ///< tool frame, on the mid-plane x = 0, m
   double side = 1;  ///< +1: the jaw on +x carries it; −1 the other
 };

@@ -15,25 +15,22 @@
 #include <vector>
 
 #include "palpate/runtime/contact/deformed_surface.hpp"
+#include "palpate/runtime/contact/surface_point.hpp"
 #include "palpate/runtime/tool_geometry.hpp"
 
 namespace palpate::detail {
 
 /// A tip contact found this tick: the deepest point of a surface triangle
 /// inside the tip, on the triangle's vertices that carry a weight.
-struct TipCandidate {
-  int triangle;                 // drawn triangle it was found on
-  int count;                    // vertices with a non-zero weight, 1 to 3
-  std::array<int, 3> vertices;  // drawn vertices
-  std::array<double, 3> weights;
-  double depth;  // r − distance to the tip's axis, m (negative: within the hysteresis shell)
-  Eigen::Vector3d
-      normal;  // unit: the direction the tip pushes the tissue (from the axis to the point)
-  Eigen::Vector3d target;  // the point put back on the tip's surface, m
-  Eigen::Vector3d point;   // the point on the deformed triangle, m
-  Eigen::Vector3d rest;    // the point at rest, Σ w_i rest_i, m
-  bool active;             // penetrating (or within the hysteresis shell); else a near
-                           // triangle the solve may push into the tip
+struct TipCandidate : SurfacePoint {
+  double depth = 0;  ///< r − distance to the tip's axis, m (negative: within the hysteresis shell)
+  /// Unit: the direction the tip pushes the tissue (from the axis to the point).
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  Eigen::Vector3d target = Eigen::Vector3d::Zero();  ///< the point put back on the tip's surface, m
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();   ///< the point on the deformed triangle, m
+  /// Penetrating (or within the hysteresis shell); else a near triangle the
+  /// solve may push into the tip.
+  bool active = false;
 };
 
 /// A tool's segment: a capsule's from its hinge along +z; a sphere's is its centre.
