@@ -14,6 +14,7 @@
 #include "palpate/runtime/contact/background_loads.hpp"
 #include "palpate/runtime/contact/contact_geometry.hpp"
 #include "palpate/runtime/contact/deformed_surface.hpp"
+#include "palpate/runtime/contact/feedback_limits.hpp"
 #include "palpate/runtime/contact/jaw_grasp.hpp"
 #include "palpate/runtime/contact/local_model.hpp"
 #include "palpate/runtime/contact/tip_contacts.hpp"
@@ -569,8 +570,8 @@ struct ToolContactEngine::Impl {
   }
 
   /// The feedback of tool @p t at @p now_s: its contact wrench and @p added
-  /// (a wrench from beside its contacts: ToolContactEngine::answer), clamped
-  /// and slew limited together; state events.
+  /// (a wrench from beside its contacts: ToolContactEngine::answer) through
+  /// the device's limits together (FeedbackLimits); state events.
   void make_output(int t, double now_s, ToolOutput& out, const ToolWrench& added = {}) {
     Tool& tool = tools[static_cast<std::size_t>(t)];
     // The local model of this tick's solve; the last one's when it failed
@@ -588,33 +589,18 @@ struct ToolContactEngine::Impl {
       out.local.force_n += added.force_n;
       out.local.torque_nm += added.torque_nm;
     }
+    // The device's force and slew limits (nothing felt once ramped out).
     const ToolGeometry& g = tool.geometry;
-    Vector3d target = raw_force;
-    bool limited = false;
-    if (const double magnitude = target.norm(); magnitude > g.force_limit_n) {
-      target *= g.force_limit_n / magnitude;
-      limited = true;
-    }
-    const Vector3d previous = tool.has_output ? tool.out.force_n : Vector3d::Zero();
-    const double dt = tool.has_output ? std::clamp(now_s - tool.last_output_s, 0.0, 0.01) : 0.001;
-    const double step = g.max_force_rate_n_per_s * dt;
-    Vector3d force = target;
-    if (const double change = (target - previous).norm(); change > step) {
-      force = previous + (target - previous) * (step / change);
-      limited = true;
-    }
-    if (!tool.alive) {  // ramped out: nothing left to feel
-      force.setZero();
-      limited = false;
-    }
-    const double raw = raw_force.norm();
-    const double torque_scale = raw > 0 ? std::min(1.0, force.norm() / raw) : 0.0;
-    out.force_n = force;
-    out.torque_nm = raw_torque * torque_scale;
-    out.grip_n = tool.raw_grip * torque_scale;
+    const detail::FeedbackLimits::Sent sent =
+        detail::FeedbackLimits(g.force_limit_n, g.max_force_rate_n_per_s)
+            .limit(raw_force, raw_torque, tool.raw_grip,
+                   {tool.has_output, tool.out.force_n, now_s - tool.last_output_s}, tool.alive);
+    out.force_n = sent.force_n;
+    out.torque_nm = sent.torque_nm;
+    out.grip_n = sent.grip_n;
     out.contacts = tool.alive ? tool.contacts : 0;
     out.held = tool.alive ? static_cast<int>(tool.held.size()) : 0;
-    out.force_limited = limited;
+    out.force_limited = sent.limited;
     out.watchdog = tool.in_watchdog;
     out.sequence = tool.pose.sequence;
     out.send_time_ns = tool.pose.send_time_ns;
