@@ -36,7 +36,7 @@ SIBLINGS = {("offline", "runtime"), ("runtime", "offline"), ("daemon", "device")
 ROOMS = {"model": 0, "solve": 1, "warp": 2, "contact": 3, "region": 3, "haptics": 4,
          "recording": 4, "scripted": 4, "tick": 5}
 # Public runtime headers with no source of their own: their room.
-PUBLIC_ROOMS = {"tool_geometry": "model"}
+PUBLIC_ROOMS = {"tool_geometry": "model", "contact_point": "contact"}
 SOURCE_DIRS = ["lib", "precompute", "server", "clients", "viewer", "bench", "fuzz", "examples"]
 EXTENSIONS = (".cpp", ".hpp", ".h", ".c")
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)

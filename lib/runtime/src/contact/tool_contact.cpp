@@ -15,6 +15,7 @@
 #include "palpate/runtime/contact/contact_geometry.hpp"
 #include "palpate/runtime/contact/deformed_surface.hpp"
 #include "palpate/runtime/contact/feedback_limits.hpp"
+#include "palpate/runtime/contact/grasp_state.hpp"
 #include "palpate/runtime/contact/jaw_grasp.hpp"
 #include "palpate/runtime/contact/local_model.hpp"
 #include "palpate/runtime/contact/tip_contacts.hpp"
@@ -56,15 +57,8 @@ struct ToolContactEngine::Impl {
     Vector3d solved_hinge = Vector3d::Zero();
     Matrix3d solved_rotation = Matrix3d::Identity();
     bool has_sequence = false;
-    double previous_jaw = 0;
-    bool has_previous_jaw = false;
-    // The widest the jaws opened since they last held anything: the faces'
-    // position when they came around the tissue (line jaws closing slowly
-    // pass into it; real ones stop on its surface).
-    double widest_jaw = 0;
     double scale = 1;  // watchdog ramp, 1 → 0
     bool in_watchdog = false;
-    std::vector<HeldPoint> held;     // by the jaws, in the tool frame
     std::vector<TipCandidate> tips;  // this tick's tip contacts, deepest first
     int tip_count = 0;
     Vector3d raw_force = Vector3d::Zero(), raw_torque = Vector3d::Zero();
@@ -85,12 +79,9 @@ struct ToolContactEngine::Impl {
   std::vector<int> owner;  // per compliance vertex: tool holding it this tick, or -1
   std::vector<int> previous_triangle_owner;  // per triangle: tool whose tip touched it last tick
 
+  detail::GraspState grasps;  // what every tool's jaws hold
   // Scratch, sized once.
   detail::TipContacts tip_search;
-  detail::JawGrasp grasp;
-  std::vector<int> grasp_triangles;     // near the closing jaws
-  std::vector<Vector3d> grasp_corners;  // 3 per grasp triangle, deformed
-  std::vector<HeldPoint> touched;       // the tip's points at the last tick
 
   // The last successful solve: every tool's contact points and their loads.
   int count = 0;
@@ -151,30 +142,24 @@ struct ToolContactEngine::Impl {
         settings(s),
         limits(l),
         active_set(m, l),
+        per_tool_cap(per_tool_capacity(s, l, static_cast<int>(geometries.size()))),
         compliance_count(m.compliance_vertex_count()),
         surface(m, w),
+        grasps(static_cast<int>(geometries.size()), per_tool_cap, l.max_constraints,
+               m.compliance_vertex_count(), m.surface.triangle_count()),
         tip_search(m.surface.triangle_count()),
-        grasp(std::max(1, l.max_constraints), m.compliance_vertex_count()),
         linearization(std::max(1, l.max_constraints), m.compliance_vertex_count()) {
     const int n = compliance_count;
     const int triangles = m.surface.triangle_count();
-    const int t = static_cast<int>(geometries.size());
-    PALPATE_DEMAND(t >= 1 && t <= 64);
-    per_tool_cap = std::min(settings.max_contacts_per_tool, limits.max_constraints / t);
-    PALPATE_DEMAND(per_tool_cap >= 1);
     for (auto& g : geometries) {
       Tool tool;
       tool.geometry = std::move(g);
-      tool.held.reserve(static_cast<std::size_t>(per_tool_cap));
       tool.tips.resize(static_cast<std::size_t>(per_tool_cap));
       tools.push_back(std::move(tool));
     }
     previous_triangle_owner.assign(static_cast<std::size_t>(triangles), -1);
     owner.assign(static_cast<std::size_t>(n), -1);
-    grasp_triangles.resize(static_cast<std::size_t>(triangles));
-    grasp_corners.resize(3 * static_cast<std::size_t>(triangles));
     const auto k = static_cast<std::size_t>(limits.max_constraints);
-    touched.reserve(k);
     points.resize(k);
     tip_of.resize(k);
     load_index.resize(3 * k);
@@ -190,6 +175,15 @@ struct ToolContactEngine::Impl {
     material_force.assign(k, Vector3d::Zero());
     local_rows.resize(k);
     surface.set_loads(0, load_index.data(), load_force.data(), 0);
+  }
+
+  /// Contacts a tool may have: its share of the solve's constraints, at most
+  /// ContactSettings::max_contacts_per_tool, for 1 to 64 @p tools.
+  static int per_tool_capacity(const ContactSettings& s, const SolverLimits& l, int tools) {
+    PALPATE_DEMAND(tools >= 1 && tools <= 64);
+    const int cap = std::min(s.max_contacts_per_tool, l.max_constraints / tools);
+    PALPATE_DEMAND(cap >= 1);
+    return cap;
   }
 
   /// How far from a tool's segment its candidate vertices lie at rest, m.
@@ -215,69 +209,14 @@ struct ToolContactEngine::Impl {
   /// Grasp state machine of tool @p t for its new jaw angle (before contacts).
   void update_grasp(int t, ToolOutput& out) {
     Tool& tool = tools[static_cast<std::size_t>(t)];
-    const ToolGeometry& g = tool.geometry;
-    const double jaw = tool.pose.jaw_angle_rad;
-    if (!tool.held.empty()) {
-      if (jaw >= g.release_angle_rad) {
-        tool.held.clear();
-        push_event(out, ToolEventKind::kRelease);
-      }
-      return;
-    }
-    const bool closing = tool.has_previous_jaw && tool.previous_jaw > g.grasp_angle_rad &&
-                         jaw <= g.grasp_angle_rad && g.jaw_length_m > 0 && !g.cutting;
-    if (!closing) return;
+    const auto step = grasps.step(t, tool.pose.jaw_angle_rad, tool.geometry);
+    if (step == detail::GraspState::Step::kReleased) push_event(out, ToolEventKind::kRelease);
+    if (step != detail::GraspState::Step::kClosing) return;
     surface.next_epoch();
-    // The triangles near the jaws that this tool may hold: not wholly fixed,
-    // no vertex of a point another tool holds.
-    std::size_t near = 0;
-    for (const int tri : triangles_near(tool)) {
-      const int* corner = surface.corners(tri);
-      int fixed = 0;
-      bool elsewhere = false;
-      for (int i = 0; i < 3; ++i) {
-        if (corner[i] >= compliance_count)
-          ++fixed;
-        else
-          elsewhere |= owner_held_elsewhere(corner[i], t);
-      }
-      if (fixed == 3 || elsewhere) continue;
-      grasp_triangles[near++] = tri;
-    }
-    surface.deform_corners({grasp_triangles.data(), near});
-    for (std::size_t k = 0; k < near; ++k)
-      for (int i = 0; i < 3; ++i)
-        grasp_corners[3 * k + static_cast<std::size_t>(i)] =
-            surface.deformed(surface.corners(grasp_triangles[k])[i]);
-    // What the tip pressed at the last tick.
-    touched.clear();
-    for (int c = 0; c < count; ++c) {
-      const ContactPoint& point = points[static_cast<std::size_t>(c)];
-      if (point.tool != t || point.held) continue;
-      HeldPoint h{};
-      h.triangle = point.triangle;
-      h.count = point.vertex_count;
-      h.vertices = point.vertices;
-      h.weights = point.weights;
-      for (int i = 0; i < h.count; ++i)
-        h.rest += h.weights[static_cast<std::size_t>(i)] *
-                  surface.rest(h.vertices[static_cast<std::size_t>(i)]);
-      touched.push_back(h);
-    }
-    grasp.choose(jaws_of(tool, std::max(tool.widest_jaw, tool.previous_jaw)),
-                 {grasp_triangles.data(), near}, {grasp_corners.data(), 3 * near},
-                 surface.triangle_vertices(), surface.rest(), touched, tool.held, per_tool_cap);
-    if (!tool.held.empty()) push_event(out, ToolEventKind::kGrasp);
-  }
-
-  bool owner_held_elsewhere(int j, int t) const {
-    for (int other = 0; other < static_cast<int>(tools.size()); ++other) {
-      if (other == t) continue;
-      for (const auto& h : tools[static_cast<std::size_t>(other)].held)
-        for (int i = 0; i < h.count; ++i)
-          if (h.vertices[static_cast<std::size_t>(i)] == j) return true;
-    }
-    return false;
+    const std::span<const int> near = triangles_near(tool);
+    if (grasps.pick_up(t, jaws_of(tool, grasps.opening_rad(t)), near, surface,
+                       {points.data(), static_cast<std::size_t>(count)}))
+      push_event(out, ToolEventKind::kGrasp);
   }
 
   static void push_event(ToolOutput& out, ToolEventKind kind) {
@@ -288,13 +227,13 @@ struct ToolContactEngine::Impl {
   /// Tool @p t's tip contacts (docs/tools.md, "Tip contacts").
   void find_tips(int t) {
     Tool& tool = tools[static_cast<std::size_t>(t)];
-    const int room = std::max(0, per_tool_cap - static_cast<int>(tool.held.size()));
+    const int room = std::max(0, per_tool_cap - static_cast<int>(grasps.held(t).size()));
     const detail::TipQuery query{t,
                                  &tool.geometry,
                                  tool.pose.position_m,
                                  tool.rotation,
                                  tool.pose.jaw_angle_rad,
-                                 !tool.held.empty(),
+                                 grasps.holding(t),
                                  search_radius(tool.geometry)};
     tool.tip_count = tip_search.find(query, surface, owner, previous_triangle_owner,
                                      {tool.tips.data(), static_cast<std::size_t>(room)});
@@ -306,7 +245,7 @@ struct ToolContactEngine::Impl {
     // Held vertices first: they win a vertex over any tip.
     for (int t = 0; t < static_cast<int>(tools.size()); ++t)
       if (tools[static_cast<std::size_t>(t)].alive)
-        for (const auto& h : tools[static_cast<std::size_t>(t)].held)
+        for (const auto& h : grasps.held(t))
           for (int i = 0; i < h.count; ++i)
             if (h.vertices[static_cast<std::size_t>(i)] < compliance_count)
               owner[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = t;
@@ -383,8 +322,8 @@ struct ToolContactEngine::Impl {
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
       const Tool& tool = tools[static_cast<std::size_t>(t)];
       if (!tool.alive) continue;
-      for (int h = 0; h < static_cast<int>(tool.held.size()); ++h) {
-        const HeldPoint& held = tool.held[static_cast<std::size_t>(h)];
+      for (int h = 0; h < static_cast<int>(grasps.held(t).size()); ++h) {
+        const HeldPoint& held = grasps.held(t)[static_cast<std::size_t>(h)];
         const Vector3d lever = tool.rotation * held.local;  // it turns with the jaws
         add(t, -1, h, held, ConstraintKind::kDisplacement,
             tool.scale * (tool.pose.position_m + lever - held.rest), Vector3d::Zero(), lever);
@@ -431,7 +370,7 @@ struct ToolContactEngine::Impl {
                                                          : detail::ActiveSetMethod::kRefactor);
     factored = status == RequestStatus::kOk;
     for (int t = 0; t < static_cast<int>(tools.size()); ++t)
-      for (const auto& h : tools[static_cast<std::size_t>(t)].held)
+      for (const auto& h : grasps.held(t))
         for (int i = 0; i < h.count; ++i)
           if (h.vertices[static_cast<std::size_t>(i)] < compliance_count)
             owner[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = -1;
@@ -481,8 +420,9 @@ struct ToolContactEngine::Impl {
         point.weights = from.weights;
         return from.rest;
       };
-      const Vector3d at_rest = point.held ? take(tool.held[static_cast<std::size_t>(b_held[bb])])
-                                          : take(tool.tips[static_cast<std::size_t>(b_tip[bb])]);
+      const Vector3d at_rest = point.held
+                                   ? take(grasps.held(t)[static_cast<std::size_t>(b_held[bb])])
+                                   : take(tool.tips[static_cast<std::size_t>(b_tip[bb])]);
       tip_of[c] = b_tip[bb];
       // Warped: the solve's force and displacement are the material ones;
       // the world's are f = R̃⁻ᵀ f̂ and R̃ û. The loads stay material.
@@ -495,7 +435,7 @@ struct ToolContactEngine::Impl {
       point.position_m = at_rest + displacement;
       if (background.count() > 0)
         point.position_m +=
-            point.held ? background.at_point(tool.held[static_cast<std::size_t>(b_held[bb])],
+            point.held ? background.at_point(grasps.held(t)[static_cast<std::size_t>(b_held[bb])],
                                              compliance_count)
                        : background.at_point(tool.tips[static_cast<std::size_t>(b_tip[bb])],
                                              compliance_count);
@@ -559,7 +499,7 @@ struct ToolContactEngine::Impl {
     local.valid = true;
     local.position_m = tool.pose.position_m;
     local.orientation = tool.pose.orientation;
-    local.holding = tool.alive && !tool.held.empty();
+    local.holding = tool.alive && grasps.holding(t);
     local.force_n = tool.alive ? tool.raw_force : Vector3d::Zero();
     local.torque_nm = tool.alive ? tool.raw_torque : Vector3d::Zero();
     local.stiffness.setZero();
@@ -599,14 +539,14 @@ struct ToolContactEngine::Impl {
     out.torque_nm = sent.torque_nm;
     out.grip_n = sent.grip_n;
     out.contacts = tool.alive ? tool.contacts : 0;
-    out.held = tool.alive ? static_cast<int>(tool.held.size()) : 0;
+    out.held = tool.alive ? static_cast<int>(grasps.held(t).size()) : 0;
     out.force_limited = sent.limited;
     out.watchdog = tool.in_watchdog;
     out.sequence = tool.pose.sequence;
     out.send_time_ns = tool.pose.send_time_ns;
-    const ToolState state = !tool.held.empty() && tool.alive ? ToolState::kGrasping
-                            : out.contacts > 0               ? ToolState::kTouching
-                                                             : ToolState::kFree;
+    const ToolState state = grasps.holding(t) && tool.alive ? ToolState::kGrasping
+                            : out.contacts > 0              ? ToolState::kTouching
+                                                            : ToolState::kFree;
     if (state != tool.shown_state) {
       if (state == ToolState::kTouching && tool.shown_state == ToolState::kFree)
         push_event(out, ToolEventKind::kTouch);
@@ -709,11 +649,7 @@ RequestStatus ToolContactEngine::solve(int t, const ToolPoseInput& pose, double 
     tool.scale = 1;
   }
   tool.alive = true;
-  tool.has_previous_jaw = tool.has_sequence;
-  tool.previous_jaw = tool.pose.jaw_angle_rad;
-  tool.widest_jaw = tool.has_sequence && tool.held.empty()
-                        ? std::max(tool.widest_jaw, tool.previous_jaw)
-                        : tool.previous_jaw;
+  s.grasps.new_pose(t, tool.pose.jaw_angle_rad, tool.has_sequence);
   tool.pose = pose;
   tool.has_sequence = true;
   tool.rotation = pose.orientation.toRotationMatrix();
@@ -750,11 +686,13 @@ std::uint64_t ToolContactEngine::watchdog(double now_s) {
   }
   if (changed == 0) return 0;
   // A tool ramped to zero lets go of everything and is forgotten.
-  for (auto& tool : s.tools)
+  for (int t = 0; t < static_cast<int>(s.tools.size()); ++t) {
+    auto& tool = s.tools[static_cast<std::size_t>(t)];
     if (tool.alive && tool.scale == 0) {
-      tool.held.clear();
+      s.grasps.let_go(t);
       tool.alive = false;
     }
+  }
   s.find_contacts_and_solve();
   for (int t = 0; t < static_cast<int>(s.tools.size()); ++t)
     if (changed >> t & 1) s.make_output(t, now_s, outs[static_cast<std::size_t>(t)]);
@@ -765,15 +703,13 @@ bool ToolContactEngine::end(int t, double now_s) {
   Impl& s = *impl_;
   auto& tool = s.tools.at(static_cast<std::size_t>(t));
   if (!tool.alive && !tool.has_sequence) return false;
-  const bool had_contacts = tool.alive && (tool.contacts > 0 || !tool.held.empty());
-  tool.held.clear();
+  const bool had_contacts = tool.alive && (tool.contacts > 0 || s.grasps.holding(t));
+  s.grasps.forget(t);  // lets go; its jaws' history too
   tool.alive = false;
   tool.in_watchdog = false;
   tool.scale = 1;
   tool.has_sequence = false;  // its next pose starts a new session, not a resumed one
   tool.has_solved_pose = false;
-  tool.has_previous_jaw = false;
-  tool.widest_jaw = 0;
   tool.tip_count = 0;
   // The others feel the tissue it let go of.
   if (had_contacts) s.find_contacts_and_solve();

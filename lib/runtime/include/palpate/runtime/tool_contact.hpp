@@ -57,6 +57,7 @@
 #include "palpate/core/eigen.hpp"
 #include "palpate/core/units.hpp"
 #include "palpate/runtime/constraint_solver.hpp"
+#include "palpate/runtime/contact_point.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_geometry.hpp"
 #include "palpate/runtime/tool_state.hpp"
@@ -64,23 +65,6 @@
 namespace palpate {
 
 class RotationField;  // palpate/runtime/rotation_field.hpp: a warped engine's rotations
-
-/// One contact of the last solve: a point of the surface, on 1 to 3 drawn
-/// vertices (compliance vertices first, as in DrawnSurface), pressed by a
-/// tool's tip or held by its jaws.
-struct ContactPoint {
-  int tool = 0;
-  bool held = false;  ///< held by the jaws, else a tip contact
-  int triangle = -1;  ///< drawn triangle it lies on
-  int vertex_count = 1;
-  std::array<int, 3> vertices{};  ///< drawn vertices with a non-zero weight
-  std::array<double, 3> weights{};
-  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();  ///< deformed, m
-  Eigen::Vector3d force_n = Eigen::Vector3d::Zero();     ///< on the organ, N
-  /// The unit normal of a sliding tip contact (its force is along it); zero
-  /// for a held point or a sticking tip.
-  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-};
 
 /// A wrench on a tool from beside its contacts with the engine's surface (a
 /// served cut region's push on its tip): N, and N·m about the hinge, in the
