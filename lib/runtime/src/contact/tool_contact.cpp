@@ -13,6 +13,7 @@
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/contact/background_loads.hpp"
 #include "palpate/runtime/contact/contact_geometry.hpp"
+#include "palpate/runtime/contact/contact_solution.hpp"
 #include "palpate/runtime/contact/deformed_surface.hpp"
 #include "palpate/runtime/contact/feedback_limits.hpp"
 #include "palpate/runtime/contact/grasp_state.hpp"
@@ -61,9 +62,6 @@ struct ToolContactEngine::Impl {
     bool in_watchdog = false;
     std::vector<TipCandidate> tips;  // this tick's tip contacts, deepest first
     int tip_count = 0;
-    Vector3d raw_force = Vector3d::Zero(), raw_torque = Vector3d::Zero();
-    double raw_grip = 0;
-    int contacts = 0;
     ToolOutput out;
     ToolOutput pending;    // solve()'s events, until answer()
     bool answered = true;  // answer() since the last solve()
@@ -77,25 +75,14 @@ struct ToolContactEngine::Impl {
   int compliance_count = 0;
   detail::DeformedSurface surface;
   std::vector<int> owner;  // per compliance vertex: tool holding it this tick, or -1
-  std::vector<int> previous_triangle_owner;  // per triangle: tool whose tip touched it last tick
 
   detail::GraspState grasps;  // what every tool's jaws hold
   // Scratch, sized once.
   detail::TipContacts tip_search;
 
-  // The last successful solve: every tool's contact points and their loads.
-  int count = 0;
-  std::vector<ContactPoint> points;
-  std::vector<int> tip_of;  // per point: index into its tool's tips, or -1 for a held point
-  int load_count = 0;
-  std::vector<int> load_index;     // compliance vertex per load
-  std::vector<int> load_tool;      // tool per load
-  std::vector<double> load_force;  // 3 per load, N
-  std::vector<int> load_slot;      // per compliance vertex: its load this tool, or -1
-  double max_displacement = 0;     // over the points, m
-  // fᵀ G f of the loads, J (f_Cᵀ u_C over the points, material): with
-  // ‖G^{vv}‖, it bounds every vertex's displacement (DeformedSurface::far_from).
-  double load_energy = 0;
+  // The last successful solve: every tool's contact points, their loads,
+  // the tools' raw wrenches.
+  detail::ContactSolution solution;
   // Known loads that are not the tools' (set_background_loads): they deform
   // the surface with the tools' loads and every row's imposed displacement
   // discounts them.
@@ -124,10 +111,9 @@ struct ToolContactEngine::Impl {
   int building = 0;
   std::vector<int> b_tool, b_tip, b_held;
   std::vector<detail::ActiveRow> rows;  // the active set's rows, one per built constraint
-  // Warped: per row, R̃ of its point and its normal in the world; per point
-  // of the last solve, its force in the material frame (the loads' frame).
+  // Warped: per row, R̃ of its point; its normal in the world.
   std::vector<Matrix3d> row_rotation;
-  std::vector<Vector3d> row_world_normal, material_force;
+  std::vector<Vector3d> row_world_normal;
   // Per row, what the local model needs beyond the active set's row; the
   // active set holds the factor of the stored solution when `factored`
   // (the last solve succeeded): the local model is read off it.
@@ -148,33 +134,25 @@ struct ToolContactEngine::Impl {
         grasps(static_cast<int>(geometries.size()), per_tool_cap, l.max_constraints,
                m.compliance_vertex_count(), m.surface.triangle_count()),
         tip_search(m.surface.triangle_count()),
+        solution(static_cast<int>(geometries.size()), l.max_constraints,
+                 m.compliance_vertex_count(), m.surface.triangle_count()),
         linearization(std::max(1, l.max_constraints), m.compliance_vertex_count()) {
-    const int n = compliance_count;
-    const int triangles = m.surface.triangle_count();
     for (auto& g : geometries) {
       Tool tool;
       tool.geometry = std::move(g);
       tool.tips.resize(static_cast<std::size_t>(per_tool_cap));
       tools.push_back(std::move(tool));
     }
-    previous_triangle_owner.assign(static_cast<std::size_t>(triangles), -1);
-    owner.assign(static_cast<std::size_t>(n), -1);
+    owner.assign(static_cast<std::size_t>(compliance_count), -1);
     const auto k = static_cast<std::size_t>(limits.max_constraints);
-    points.resize(k);
-    tip_of.resize(k);
-    load_index.resize(3 * k);
-    load_tool.resize(3 * k);
-    load_force.resize(9 * k);
-    load_slot.assign(static_cast<std::size_t>(n), -1);
     b_tool.resize(k);
     b_tip.resize(k);
     b_held.resize(k);
     rows.resize(k);
     row_rotation.assign(k, Matrix3d::Identity());
     row_world_normal.assign(k, Vector3d::Zero());
-    material_force.assign(k, Vector3d::Zero());
     local_rows.resize(k);
-    surface.set_loads(0, load_index.data(), load_force.data(), 0);
+    surface.set_loads(0, solution.load_indices().data(), solution.load_forces().data(), 0);
   }
 
   /// Contacts a tool may have: its share of the solve's constraints, at most
@@ -190,7 +168,7 @@ struct ToolContactEngine::Impl {
   double search_radius(const ToolGeometry& g) const {
     const double wedge = g.jaw_length_m * std::tan(0.5 * g.max_jaw_angle_rad);
     return std::max(g.tip_radius_m, wedge + g.tip_radius_m) + settings.search_margin_m +
-           max_displacement + background.reach_m(surface.max_softness());
+           solution.max_displacement_m() + background.reach_m(surface.max_softness());
   }
 
   /// The distinct surface triangles around tool @p tool's candidate
@@ -214,8 +192,7 @@ struct ToolContactEngine::Impl {
     if (step != detail::GraspState::Step::kClosing) return;
     surface.next_epoch();
     const std::span<const int> near = triangles_near(tool);
-    if (grasps.pick_up(t, jaws_of(tool, grasps.opening_rad(t)), near, surface,
-                       {points.data(), static_cast<std::size_t>(count)}))
+    if (grasps.pick_up(t, jaws_of(tool, grasps.opening_rad(t)), near, surface, solution.points()))
       push_event(out, ToolEventKind::kGrasp);
   }
 
@@ -235,7 +212,7 @@ struct ToolContactEngine::Impl {
                                  tool.pose.jaw_angle_rad,
                                  grasps.holding(t),
                                  search_radius(tool.geometry)};
-    tool.tip_count = tip_search.find(query, surface, owner, previous_triangle_owner,
+    tool.tip_count = tip_search.find(query, surface, owner, solution.triangle_owner(),
                                      {tool.tips.data(), static_cast<std::size_t>(room)});
   }
 
@@ -384,110 +361,42 @@ struct ToolContactEngine::Impl {
     return RequestStatus::kOk;
   }
 
+  /// The solve's active rows as the stored solution (ContactSolution); the
+  /// surface deformed by its loads from the next tick on.
   void store_solution() {
-    // Forget last tick's tip contacts' triangles (for the hysteresis shell).
-    for (int c = 0; c < count; ++c) {
-      const ContactPoint& old = points[static_cast<std::size_t>(c)];
-      if (!old.held) previous_triangle_owner[static_cast<std::size_t>(old.triangle)] = -1;
-    }
-    count = 0;
-    max_displacement = 0;
-    load_energy = 0;
+    solution.begin();
     for (auto& tool : tools) {
       tool.has_solved_pose = tool.alive && !tool.in_watchdog;
       tool.solved_hinge = tool.pose.position_m;
       tool.solved_rotation = tool.rotation;
-      tool.raw_force.setZero();
-      tool.raw_torque.setZero();
-      tool.raw_grip = 0;
-      tool.contacts = 0;
     }
     for (int b = 0; b < building; ++b) {
       const auto bb = static_cast<std::size_t>(b);
       const detail::ActiveRow& row = rows[bb];
       if (row.state != detail::ActiveRow::kActive) continue;
-      const auto c = static_cast<std::size_t>(count);
       const int t = b_tool[bb];
-      Tool& tool = tools[static_cast<std::size_t>(t)];
-      ContactPoint& point = points[c];
-      point.tool = t;
-      point.held = b_tip[bb] < 0;
-      // A held point and a tip's point are both a point of a triangle.
-      const auto take = [&point](const detail::SurfacePoint& from) {
-        point.triangle = from.triangle;
-        point.vertex_count = from.count;
-        point.vertices = from.vertices;
-        point.weights = from.weights;
-        return from.rest;
-      };
-      const Vector3d at_rest = point.held
-                                   ? take(grasps.held(t)[static_cast<std::size_t>(b_held[bb])])
-                                   : take(tool.tips[static_cast<std::size_t>(b_tip[bb])]);
-      tip_of[c] = b_tip[bb];
-      // Warped: the solve's force and displacement are the material ones;
-      // the world's are f = R̃⁻ᵀ f̂ and R̃ û. The loads stay material.
-      material_force[c] = active_set.force(b);
-      const Matrix3d& Rt = row_rotation[bb];
-      point.force_n = warping != nullptr ? Vector3d(Rt.transpose().inverse() * material_force[c])
-                                         : material_force[c];
-      const Vector3d displacement = warping != nullptr ? Vector3d(Rt * active_set.displacement(b))
-                                                       : Vector3d(active_set.displacement(b));
-      point.position_m = at_rest + displacement;
-      if (background.count() > 0)
-        point.position_m +=
-            point.held ? background.at_point(grasps.held(t)[static_cast<std::size_t>(b_held[bb])],
-                                             compliance_count)
-                       : background.at_point(tool.tips[static_cast<std::size_t>(b_tip[bb])],
-                                             compliance_count);
-      point.normal =
+      const Tool& tool = tools[static_cast<std::size_t>(t)];
+      detail::ContactSolution::Row from;
+      from.tool = t;
+      from.held = b_tip[bb] < 0;
+      if (from.held)
+        from.point = &grasps.held(t)[static_cast<std::size_t>(b_held[bb])];
+      else
+        from.point = &tool.tips[static_cast<std::size_t>(b_tip[bb])];
+      from.rotation = warping != nullptr ? &row_rotation[bb] : nullptr;
+      from.normal =
           row.kind == ConstraintKind::kNormalDisplacement ? row_world_normal[bb] : Vector3d::Zero();
-      max_displacement = std::max(max_displacement, displacement.norm());
-      load_energy += material_force[c].dot(active_set.displacement(b));
+      from.hinge_m = &tool.pose.position_m;
+      from.tool_rotation = &tool.rotation;
+      const ContactPoint& point = solution.add(active_set, b, from, background);
       local_rows[bb].position = point.position_m;
       local_rows[bb].force = point.force_n;
-      local_rows[bb].material_force = material_force[c];
-      tool.raw_force -= point.force_n;  // the organ pushes the tool back
-      tool.raw_torque += (point.position_m - tool.pose.position_m).cross(-point.force_n);
-      if (point.held) {
-        tool.raw_grip += 0.5 * std::abs(point.force_n.dot(tool.rotation.col(0)));
-      } else {
-        previous_triangle_owner[static_cast<std::size_t>(point.triangle)] = t;
-      }
-      ++tool.contacts;
-      ++count;
+      local_rows[bb].material_force = solution.material_force(solution.count() - 1);
     }
-    gather_loads();
-  }
-
-  /// The points' forces as loads on their vertices, f_S = Hᵀ f_C, tool by
-  /// tool (a vertex two tools load appears once for each).
-  void gather_loads() {
-    load_count = 0;
-    for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
-      const int first = load_count;
-      for (int c = 0; c < count; ++c) {
-        const ContactPoint& point = points[static_cast<std::size_t>(c)];
-        if (point.tool != t) continue;
-        for (int i = 0; i < point.vertex_count; ++i) {
-          const int v = point.vertices[static_cast<std::size_t>(i)];
-          if (v >= compliance_count) continue;  // the attachment takes it
-          int& slot = load_slot[static_cast<std::size_t>(v)];
-          if (slot < first) {
-            slot = load_count++;
-            load_index[static_cast<std::size_t>(slot)] = v;
-            load_tool[static_cast<std::size_t>(slot)] = t;
-            Eigen::Map<Vector3d>{&load_force[3 * static_cast<std::size_t>(slot)]}.setZero();
-          }
-          Eigen::Map<Vector3d>{&load_force[3 * static_cast<std::size_t>(slot)]} +=
-              point.weights[static_cast<std::size_t>(i)] *
-              material_force[static_cast<std::size_t>(c)];
-        }
-      }
-    }
-    for (int l = 0; l < load_count; ++l)
-      load_slot[static_cast<std::size_t>(load_index[static_cast<std::size_t>(l)])] = -1;
+    solution.gather_loads();
     // The surface moves under these and the background's (set_background).
-    surface.set_loads(load_count, load_index.data(), load_force.data(), load_energy);
+    surface.set_loads(solution.load_count(), solution.load_indices().data(),
+                      solution.load_forces().data(), solution.load_energy_j());
     if (background.count() > 0 || surface_background.count() > 0)
       surface_background.copy_from(background);
   }
@@ -500,10 +409,11 @@ struct ToolContactEngine::Impl {
     local.position_m = tool.pose.position_m;
     local.orientation = tool.pose.orientation;
     local.holding = tool.alive && grasps.holding(t);
-    local.force_n = tool.alive ? tool.raw_force : Vector3d::Zero();
-    local.torque_nm = tool.alive ? tool.raw_torque : Vector3d::Zero();
+    const detail::ContactSolution::RawWrench& raw = solution.wrench(t);
+    local.force_n = tool.alive ? raw.force_n : Vector3d::Zero();
+    local.torque_nm = tool.alive ? raw.torque_nm : Vector3d::Zero();
     local.stiffness.setZero();
-    if (!tool.alive || tool.contacts == 0) return;
+    if (!tool.alive || raw.contacts == 0) return;
     const auto n = static_cast<std::size_t>(building);
     local.stiffness = linearization.stiffness({rows.data(), n}, {local_rows.data(), n}, t,
                                               tool.pose.position_m, tool.scale, active_set);
@@ -522,9 +432,9 @@ struct ToolContactEngine::Impl {
       out.local = tool.out.local;
     const bool pushed =
         tool.alive && (added.force_n.squaredNorm() > 0 || added.torque_nm.squaredNorm() > 0);
-    const Vector3d raw_force = pushed ? Vector3d(tool.raw_force + added.force_n) : tool.raw_force;
-    const Vector3d raw_torque =
-        pushed ? Vector3d(tool.raw_torque + added.torque_nm) : tool.raw_torque;
+    const detail::ContactSolution::RawWrench& raw = solution.wrench(t);
+    const Vector3d raw_force = pushed ? Vector3d(raw.force_n + added.force_n) : raw.force_n;
+    const Vector3d raw_torque = pushed ? Vector3d(raw.torque_nm + added.torque_nm) : raw.torque_nm;
     if (pushed && factored) {  // F₀, τ₀ as felt: before the limits, with the added wrench
       out.local.force_n += added.force_n;
       out.local.torque_nm += added.torque_nm;
@@ -533,12 +443,12 @@ struct ToolContactEngine::Impl {
     const ToolGeometry& g = tool.geometry;
     const detail::FeedbackLimits::Sent sent =
         detail::FeedbackLimits(g.force_limit_n, g.max_force_rate_n_per_s)
-            .limit(raw_force, raw_torque, tool.raw_grip,
+            .limit(raw_force, raw_torque, raw.grip_n,
                    {tool.has_output, tool.out.force_n, now_s - tool.last_output_s}, tool.alive);
     out.force_n = sent.force_n;
     out.torque_nm = sent.torque_nm;
     out.grip_n = sent.grip_n;
-    out.contacts = tool.alive ? tool.contacts : 0;
+    out.contacts = tool.alive ? raw.contacts : 0;
     out.held = tool.alive ? static_cast<int>(grasps.held(t).size()) : 0;
     out.force_limited = sent.limited;
     out.watchdog = tool.in_watchdog;
@@ -703,7 +613,8 @@ bool ToolContactEngine::end(int t, double now_s) {
   Impl& s = *impl_;
   auto& tool = s.tools.at(static_cast<std::size_t>(t));
   if (!tool.alive && !tool.has_sequence) return false;
-  const bool had_contacts = tool.alive && (tool.contacts > 0 || s.grasps.holding(t));
+  const bool had_contacts =
+      tool.alive && (s.solution.wrench(t).contacts > 0 || s.grasps.holding(t));
   s.grasps.forget(t);  // lets go; its jaws' history too
   tool.alive = false;
   tool.in_watchdog = false;
@@ -755,16 +666,16 @@ void ToolContactEngine::set_triangle_hidden(int triangle, bool hidden) {
   impl_->surface.set_hidden(triangle, hidden);
 }
 std::span<const ContactPoint> ToolContactEngine::contact_points() const {
-  return {impl_->points.data(), static_cast<std::size_t>(impl_->count)};
+  return impl_->solution.points();
 }
 std::span<const int> ToolContactEngine::contact_indices() const {
-  return {impl_->load_index.data(), static_cast<std::size_t>(impl_->load_count)};
+  return impl_->solution.load_indices();
 }
 std::span<const double> ToolContactEngine::contact_forces() const {
-  return {impl_->load_force.data(), 3 * static_cast<std::size_t>(impl_->load_count)};
+  return impl_->solution.load_forces();
 }
 std::span<const int> ToolContactEngine::contact_tools() const {
-  return {impl_->load_tool.data(), static_cast<std::size_t>(impl_->load_count)};
+  return impl_->solution.load_tools();
 }
 std::uint64_t ToolContactEngine::solves() const { return impl_->active_set.solves(); }
 ToolContactEngine::SolveTimes ToolContactEngine::solve_times() const {
