@@ -42,14 +42,15 @@ void ContactSolution::begin() {
   }
 }
 
-const ContactPoint& ContactSolution::add(const ActiveSet& solve, int b, const Row& row,
+const ContactPoint& ContactSolution::add(const ActiveSet& solve, const ContactRows& rows, int b,
+                                         const Vector3d& hinge_m, const Matrix3d& tool_rotation,
                                          BackgroundLoads& background) {
   const auto c = static_cast<std::size_t>(count_);
-  const int t = row.tool;
+  const int t = rows.tool(b);
   RawWrench& tool = wrench_[static_cast<std::size_t>(t)];
   ContactPoint& point = points_[c];
   point.tool = t;
-  point.held = row.held;
+  point.held = rows.tip(b) < 0;
   // A held point and a tip's point are both a point of a triangle.
   const auto take = [&point](const SurfacePoint& from) {
     point.triangle = from.triangle;
@@ -58,25 +59,26 @@ const ContactPoint& ContactSolution::add(const ActiveSet& solve, int b, const Ro
     point.weights = from.weights;
     return from.rest;
   };
-  const Vector3d at_rest = take(*row.point);
+  const Vector3d at_rest = take(rows.point(b));
   // Warped: the solve's force and displacement are the material ones;
   // the world's are f = R̃⁻ᵀ f̂ and R̃ û. The loads stay material.
   material_force_[c] = solve.force(b);
-  const bool warped = row.rotation != nullptr;
-  point.force_n = warped ? Vector3d(row.rotation->transpose().inverse() * material_force_[c])
-                         : material_force_[c];
+  const Matrix3d& Rt = rows.rotation(b);
+  point.force_n =
+      rows.warped() ? Vector3d(Rt.transpose().inverse() * material_force_[c]) : material_force_[c];
   const Vector3d displacement =
-      warped ? Vector3d(*row.rotation * solve.displacement(b)) : Vector3d(solve.displacement(b));
+      rows.warped() ? Vector3d(Rt * solve.displacement(b)) : Vector3d(solve.displacement(b));
   point.position_m = at_rest + displacement;
   if (background.count() > 0)
-    point.position_m += background.at_point(*row.point, compliance_count_);
-  point.normal = row.normal;
+    point.position_m += background.at_point(rows.point(b), compliance_count_);
+  point.normal = rows.row(b).kind == ConstraintKind::kNormalDisplacement ? rows.world_normal(b)
+                                                                         : Vector3d::Zero();
   max_displacement_ = std::max(max_displacement_, displacement.norm());
   load_energy_ += material_force_[c].dot(solve.displacement(b));
   tool.force_n -= point.force_n;  // the organ pushes the tool back
-  tool.torque_nm += (point.position_m - *row.hinge_m).cross(-point.force_n);
+  tool.torque_nm += (point.position_m - hinge_m).cross(-point.force_n);
   if (point.held) {
-    tool.grip_n += 0.5 * std::abs(point.force_n.dot(row.tool_rotation->col(0)));
+    tool.grip_n += 0.5 * std::abs(point.force_n.dot(tool_rotation.col(0)));
   } else {
     triangle_owner_[static_cast<std::size_t>(point.triangle)] = t;
   }

@@ -13,6 +13,7 @@
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/contact/background_loads.hpp"
 #include "palpate/runtime/contact/contact_geometry.hpp"
+#include "palpate/runtime/contact/contact_rows.hpp"
 #include "palpate/runtime/contact/contact_solution.hpp"
 #include "palpate/runtime/contact/deformed_surface.hpp"
 #include "palpate/runtime/contact/feedback_limits.hpp"
@@ -107,17 +108,11 @@ struct ToolContactEngine::Impl {
     *written.out = '\0';
   }
 
-  // The constraint set being built: a held point (tip -1) or a tip point.
-  int building = 0;
-  std::vector<int> b_tool, b_tip, b_held;
-  std::vector<detail::ActiveRow> rows;  // the active set's rows, one per built constraint
-  // Warped: per row, R̃ of its point; its normal in the world.
-  std::vector<Matrix3d> row_rotation;
-  std::vector<Vector3d> row_world_normal;
-  // Per row, what the local model needs beyond the active set's row; the
-  // active set holds the factor of the stored solution when `factored`
-  // (the last solve succeeded): the local model is read off it.
-  std::vector<detail::LocalRow> local_rows;
+  // The constraint set being built, a row per held point and tip point,
+  // with what the local model needs of each; the active set holds the
+  // factor of the stored solution when `factored` (the last solve
+  // succeeded): the local model is read off it.
+  detail::ContactRows constraints;
   detail::LocalModel linearization;
   bool factored = false;
 
@@ -136,6 +131,7 @@ struct ToolContactEngine::Impl {
         tip_search(m.surface.triangle_count()),
         solution(static_cast<int>(geometries.size()), l.max_constraints,
                  m.compliance_vertex_count(), m.surface.triangle_count()),
+        constraints(l.max_constraints, surface, background),
         linearization(std::max(1, l.max_constraints), m.compliance_vertex_count()) {
     for (auto& g : geometries) {
       Tool tool;
@@ -144,14 +140,6 @@ struct ToolContactEngine::Impl {
       tools.push_back(std::move(tool));
     }
     owner.assign(static_cast<std::size_t>(compliance_count), -1);
-    const auto k = static_cast<std::size_t>(limits.max_constraints);
-    b_tool.resize(k);
-    b_tip.resize(k);
-    b_held.resize(k);
-    rows.resize(k);
-    row_rotation.assign(k, Matrix3d::Identity());
-    row_world_normal.assign(k, Vector3d::Zero());
-    local_rows.resize(k);
     surface.set_loads(0, solution.load_indices().data(), solution.load_forces().data(), 0);
   }
 
@@ -240,109 +228,18 @@ struct ToolContactEngine::Impl {
 
   /// Builds, solves (with adhesion release) and stores every tool's constraints.
   RequestStatus solve_all() {
-    building = 0;
-    // A point on its vertices, a fixed one as −1 (its share goes to the attachment).
-    auto add = [&](int t, int tip, int held, const detail::SurfacePoint& point, ConstraintKind kind,
-                   Vector3d value, const Vector3d& normal, const Vector3d& lever) {
-      // The background loads move the point by H u_b already: the tools'
-      // forces make the rest (linear engines only: set_background_loads).
-      if (background.count() > 0) {
-        const Vector3d moved = background.at_point(point, compliance_count);
-        if (kind == ConstraintKind::kDisplacement) value -= moved;
-        if (kind == ConstraintKind::kNormalDisplacement) value.x() -= normal.dot(moved);
-      }
-      const auto b = static_cast<std::size_t>(building++);
-      detail::LocalRow& l = local_rows[b];
-      l.tool = t;
-      l.tip = tip >= 0;
-      l.lever = lever;
-      l.normal = normal;
-      l.rotation = Matrix3d::Identity();
-      for (int i = 0; i < point.count && l.tip; ++i)
-        l.corners[static_cast<std::size_t>(i)] =
-            surface.deformed(point.vertices[static_cast<std::size_t>(i)]);
-      b_tool[b] = t;
-      b_tip[b] = tip;
-      b_held[b] = held;
-      const Tool& tool = tools[static_cast<std::size_t>(t)];
-      detail::ActiveRow& row = rows[b];
-      row.count = point.count;
-      for (std::size_t i = 0; i < 3; ++i) {
-        const int v = static_cast<int>(i) < point.count ? point.vertices[i] : -1;
-        row.index[i] = v < compliance_count ? v : -1;
-        row.weights[i] = static_cast<int>(i) < point.count ? point.weights[i] : 0.0;
-      }
-      row.kind = kind;
-      row.value = value;
-      row.normal = normal;
-      row_world_normal[b] = normal;
-      if (warping != nullptr) {
-        // Into the point's material frame (docs/model/warped.md, "Large rotations:
-        // warped compliance"): d̂ = R̃⁻¹ d; a normal n̂ = R̃ᵀ n / s, δ̂ = δ / s.
-        const Matrix3d Rt = surface.point_rotation(point);
-        row_rotation[b] = Rt;
-        l.rotation = Rt;
-        if (kind == ConstraintKind::kDisplacement) row.value = Rt.inverse() * value;
-        if (normal.squaredNorm() > 0) {
-          const Vector3d n = Rt.transpose() * normal;
-          const double scale = n.norm();
-          row.normal = n / scale;
-          if (kind == ConstraintKind::kNormalDisplacement) row.value.x() = value.x() / scale;
-        }
-      }
-      row.tip = tip >= 0;
-      row.friction = tool.geometry.friction;
-      row.depth = row.tip ? tool.tips[static_cast<std::size_t>(tip)].depth : 0.0;
-      row.join_gap_m = 1e-3 * tool.geometry.tip_radius_m;
-      row.state = detail::ActiveRow::kActive;
-    };
+    constraints.begin();
+    for (int t = 0; t < static_cast<int>(tools.size()); ++t)
+      if (tools[static_cast<std::size_t>(t)].alive)
+        constraints.add_held(row_tool(t), grasps.held(t));
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
       const Tool& tool = tools[static_cast<std::size_t>(t)];
-      if (!tool.alive) continue;
-      for (int h = 0; h < static_cast<int>(grasps.held(t).size()); ++h) {
-        const HeldPoint& held = grasps.held(t)[static_cast<std::size_t>(h)];
-        const Vector3d lever = tool.rotation * held.local;  // it turns with the jaws
-        add(t, -1, h, held, ConstraintKind::kDisplacement,
-            tool.scale * (tool.pose.position_m + lever - held.rest), Vector3d::Zero(), lever);
-      }
-    }
-    for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
-      const Tool& tool = tools[static_cast<std::size_t>(t)];
-      if (!tool.alive) continue;
-      for (int c = 0; c < tool.tip_count; ++c) {
-        const TipCandidate& tip = tool.tips[static_cast<std::size_t>(c)];
-        Vector3d u = tool.scale * (tip.target - tip.rest);
-        // Friction: the tissue sticks to the tip, so the point found where
-        // the surface is now is taken along with the tool's motion at it
-        // since the last solve, in the contact's plane (along the normal the
-        // tip's push decides); the active set lets it slip back onto the
-        // cone's edge (docs/tools.md, "Friction").
-        if (tool.geometry.friction > 0 && tool.has_solved_pose && !tool.in_watchdog) {
-          const Vector3d was =
-              tool.solved_hinge + tool.solved_rotation * (tool.rotation.transpose() *
-                                                          (tip.target - tool.pose.position_m));
-          const Vector3d moved = tip.target - was;
-          u += moved - tip.normal * tip.normal.dot(moved);
-        }
-        // The tip's surface point moves as the point of the axis it is
-        // pushed from (its normal frozen).
-        const Vector3d lever =
-            tip.target - tool.geometry.tip_radius_m * tip.normal - tool.pose.position_m;
-        if (tool.geometry.friction > 0)
-          add(t, c, -1, tip, ConstraintKind::kDisplacement, u, tip.normal, lever);
-        else
-          add(t, c, -1, tip, ConstraintKind::kNormalDisplacement, Vector3d(tip.normal.dot(u), 0, 0),
-              tip.normal, lever);
-        detail::LocalRow& l = local_rows[static_cast<std::size_t>(building - 1)];
-        l.target = tip.target;
-        l.radius = tool.geometry.tip_radius_m;
-        l.distance = tool.geometry.tip_radius_m - tip.depth;
-        if (!tip.active)
-          rows[static_cast<std::size_t>(building - 1)].state = detail::ActiveRow::kDormant;
-      }
+      if (tool.alive)
+        constraints.add_tips(row_tool(t),
+                             {tool.tips.data(), static_cast<std::size_t>(tool.tip_count)});
     }
     const RequestStatus status =
-        active_set.solve({rows.data(), static_cast<std::size_t>(building)}, settings.max_iterations,
+        active_set.solve(constraints.rows(), settings.max_iterations,
                          settings.incremental_active_set ? detail::ActiveSetMethod::kIncremental
                                                          : detail::ActiveSetMethod::kRefactor);
     factored = status == RequestStatus::kOk;
@@ -361,6 +258,19 @@ struct ToolContactEngine::Impl {
     return RequestStatus::kOk;
   }
 
+  /// Tool @p t as its rows need it (ContactRows::add_held, add_tips).
+  detail::ContactRows::Tool row_tool(int t) const {
+    const Tool& tool = tools[static_cast<std::size_t>(t)];
+    return {t,
+            &tool.geometry,
+            tool.pose.position_m,
+            tool.rotation,
+            tool.scale,
+            tool.has_solved_pose && !tool.in_watchdog,
+            tool.solved_hinge,
+            tool.solved_rotation};
+  }
+
   /// The solve's active rows as the stored solution (ContactSolution); the
   /// surface deformed by its loads from the next tick on.
   void store_solution() {
@@ -370,28 +280,15 @@ struct ToolContactEngine::Impl {
       tool.solved_hinge = tool.pose.position_m;
       tool.solved_rotation = tool.rotation;
     }
-    for (int b = 0; b < building; ++b) {
-      const auto bb = static_cast<std::size_t>(b);
-      const detail::ActiveRow& row = rows[bb];
-      if (row.state != detail::ActiveRow::kActive) continue;
-      const int t = b_tool[bb];
-      const Tool& tool = tools[static_cast<std::size_t>(t)];
-      detail::ContactSolution::Row from;
-      from.tool = t;
-      from.held = b_tip[bb] < 0;
-      if (from.held)
-        from.point = &grasps.held(t)[static_cast<std::size_t>(b_held[bb])];
-      else
-        from.point = &tool.tips[static_cast<std::size_t>(b_tip[bb])];
-      from.rotation = warping != nullptr ? &row_rotation[bb] : nullptr;
-      from.normal =
-          row.kind == ConstraintKind::kNormalDisplacement ? row_world_normal[bb] : Vector3d::Zero();
-      from.hinge_m = &tool.pose.position_m;
-      from.tool_rotation = &tool.rotation;
-      const ContactPoint& point = solution.add(active_set, b, from, background);
-      local_rows[bb].position = point.position_m;
-      local_rows[bb].force = point.force_n;
-      local_rows[bb].material_force = solution.material_force(solution.count() - 1);
+    for (int b = 0; b < constraints.count(); ++b) {
+      if (constraints.row(b).state != detail::ActiveRow::kActive) continue;
+      const Tool& tool = tools[static_cast<std::size_t>(constraints.tool(b))];
+      const ContactPoint& point =
+          solution.add(active_set, constraints, b, tool.pose.position_m, tool.rotation, background);
+      detail::LocalRow& l = constraints.local(b);
+      l.position = point.position_m;
+      l.force = point.force_n;
+      l.material_force = solution.material_force(solution.count() - 1);
     }
     solution.gather_loads();
     // The surface moves under these and the background's (set_background).
@@ -414,8 +311,7 @@ struct ToolContactEngine::Impl {
     local.torque_nm = tool.alive ? raw.torque_nm : Vector3d::Zero();
     local.stiffness.setZero();
     if (!tool.alive || raw.contacts == 0) return;
-    const auto n = static_cast<std::size_t>(building);
-    local.stiffness = linearization.stiffness({rows.data(), n}, {local_rows.data(), n}, t,
+    local.stiffness = linearization.stiffness(constraints.rows(), constraints.local_rows(), t,
                                               tool.pose.position_m, tool.scale, active_set);
   }
 

@@ -14,18 +14,18 @@
 #include <vector>
 
 #include "palpate/runtime/contact/background_loads.hpp"
-#include "palpate/runtime/contact/surface_point.hpp"
+#include "palpate/runtime/contact/contact_rows.hpp"
 #include "palpate/runtime/contact_point.hpp"
 #include "palpate/runtime/solve/active_set.hpp"
 
 namespace palpate::detail {
 
 /// The points, loads and raw wrenches of the last successful solve, stored
-/// row by row from the active set: begin(), add() for each active row,
-/// then gather_loads(). Forces on the organ in N (a warped engine's loads
-/// and material forces f̂ in the material frame, its points' forces in the
-/// world's), positions in m, model frame. Allocates nothing after
-/// construction.
+/// row by row (ContactRows) from the active set: begin(), add() for each
+/// active row, then gather_loads(). Forces on the organ in N (a warped
+/// engine's loads and material forces f̂ in the material frame, its points'
+/// forces in the world's), positions in m, model frame. Allocates nothing
+/// after construction.
 class ContactSolution {
  public:
   /// A tool's raw contact wrench: what the organ pushes it back with, before
@@ -37,20 +37,6 @@ class ContactSolution {
     int contacts = 0;   ///< its points, tip and held
   };
 
-  /// Where one active row of the solve came from.
-  struct Row {
-    int tool = 0;                         ///< its tool's index
-    bool held = false;                    ///< a point the jaws hold, else a tip's
-    const SurfacePoint* point = nullptr;  ///< the surface point it constrains
-    /// Warped: R̃ of the point (the row's frame); null: the linear model.
-    const Eigen::Matrix3d* rotation = nullptr;
-    /// A sliding tip's unit normal in the world (its force is along it);
-    /// zero for a held point or a sticking tip.
-    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-    const Eigen::Vector3d* hinge_m = nullptr;        ///< its tool's hinge at the solve, m
-    const Eigen::Matrix3d* tool_rotation = nullptr;  ///< its tool's frame → model frame
-  };
-
   /// Room for @p max_points points of @p tools tools (≥ 1) on a surface of
   /// @p triangles triangles whose vertices from @p compliance_count on are
   /// fixed (allocates). Empty at first.
@@ -59,11 +45,14 @@ class ContactSolution {
   /// Starts storing a new solution: the last one's points and wrenches are
   /// forgotten (and which triangles its tips touched).
   void begin();
-  /// Stores row @p b of @p solve (kActive, solved) from @p row as the next
-  /// point: its world force and position, @p background's displacement of
-  /// the point added (linear engines), the energy and the largest
-  /// displacement, its tool's wrench. @returns the point stored.
-  const ContactPoint& add(const ActiveSet& solve, int b, const Row& row,
+  /// Stores row @p b of @p rows (kActive), as @p solve solved it, as the
+  /// next point: its world force and position (@p background's
+  /// displacement of the point added: linear engines), the energy and the
+  /// largest displacement, and its tool's wrench about @p hinge_m (the
+  /// tool's frame → model frame: @p tool_rotation, whose x the grip is
+  /// along). @returns the point stored.
+  const ContactPoint& add(const ActiveSet& solve, const ContactRows& rows, int b,
+                          const Eigen::Vector3d& hinge_m, const Eigen::Matrix3d& tool_rotation,
                           BackgroundLoads& background);
   /// After the last add(): the points' forces as loads on their vertices,
   /// f_S = Hᵀ f_C (material), tool by tool (a vertex two tools load
