@@ -14,6 +14,7 @@ GraspState::GraspState(int tools, int per_tool_capacity, int max_points, int com
       grasp_(std::max(1, max_points), compliance_count) {
   PALPATE_DEMAND(tools >= 1 && per_tool_capacity >= 1);
   for (auto& j : jaws_) j.held.reserve(static_cast<std::size_t>(per_tool_capacity));
+  owner_.assign(static_cast<std::size_t>(compliance_count), -1);
   triangles_.resize(static_cast<std::size_t>(triangles));
   corners_.resize(3 * static_cast<std::size_t>(triangles));
   touched_.reserve(static_cast<std::size_t>(max_points));
@@ -87,6 +88,21 @@ bool GraspState::pick_up(int tool, const JawsAtClosing& jaws, std::span<const in
   grasp_.choose(jaws, {triangles_.data(), near}, {corners_.data(), 3 * near},
                 surface.triangle_vertices(), surface.rest(), touched_, held, capacity_);
   return !held.empty();
+}
+
+void GraspState::claim(int tool) {
+  for (const auto& h : held(tool))
+    for (int i = 0; i < h.count; ++i)
+      if (h.vertices[static_cast<std::size_t>(i)] < compliance_count_)
+        owner_[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = tool;
+}
+
+void GraspState::unclaim() {
+  for (const Jaws& j : jaws_)
+    for (const auto& h : j.held)
+      for (int i = 0; i < h.count; ++i)
+        if (h.vertices[static_cast<std::size_t>(i)] < compliance_count_)
+          owner_[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = -1;
 }
 
 void GraspState::let_go(int tool) { jaws_[static_cast<std::size_t>(tool)].held.clear(); }

@@ -3,16 +3,12 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstring>
-#include <limits>
-#include <optional>
 #include <span>
 
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/contact/background_loads.hpp"
-#include "palpate/runtime/contact/contact_geometry.hpp"
 #include "palpate/runtime/contact/contact_rows.hpp"
 #include "palpate/runtime/contact/contact_solution.hpp"
 #include "palpate/runtime/contact/deformed_surface.hpp"
@@ -30,9 +26,6 @@ namespace {
 
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
-
-using detail::HeldPoint;
-using detail::TipCandidate;
 
 }  // namespace
 
@@ -61,7 +54,7 @@ struct ToolContactEngine::Impl {
     bool has_sequence = false;
     double scale = 1;  // watchdog ramp, 1 → 0
     bool in_watchdog = false;
-    std::vector<TipCandidate> tips;  // this tick's tip contacts, deepest first
+    std::vector<detail::TipCandidate> tips;  // this tick's tip contacts, deepest first
     int tip_count = 0;
     ToolOutput out;
     ToolOutput pending;    // solve()'s events, until answer()
@@ -73,11 +66,9 @@ struct ToolContactEngine::Impl {
   std::vector<Tool> tools;
 
   // The drawn surface as the last solve's loads deform it.
-  int compliance_count = 0;
   detail::DeformedSurface surface;
-  std::vector<int> owner;  // per compliance vertex: tool holding it this tick, or -1
 
-  detail::GraspState grasps;  // what every tool's jaws hold
+  detail::GraspState grasps;  // what every tool's jaws hold, and which vertices this solve
   // Scratch, sized once.
   detail::TipContacts tip_search;
 
@@ -124,7 +115,6 @@ struct ToolContactEngine::Impl {
         limits(l),
         active_set(m, l),
         per_tool_cap(per_tool_capacity(s, l, static_cast<int>(geometries.size()))),
-        compliance_count(m.compliance_vertex_count()),
         surface(m, w),
         grasps(static_cast<int>(geometries.size()), per_tool_cap, l.max_constraints,
                m.compliance_vertex_count(), m.surface.triangle_count()),
@@ -139,7 +129,6 @@ struct ToolContactEngine::Impl {
       tool.tips.resize(static_cast<std::size_t>(per_tool_cap));
       tools.push_back(std::move(tool));
     }
-    owner.assign(static_cast<std::size_t>(compliance_count), -1);
     surface.set_loads(0, solution.load_indices().data(), solution.load_forces().data(), 0);
   }
 
@@ -200,7 +189,7 @@ struct ToolContactEngine::Impl {
                                  tool.pose.jaw_angle_rad,
                                  grasps.holding(t),
                                  search_radius(tool.geometry)};
-    tool.tip_count = tip_search.find(query, surface, owner, solution.triangle_owner(),
+    tool.tip_count = tip_search.find(query, surface, grasps.owner(), solution.triangle_owner(),
                                      {tool.tips.data(), static_cast<std::size_t>(room)});
   }
 
@@ -209,11 +198,7 @@ struct ToolContactEngine::Impl {
   RequestStatus find_contacts_and_solve() {
     // Held vertices first: they win a vertex over any tip.
     for (int t = 0; t < static_cast<int>(tools.size()); ++t)
-      if (tools[static_cast<std::size_t>(t)].alive)
-        for (const auto& h : grasps.held(t))
-          for (int i = 0; i < h.count; ++i)
-            if (h.vertices[static_cast<std::size_t>(i)] < compliance_count)
-              owner[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = t;
+      if (tools[static_cast<std::size_t>(t)].alive) grasps.claim(t);
     surface.next_epoch();
     for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
       Tool& tool = tools[static_cast<std::size_t>(t)];
@@ -243,11 +228,7 @@ struct ToolContactEngine::Impl {
                          settings.incremental_active_set ? detail::ActiveSetMethod::kIncremental
                                                          : detail::ActiveSetMethod::kRefactor);
     factored = status == RequestStatus::kOk;
-    for (int t = 0; t < static_cast<int>(tools.size()); ++t)
-      for (const auto& h : grasps.held(t))
-        for (int i = 0; i < h.count; ++i)
-          if (h.vertices[static_cast<std::size_t>(i)] < compliance_count)
-            owner[static_cast<std::size_t>(h.vertices[static_cast<std::size_t>(i)])] = -1;
+    grasps.unclaim();
     if (status != RequestStatus::kOk) {
       const std::size_t length = strnlen(active_set.message(), sizeof message - 1);
       std::memcpy(message, active_set.message(), length);

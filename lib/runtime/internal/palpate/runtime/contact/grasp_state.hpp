@@ -24,8 +24,8 @@ namespace palpate::detail {
 /// angle and the widest its jaws opened since they last held anything (the
 /// faces' place when they came around the tissue: line jaws closing slowly
 /// pass into it; real ones stop on its surface). Angles in radians. A
-/// vertex one tool holds is never taken by another's jaws. Allocates
-/// nothing after construction.
+/// vertex one tool holds is never taken by another's jaws, nor, in a solve,
+/// by any tip (claim()). Allocates nothing after construction.
 class GraspState {
  public:
   /// What a tool's new jaw angle does (step()).
@@ -65,6 +65,14 @@ class GraspState {
   /// @p tool's tip pressed. @returns whether the jaws now hold anything.
   bool pick_up(int tool, const JawsAtClosing& jaws, std::span<const int> near_triangles,
                DeformedSurface& surface, std::span<const ContactPoint> last_points);
+  /// Tool @p tool's held vertices are its own for a solve: no tip takes
+  /// them (owner()). Called for every living tool before the tip search.
+  void claim(int tool);
+  /// Every tool's held vertices are free again (after the solve).
+  void unclaim();
+  /// Per compliance vertex: the tool that claimed it, or −1.
+  std::span<const int> owner() const { return owner_; }
+
   /// Tool @p tool lets go of everything (the watchdog ramped it out).
   void let_go(int tool);
   /// Tool @p tool's session ended: it lets go, and its jaws' history is
@@ -83,6 +91,7 @@ class GraspState {
   int capacity_;
   int compliance_count_;
   std::vector<Jaws> jaws_;
+  std::vector<int> owner_;  // per compliance vertex: the tool claiming it, or -1
   JawGrasp grasp_;
   // Scratch, sized once.
   std::vector<int> triangles_;            // near the closing jaws
