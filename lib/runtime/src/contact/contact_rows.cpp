@@ -95,7 +95,7 @@ void ContactRows::add(const Tool& tool, int tip, const SurfacePoint& point, Cons
   row.normal = normal;
   world_normal_[b] = normal;
   if (surface_.warped()) {
-    // Into the point's material frame (docs/model.md, "Large rotations:
+    // Into the point's material frame (docs/model/warped.md, "Large rotations:
     // warped compliance"): d̂ = R̃⁻¹ d; a normal n̂ = R̃ᵀ n / s, δ̂ = δ / s.
     const Matrix3d Rt = surface_.point_rotation(point);
     rotation_[b] = Rt;
