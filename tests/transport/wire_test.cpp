@@ -340,6 +340,59 @@ TEST(Wire, AStatusCarriesItsCountersAndLatencies) {
   EXPECT_EQ(st.clients, 5u);
   EXPECT_EQ(st.tool_poses, 123456789012ULL);
   EXPECT_EQ(st.tool_poses_refused, 7u);
+
+  // palpated's side: the values back into the heartbeat, field for field;
+  // a daemon id longer than string<63> is cut to it.
+  palpate_DaemonStatus again{};
+  wire::to_idl(st, again);
+  EXPECT_EQ(std::memcmp(&again, &s, sizeof s), 0);
+  StatusSample long_id = st;
+  long_id.daemon_id = std::string(70, 'd');
+  wire::to_idl(long_id, again);
+  EXPECT_EQ(bounded(again.daemon_id), std::string(63, 'd'));
+}
+
+TEST(Wire, ASurfaceSampleIsWrittenFromTheShownStateAndReadBack) {
+  // Compliance vertices 0..3 are mesh vertices 40..43; the loads are on 3 and 1.
+  const std::vector<std::uint32_t> vertex_ids{40, 41, 42, 43};
+  const std::vector<double> displacement{1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+  const std::vector<int> indices{3, 1};
+  const std::vector<double> forces{0.5, 0, -1, 0, 0.25, 0};
+  std::vector<ContactPoint> points(2);
+  points[0].tool = 1;
+  points[0].vertex_count = 1;
+  points[0].vertices = {2, 0, 0};
+  points[0].weights = {1, 0, 0};
+  points[1].tool = 5;  // no such tool: no id
+  const std::vector<std::string> tool_ids{"left", "right"};
+  const double total[3] = {0.5, 0.25, -1};
+  std::vector<std::uint32_t> vertex_storage(4, 0xdead);
+  std::vector<palpate_SurfaceContact> contact_storage(3);
+
+  palpate_SurfaceDisplacement s{};
+  wire::to_idl("kidney", 17, "tool:left", 4, total, displacement, s);
+  wire::view_loads(indices, forces, vertex_ids, vertex_storage, s);
+  wire::view_contacts(points, tool_ids, vertex_ids, contact_storage, s);
+  EXPECT_EQ(s.displacement._buffer, displacement.data()) << "a view, not a copy";
+  EXPECT_EQ(s.constrained_vertices._buffer, vertex_storage.data());
+  EXPECT_EQ(s.constrained_forces._buffer, forces.data());
+  EXPECT_EQ(s.contact_points._buffer, contact_storage.data());
+  EXPECT_FALSE(s.displacement._release || s.constrained_vertices._release ||
+               s.constrained_forces._release || s.contact_points._release);
+
+  const SurfaceSample sample = wire::from_idl(s);
+  EXPECT_EQ(sample.model_id, "kidney");
+  EXPECT_EQ(sample.sequence_number, 17u);
+  EXPECT_EQ(sample.source_client_id, "tool:left");
+  EXPECT_EQ(sample.source_request_id, 4u);
+  EXPECT_EQ(sample.total_force_n, (std::array<double, 3>{0.5, 0.25, -1}));
+  EXPECT_EQ(sample.displacement_m, displacement);
+  EXPECT_EQ(sample.constrained_vertices, (std::vector<std::uint32_t>{43, 41}));
+  EXPECT_EQ(sample.constrained_forces_n, forces);
+  ASSERT_EQ(sample.contact_points.size(), 2u);
+  EXPECT_EQ(sample.contact_points[0].tool_id, "right");
+  EXPECT_EQ(sample.contact_points[0].vertices[0], 42u);
+  EXPECT_EQ(sample.contact_points[1].tool_id, "");
 }
 
 // ---- palpate_tool_pose, palpate_tool_feedback, palpate_tool_event -----------------------
@@ -525,6 +578,11 @@ TEST(Wire, EndCommandsNameTheToolAndTheLastPose) {
   EXPECT_STREQ(command.model_id, "liver");
   EXPECT_EQ(command.kind, palpate_TOOL_COMMAND_END);
   EXPECT_EQ(command.pose_sequence, 77u);
+  EXPECT_EQ(wire::received_kind(command), palpate_TOOL_COMMAND_END);
+  // As a sender may write it: 32 bits that no enumerator of the IDL names.
+  const std::int32_t unknown_kind = 12345;
+  std::memcpy(&command.kind, &unknown_kind, sizeof unknown_kind);
+  EXPECT_EQ(wire::received_kind(command), unknown_kind);
 }
 
 TEST(Wire, NoticesCarryTheReasonAndItsMessage) {
@@ -670,6 +728,83 @@ TEST_F(WireSolverTest, ALoadedRequestGivesTheSolversAndTheDenseForces) {
   EXPECT_EQ(reply.total_force[2], -1.0);
 }
 
+TEST_F(WireSolverTest, AReplyIsStartedAnsweredAndEndedAsPalpatedWritesIt) {
+  std::vector<palpate_ConstraintResult> results(4);
+  std::vector<double> surface(static_cast<std::size_t>(model().compliance_rows()) + 6, -1.0);
+  palpate_ConstraintReply reply{};
+  wire::use_buffers(results, surface, reply);
+  EXPECT_EQ(reply.results._buffer, results.data());
+  EXPECT_EQ(reply.results._maximum, 4u);
+  EXPECT_EQ(reply.surface_displacement._buffer, surface.data());
+  EXPECT_EQ(reply.surface_displacement._maximum, surface.size());
+  EXPECT_EQ(reply.results._length + reply.surface_displacement._length, 0u);
+  EXPECT_FALSE(reply.results._release || reply.surface_displacement._release);
+
+  // What an earlier reply left is reset; the ids come from the request.
+  copy_bounded(reply.message, "an earlier failure");
+  reply.condition_estimate = 7;
+  reply.total_force[1] = 3;
+  reply.results._length = 2;
+  reply.surface_displacement._length = 5;
+  const std::vector<ConstraintSpec> constraints{
+      ConstraintSpec::force(vertex(2), {0.1, -0.2, 0.3}),
+      ConstraintSpec::displacement(vertex(5), {0, 0, -1e-3})};
+  std::vector<palpate_Constraint> storage;
+  palpate_ConstraintRequest request{};
+  wire::to_idl("sim", "box", 31, constraints, true, false, storage, request);
+  wire::start_reply(request, reply);
+  EXPECT_STREQ(reply.client_id, "sim");
+  EXPECT_STREQ(reply.model_id, "box");
+  EXPECT_EQ(reply.request_id, 31u);
+  EXPECT_EQ(reply.message[0], '\0');
+  EXPECT_EQ(reply.condition_estimate, 1.0);
+  EXPECT_EQ(reply.total_force[1], 0.0);
+  EXPECT_EQ(reply.results._length + reply.surface_displacement._length, 0u);
+
+  // Solved, the surface wanted: the results, the condition and u_S.
+  ConstraintSolver solver(model(), {});
+  const auto rows = static_cast<std::size_t>(model().compliance_rows());
+  RequestStatus status = wire::load_constraints(request, solver);
+  if (status == RequestStatus::kOk) status = solver.solve();
+  ASSERT_EQ(status, RequestStatus::kOk) << solver.message();
+  wire::write_answer(request, status, solver, rows, reply);
+  wire::write_status(status, reply);
+  EXPECT_EQ(reply.status, palpate_STATUS_OK);
+  EXPECT_EQ(reply.message[0], '\0');
+  EXPECT_EQ(reply.condition_estimate, solver.condition_estimate());
+  ASSERT_EQ(reply.results._length, 2u);
+  EXPECT_EQ(results[1].vertex, vertex(5));
+  ASSERT_EQ(reply.surface_displacement._length, rows);
+  Eigen::VectorXd u(model().compliance_rows());
+  solver.surface_displacement(u);
+  for (std::size_t i = 0; i < rows; ++i) EXPECT_EQ(surface[i], u[static_cast<Eigen::Index>(i)]);
+  EXPECT_EQ(surface[rows], -1.0) << "nothing beyond the model's rows";
+
+  // Refused: the solver's message, condition 1, no results, no surface.
+  const std::vector<ConstraintSpec> refused{ConstraintSpec::force(vertex(6), {0, 0, std::nan("")})};
+  wire::to_idl("sim", "box", 32, refused, true, false, storage, request);
+  wire::start_reply(request, reply);
+  status = wire::load_constraints(request, solver);
+  if (status == RequestStatus::kOk) status = solver.solve();
+  ASSERT_NE(status, RequestStatus::kOk);
+  ASSERT_NE(status, RequestStatus::kIllConditioned);
+  wire::write_answer(request, status, solver, rows, reply);
+  wire::write_status(status, reply);
+  EXPECT_EQ(static_cast<int>(reply.status), static_cast<int>(status));
+  EXPECT_STREQ(reply.message, solver.message());
+  EXPECT_EQ(reply.condition_estimate, 1.0);
+  EXPECT_EQ(reply.results._length + reply.surface_displacement._length, 0u);
+
+  // An error after the results were written (palpated's exceptions): they go.
+  reply.results._length = 2;
+  reply.surface_displacement._length = 3;
+  wire::write_message(std::string(300, 'e'), reply);
+  wire::write_status(RequestStatus::kInternalError, reply);
+  EXPECT_EQ(reply.status, palpate_STATUS_INTERNAL_ERROR);
+  EXPECT_EQ(bounded(reply.message), std::string(255, 'e')) << "cut to string<255>";
+  EXPECT_EQ(reply.results._length + reply.surface_displacement._length, 0u);
+}
+
 TEST_F(WireSolverTest, LoadingStopsAtTheFirstBadConstraint) {
   const std::vector<ConstraintSpec> constraints{
       ConstraintSpec::force(vertex(1), {0, 0, 1}),
@@ -708,6 +843,10 @@ TEST_F(WireSolverTest, TheRequestAndToolPathsAllocateNothing) {
   std::vector<palpate_ConstraintResult> results(8);
   palpate_ConstraintReply reply{};
   wire::view(reply.results, std::span(results));
+  std::vector<palpate_ConstraintResult> served_results(8);
+  std::vector<double> served_surface(static_cast<std::size_t>(model().compliance_rows()));
+  palpate_ConstraintReply served_reply{};
+  wire::use_buffers(served_results, served_surface, served_reply);
   const ToolOutput out = an_output();
   palpate_ToolFeedback feedback{};
   palpate_ToolEvent event{};
@@ -717,6 +856,22 @@ TEST_F(WireSolverTest, TheRequestAndToolPathsAllocateNothing) {
   point.weights = {0.5, 0.25, 0.25};
   const std::vector<std::uint32_t> vertex_ids{7, 8, 9};
   palpate_SurfaceContact contact{};
+  // The stream's sample (not a real-time path, allocation-free all the same).
+  const std::vector<double> displacement(12, 1e-3);
+  const std::vector<int> indices{2, 0};
+  const std::vector<double> forces(6, 0.5);
+  const std::vector<ContactPoint> points(2, point);
+  const std::vector<std::string> tool_ids{"grasper-left"};
+  const double total[3] = {1, 0, 1};
+  std::vector<std::uint32_t> vertex_storage(2);
+  std::vector<palpate_SurfaceContact> contact_storage(2);
+  palpate_SurfaceDisplacement sample{};
+  const StatusSample status = [] {
+    StatusSample s;
+    s.daemon_id = std::string(60, 'p');  // beyond the small-string buffer
+    return s;
+  }();
+  palpate_DaemonStatus status_sample{};
   auto tick = [&](std::size_t i) {
     wire::to_idl(point, "grasper-left", vertex_ids, contact);
     int ok = 0;
@@ -725,6 +880,17 @@ TEST_F(WireSolverTest, TheRequestAndToolPathsAllocateNothing) {
       wire::write_results(wire_requests[i], solver, reply);
       ++ok;
     }
+    // The request server's reply: started, answered (the surface wanted), ended.
+    wire_requests[i].want_surface = true;
+    wire::start_reply(wire_requests[i], served_reply);
+    RequestStatus served = wire::load_constraints(wire_requests[i], solver);
+    if (served == RequestStatus::kOk) served = solver.solve();
+    wire::write_answer(wire_requests[i], served, solver, served_surface.size(), served_reply);
+    wire::write_status(served, served_reply);
+    wire::to_idl("box", i, "tool:grasper-left", i, total, displacement, sample);
+    wire::view_loads(indices, forces, vertex_ids, vertex_storage, sample);
+    wire::view_contacts(points, tool_ids, vertex_ids, contact_storage, sample);
+    wire::to_idl(status, status_sample);
     wire::to_idl(out, "grasper-left", "liver", i, feedback);
     wire::to_idl(ToolEventKind::kTouch, out, "grasper-left", "liver", 1, event);
     return ok;

@@ -14,8 +14,8 @@
 #include <span>
 #include <vector>
 
-#include "palpate.h"
 #include "palpate/core/statistics.hpp"
+#include "palpate/transport/messages.hpp"
 #include "pi_mutex.hpp"
 
 namespace palpate::daemon {
@@ -81,8 +81,8 @@ class ServerStats {
 };
 
 /// Nearest-rank percentiles of the first @p count of @p values_us (sorted here).
-inline palpate_Latency percentiles(std::vector<double>& values_us, std::size_t count) {
-  palpate_Latency latency{};
+inline LatencySummary percentiles(std::vector<double>& values_us, std::size_t count) {
+  LatencySummary latency;
   if (count == 0) return latency;
   std::sort(values_us.begin(), values_us.begin() + static_cast<std::ptrdiff_t>(count));
   const std::span<const double> sorted(values_us.data(), count);

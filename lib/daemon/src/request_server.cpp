@@ -19,10 +19,7 @@ RequestServer::RequestServer(const std::vector<std::unique_ptr<ServedModel>>& mo
     max_surface = std::max(max_surface, static_cast<std::size_t>(served->model.compliance_rows()));
   reply_results_.resize(static_cast<std::size_t>(max_constraints));
   reply_surface_.resize(max_surface);
-  reply_.results._buffer = reply_results_.data();
-  reply_.results._maximum = static_cast<std::uint32_t>(reply_results_.size());
-  reply_.surface_displacement._buffer = reply_surface_.data();
-  reply_.surface_displacement._maximum = static_cast<std::uint32_t>(reply_surface_.size());
+  wire::use_buffers(reply_results_, reply_surface_, reply_);
   requests_.resize(kBatch);
   request_infos_.resize(kBatch);
   for (auto& r : requests_) request_pointers_.push_back(&r);
@@ -83,9 +80,9 @@ RequestStatus RequestServer::solve(const palpate_ConstraintRequest& request) {
     if (candidate->model.id == model_id) served = candidate.get();
   if (served == nullptr) {
     const auto end =
-        fmt::format_to_n(reply_.message, sizeof reply_.message - 1,
-                         "model '{}' is not served here; served: {}", model_id, served_ids_);
-    *end.out = '\0';
+        fmt::format_to_n(message_, sizeof message_ - 1, "model '{}' is not served here; served: {}",
+                         model_id, served_ids_);
+    wire::write_message({message_, static_cast<std::size_t>(end.out - message_)}, reply_);
     return RequestStatus::kUnknownModel;
   }
   if (served->warped()) return answer(request, *served, *served->warped_solver);
@@ -97,20 +94,9 @@ RequestStatus RequestServer::answer(const palpate_ConstraintRequest& request, Se
                                     Solver& solver) {
   RequestStatus status = wire::load_constraints(request, solver);
   if (status == RequestStatus::kOk) status = solver.solve();
-  // Meaningful when the system was solved, or refused for its condition;
-  // every other error reply carries 1 (docs/dds.md, "Status codes").
-  if (status == RequestStatus::kOk || status == RequestStatus::kIllConditioned)
-    reply_.condition_estimate = solver.condition_estimate();
-  if (status != RequestStatus::kOk) {
-    wire::copy_bounded(reply_.message, solver.message());
-    return status;
-  }
-  wire::write_results(request, solver, reply_);
-  if (request.want_surface) {
-    const auto n = static_cast<Eigen::Index>(served.model.compliance_rows());
-    solver.surface_displacement(Eigen::Map<Eigen::VectorXd>(reply_surface_.data(), n));
-    reply_.surface_displacement._length = static_cast<std::uint32_t>(n);
-  }
+  wire::write_answer(request, status, solver,
+                     static_cast<std::size_t>(served.model.compliance_rows()), reply_);
+  if (status != RequestStatus::kOk) return status;
   if (request.update_state) {
     // The latest successful state-changing request defines what the model
     // shows: the vertices it loads and their forces (material ones on a
@@ -124,14 +110,7 @@ RequestStatus RequestServer::answer(const palpate_ConstraintRequest& request, Se
 void RequestServer::handle(const palpate_ConstraintRequest& request,
                            const dds_sample_info_t& info) {
   const auto start = Clock::now();
-  wire::copy_bounded(reply_.client_id, wire::bounded(request.client_id));
-  wire::copy_bounded(reply_.model_id, wire::bounded(request.model_id));
-  reply_.request_id = request.request_id;
-  reply_.message[0] = '\0';
-  reply_.condition_estimate = 1;
-  reply_.total_force[0] = reply_.total_force[1] = reply_.total_force[2] = 0;
-  reply_.results._length = 0;
-  reply_.surface_displacement._length = 0;
+  wire::start_reply(request, reply_);
 
   // A request that cannot be answered (no valid reply partition) changes nothing.
   if (!ReplyWriters::names_a_partition(reply_.client_id)) {
@@ -146,12 +125,10 @@ void RequestServer::handle(const palpate_ConstraintRequest& request,
   try {
     status = solve(request);
   } catch (const std::exception& e) {
-    wire::copy_bounded(reply_.message, e.what());
+    wire::write_message(e.what(), reply_);
   }
-  reply_.status = static_cast<palpate_ReplyStatus>(status);
+  wire::write_status(status, reply_);
   if (status != RequestStatus::kOk) {
-    reply_.results._length = 0;
-    reply_.surface_displacement._length = 0;
     stats_.count_error();
     spdlog::debug("event=request_refused client={} request={} status={} message=\"{}\"",
                   reply_.client_id, request.request_id, status_name(status), reply_.message);

@@ -75,6 +75,7 @@ class RequestServer {
   palpate_ConstraintReply reply_{};
   std::vector<palpate_ConstraintResult> reply_results_;
   std::vector<double> reply_surface_;
+  char message_[256] = {};  // a refusal's message, formatted here (no allocation)
 
   ServerStats stats_;
 };

@@ -24,6 +24,7 @@ StreamPublisher::StreamPublisher(Sources sources, const DaemonConfig& config,
   status_writer_ = dds::Entity(
       dds::check(dds_create_writer(participant, status_topic, dds::status_qos().get(), nullptr),
                  "creating the status writer"));
+  status_.daemon_id = config_.daemon_id;
   streams_.resize(sources.models.size());
   for (std::size_t i = 0; i < streams_.size(); ++i) {
     const ServedModel& served = *sources.models[i];
@@ -122,29 +123,17 @@ void StreamPublisher::publish_surfaces() {
       forces = s.world_forces.data();
     }
     palpate_SurfaceDisplacement& sample = s.sample;
-    wire::copy_bounded(sample.model_id, served.model.id);
-    ++sample.sequence_number;
-    wire::copy_bounded(sample.source_client_id, wire::bounded(s.shown.source));
-    sample.source_request_id = s.shown.source_request;
-    std::copy_n(s.shown.total_force, 3, sample.total_force);
-    for (std::size_t c = 0; c < count; ++c)
-      s.vertex_ids[c] =
-          served.model.surface.vertex_ids[static_cast<std::size_t>(s.shown.indices[c])];
-    wire::view(sample.displacement,
-               std::span<const double>(s.displacement.data(),
-                                       static_cast<std::size_t>(s.displacement.size())));
-    wire::view(sample.constrained_vertices,
-               std::span<const std::uint32_t>(s.vertex_ids.data(), count));
-    wire::view(sample.constrained_forces, std::span<const double>(forces, 3 * count));
-    const auto points = static_cast<std::size_t>(s.shown.point_count);
-    for (std::size_t c = 0; c < points; ++c) {
-      const ContactPoint& point = s.shown.points[c];
-      const auto tool = static_cast<std::size_t>(point.tool);
-      wire::to_idl(point, tool < s.tool_ids.size() ? std::string_view(s.tool_ids[tool]) : "",
-                   served.model.surface.vertex_ids, s.contacts[c]);
-    }
-    wire::view(sample.contact_points,
-               std::span<const palpate_SurfaceContact>(s.contacts.data(), points));
+    wire::to_idl(served.model.id, ++s.sequence_number, wire::bounded(s.shown.source),
+                 s.shown.source_request, s.shown.total_force,
+                 std::span<const double>(s.displacement.data(),
+                                         static_cast<std::size_t>(s.displacement.size())),
+                 sample);
+    wire::view_loads(std::span<const int>(s.shown.indices.data(), count),
+                     std::span<const double>(forces, 3 * count), served.model.surface.vertex_ids,
+                     s.vertex_ids, sample);
+    wire::view_contacts(std::span<const ContactPoint>(
+                            s.shown.points.data(), static_cast<std::size_t>(s.shown.point_count)),
+                        s.tool_ids, served.model.surface.vertex_ids, s.contacts, sample);
     // The region's surface and the rest's triangles it covers, in every
     // sample: the topic keeps the last one only, and a late viewer needs all.
     wire::view_region(
@@ -166,8 +155,7 @@ void StreamPublisher::publish_surfaces() {
 
 void StreamPublisher::publish_status(double interval_s, std::uint64_t served_in_interval,
                                      std::uint64_t surfaces_in_interval) {
-  palpate_DaemonStatus status{};
-  wire::copy_bounded(status.daemon_id, config_.daemon_id);
+  StatusSample& status = status_;
   status.uptime_ns = sources_.clock.uptime_ns();
   status.requests_served = sources_.requests.served();
   status.error_replies = sources_.requests.errors();
@@ -186,7 +174,9 @@ void StreamPublisher::publish_status(double interval_s, std::uint64_t served_in_
     const std::size_t n = sources_.poses.latencies().drain(first_us_, second_us_);
     status.tool_compute = percentiles(first_us_, n);
   }
-  if (const dds_return_t rc = dds_write(status_writer_.get(), &status); rc < 0)
+  palpate_DaemonStatus sample{};
+  wire::to_idl(status, sample);
+  if (const dds_return_t rc = dds_write(status_writer_.get(), &sample); rc < 0)
     spdlog::error("event=dds_error what=\"writing the status\" error={}", dds_strretcode(rc));
 }
 

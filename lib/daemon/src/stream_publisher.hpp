@@ -17,6 +17,7 @@
 #include "palpate.h"
 #include "palpate/daemon/daemon_config.hpp"
 #include "palpate/transport/dds.hpp"
+#include "palpate/transport/messages.hpp"
 #include "served_model.hpp"
 
 namespace palpate::daemon {
@@ -52,6 +53,7 @@ class StreamPublisher {
   struct ModelStream {
     ShownState::Snapshot shown;
     std::uint64_t published_version = 0;
+    std::uint64_t sequence_number = 0;             // of the last sample published
     palpate_SurfaceDisplacement sample{};          // its buffers are the vectors below
     std::vector<std::uint32_t> vertex_ids;         // mesh vertex ids of shown.indices
     std::vector<palpate_SurfaceContact> contacts;  // shown.points, as sent
@@ -76,6 +78,7 @@ class StreamPublisher {
   dds::Entity surface_writer_, status_writer_;
   std::vector<ModelStream> streams_;
   std::vector<double> first_us_, second_us_;  // latency buffers of one interval
+  StatusSample status_;                       // the heartbeat's values, its daemon id set once
   std::atomic<std::uint64_t> surface_samples_{0};
   std::atomic<bool> stopping_{false};
   std::mutex mutex_;

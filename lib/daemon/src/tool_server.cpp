@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstring>
 #include <functional>
 
 #include "palpate/core/error.hpp"
@@ -262,8 +261,7 @@ void ToolServer::serve_commands(dds_entity_t reader) {
 void ToolServer::take(const palpate_ToolCommand& command) {
   const std::string_view tool_id = wire::bounded(command.tool_id);
   const std::string_view model_id = wire::bounded(command.model_id);
-  std::int32_t kind = 0;
-  std::memcpy(&kind, &command.kind, sizeof kind);  // any number a sender wrote
+  const std::int32_t kind = wire::received_kind(command);
   if (kind != palpate_TOOL_COMMAND_END) {
     spdlog::warn(
         "event=tool_command_ignored tool=\"{}\" model=\"{}\" reason=unknown_kind "

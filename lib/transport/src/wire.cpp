@@ -161,6 +161,72 @@ void write_results(const palpate_ConstraintRequest& request, const WarpedSolver&
   results_of(request, solver, reply);
 }
 
+void use_buffers(std::span<palpate_ConstraintResult> results, std::span<double> surface_m,
+                 palpate_ConstraintReply& reply) {
+  view(reply.results, results);
+  view(reply.surface_displacement, surface_m);
+  reply.results._length = 0;
+  reply.surface_displacement._length = 0;
+}
+
+void start_reply(const palpate_ConstraintRequest& request, palpate_ConstraintReply& reply) {
+  copy_bounded(reply.client_id, bounded(request.client_id));
+  copy_bounded(reply.model_id, bounded(request.model_id));
+  reply.request_id = request.request_id;
+  reply.message[0] = '\0';
+  reply.condition_estimate = 1;
+  reply.total_force[0] = reply.total_force[1] = reply.total_force[2] = 0;
+  reply.results._length = 0;
+  reply.surface_displacement._length = 0;
+}
+
+namespace {
+
+// The same for the linear and the warped solver.
+template <typename Solver>
+void answer_of(const palpate_ConstraintRequest& request, RequestStatus status, const Solver& solver,
+               std::size_t compliance_rows, palpate_ConstraintReply& reply) {
+  // Meaningful when the system was solved, or refused for its condition;
+  // every other error reply carries 1 (docs/dds.md, "Status codes").
+  if (status == RequestStatus::kOk || status == RequestStatus::kIllConditioned)
+    reply.condition_estimate = solver.condition_estimate();
+  if (status != RequestStatus::kOk) {
+    write_message(solver.message(), reply);
+    return;
+  }
+  results_of(request, solver, reply);
+  if (request.want_surface) {
+    const auto n = static_cast<Eigen::Index>(compliance_rows);
+    solver.surface_displacement(Eigen::Map<Eigen::VectorXd>(reply.surface_displacement._buffer, n));
+    reply.surface_displacement._length = static_cast<std::uint32_t>(n);
+  }
+}
+
+}  // namespace
+
+void write_answer(const palpate_ConstraintRequest& request, RequestStatus status,
+                  const ConstraintSolver& solver, std::size_t compliance_rows,
+                  palpate_ConstraintReply& reply) {
+  answer_of(request, status, solver, compliance_rows, reply);
+}
+void write_answer(const palpate_ConstraintRequest& request, RequestStatus status,
+                  const WarpedSolver& solver, std::size_t compliance_rows,
+                  palpate_ConstraintReply& reply) {
+  answer_of(request, status, solver, compliance_rows, reply);
+}
+
+void write_message(std::string_view message, palpate_ConstraintReply& reply) {
+  copy_bounded(reply.message, message);
+}
+
+void write_status(RequestStatus status, palpate_ConstraintReply& reply) {
+  reply.status = static_cast<palpate_ReplyStatus>(status);
+  if (status != RequestStatus::kOk) {
+    reply.results._length = 0;
+    reply.surface_displacement._length = 0;
+  }
+}
+
 Reply from_idl(const palpate_ConstraintReply& r) {
   Reply out;
   out.request_id = r.request_id;
@@ -194,6 +260,38 @@ void to_idl(const ContactPoint& point, std::string_view tool_id,
     out.position[i] = point.position_m[i];
     out.force[i] = point.force_n[i];
   }
+}
+
+void to_idl(std::string_view model_id, std::uint64_t sequence_number,
+            std::string_view source_client_id, std::uint64_t source_request_id,
+            const double (&total_force_n)[3], std::span<const double> displacement_m,
+            palpate_SurfaceDisplacement& out) {
+  copy_bounded(out.model_id, model_id);
+  out.sequence_number = sequence_number;
+  copy_bounded(out.source_client_id, source_client_id);
+  out.source_request_id = source_request_id;
+  std::copy_n(total_force_n, 3, out.total_force);
+  view(out.displacement, displacement_m);
+}
+
+void view_loads(std::span<const int> indices, std::span<const double> forces_n,
+                std::span<const std::uint32_t> vertex_ids, std::span<std::uint32_t> vertex_storage,
+                palpate_SurfaceDisplacement& out) {
+  for (std::size_t c = 0; c < indices.size(); ++c)
+    vertex_storage[c] = vertex_ids[static_cast<std::size_t>(indices[c])];
+  view(out.constrained_vertices, vertex_storage.first(indices.size()));
+  view(out.constrained_forces, forces_n);
+}
+
+void view_contacts(std::span<const ContactPoint> points, std::span<const std::string> tool_ids,
+                   std::span<const std::uint32_t> vertex_ids,
+                   std::span<palpate_SurfaceContact> storage, palpate_SurfaceDisplacement& out) {
+  for (std::size_t c = 0; c < points.size(); ++c) {
+    const auto tool = static_cast<std::size_t>(points[c].tool);
+    to_idl(points[c], tool < tool_ids.size() ? std::string_view(tool_ids[tool]) : "", vertex_ids,
+           storage[c]);
+  }
+  view(out.contact_points, storage.first(points.size()));
 }
 
 SurfaceContactSample from_idl(const palpate_SurfaceContact& c) {
@@ -243,6 +341,22 @@ LatencySummary from_idl(const palpate_Latency& l) {
 
 palpate_Latency to_idl(const LatencySummary& l) {
   return {l.p50_us, l.p99_us, l.p999_us, l.max_us};
+}
+
+void to_idl(const StatusSample& s, palpate_DaemonStatus& out) {
+  copy_bounded(out.daemon_id, s.daemon_id);
+  out.uptime_ns = s.uptime_ns;
+  out.requests_served = s.requests_served;
+  out.error_replies = s.error_replies;
+  out.request_rate_hz = s.request_rate_hz;
+  out.surface_rate_hz = s.surface_rate_hz;
+  out.solve = to_idl(s.solve);
+  out.request_to_reply = to_idl(s.request_to_reply);
+  out.models = s.models;
+  out.clients = s.clients;
+  out.tool_poses = s.tool_poses;
+  out.tool_poses_refused = s.tool_poses_refused;
+  out.tool_compute = to_idl(s.tool_compute);
 }
 
 StatusSample from_idl(const palpate_DaemonStatus& s) {
@@ -449,6 +563,8 @@ void to_idl_end(std::string_view tool_id, std::string_view model_id, std::uint64
   out.kind = palpate_TOOL_COMMAND_END;
   out.pose_sequence = last_sequence;
 }
+
+std::int32_t received_kind(const palpate_ToolCommand& command) { return received(command.kind); }
 
 void to_idl(PoseProblem reason, std::uint64_t pose_sequence, std::string_view message,
             std::string_view tool_id, std::string_view model_id, palpate_ToolNotice& out) {

@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <cstring>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -92,10 +93,64 @@ void write_results(const palpate_ConstraintRequest& request, const ConstraintSol
                    palpate_ConstraintReply& reply);
 void write_results(const palpate_ConstraintRequest& request, const WarpedSolver& solver,
                    palpate_ConstraintReply& reply);
+
+/// Makes @p reply's results and surface displacement empty views of
+/// @p results and @p surface_m, each able to hold its buffer's size
+/// (palpated's one reply, sized once; Cyclone does not free them).
+void use_buffers(std::span<palpate_ConstraintResult> results, std::span<double> surface_m,
+                 palpate_ConstraintReply& reply);
+/// Starts the reply to @p request: its client, model and request ids, no
+/// message, condition estimate 1, no force, no results, no surface (the
+/// buffers of use_buffers stay). Allocates nothing.
+void start_reply(const palpate_ConstraintRequest& request, palpate_ConstraintReply& reply);
+/// What @p solver made of @p request into @p reply, @p status being what
+/// loading and solving it returned: the condition estimate when it was
+/// solved or refused for its condition (else it stays 1: docs/dds.md,
+/// "Status codes"); the solver's message when it failed; else the results
+/// (write_results) and, when the request wants the surface, the model's
+/// @p compliance_rows values of u_S (m) into reply.surface_displacement's
+/// buffer, which holds them. Allocates nothing.
+void write_answer(const palpate_ConstraintRequest& request, RequestStatus status,
+                  const ConstraintSolver& solver, std::size_t compliance_rows,
+                  palpate_ConstraintReply& reply);
+void write_answer(const palpate_ConstraintRequest& request, RequestStatus status,
+                  const WarpedSolver& solver, std::size_t compliance_rows,
+                  palpate_ConstraintReply& reply);
+/// Why @p reply's request failed: @p message, cut to the field's 255
+/// characters. Allocates nothing.
+void write_message(std::string_view message, palpate_ConstraintReply& reply);
+/// Ends @p reply with @p status: a reply that is not kOk carries no results
+/// and no surface. Allocates nothing.
+void write_status(RequestStatus status, palpate_ConstraintReply& reply);
 Reply from_idl(const palpate_ConstraintReply& reply);
 
 // ---- palpate_surface, palpate_status -------------------------------------------
 
+/// A surface sample's state of model @p model_id: its @p sequence_number,
+/// what set the state (@p source_client_id, "tool:<id>" for the tools, and
+/// @p source_request_id), its total force (N) and the displacement u_S
+/// (3 per compliance vertex, m), which @p out's displacement views (no copy,
+/// no allocation: it must live until the sample is written).
+void to_idl(std::string_view model_id, std::uint64_t sequence_number,
+            std::string_view source_client_id, std::uint64_t source_request_id,
+            const double (&total_force_n)[3], std::span<const double> displacement_m,
+            palpate_SurfaceDisplacement& out);
+/// The loads of a surface sample: the compliance vertices @p indices as mesh
+/// vertex ids (@p vertex_ids maps them: DrawnSurface::vertex_ids) into
+/// @p vertex_storage (at least indices.size()), and their forces
+/// @p forces_n (3 each, N, tool on organ). @p out's constrained vertices
+/// and forces view the storage and the forces (no allocation); they must
+/// live until the sample is written.
+void view_loads(std::span<const int> indices, std::span<const double> forces_n,
+                std::span<const std::uint32_t> vertex_ids, std::span<std::uint32_t> vertex_storage,
+                palpate_SurfaceDisplacement& out);
+/// The tools' contact points @p points into @p storage (at least
+/// points.size()), which @p out's contact points then view: each as
+/// to_idl(ContactPoint) writes it, with the id of its tool (ContactPoint::tool,
+/// an index into @p tool_ids; "" beyond them). Allocates nothing.
+void view_contacts(std::span<const ContactPoint> points, std::span<const std::string> tool_ids,
+                   std::span<const std::uint32_t> vertex_ids,
+                   std::span<palpate_SurfaceContact> storage, palpate_SurfaceDisplacement& out);
 /// Contact point @p point of tool @p tool_id as the surface stream carries
 /// it; @p vertex_ids maps drawn vertices to mesh vertex ids
 /// (DrawnSurface::vertex_ids). Allocates nothing.
@@ -113,6 +168,9 @@ void view_region(std::uint64_t topology_version, std::span<const double> positio
 SurfaceSample from_idl(const palpate_SurfaceDisplacement& sample);
 LatencySummary from_idl(const palpate_Latency& latency);
 palpate_Latency to_idl(const LatencySummary& latency);
+/// @p status as palpated's heartbeat (its daemon id cut to 63 characters).
+/// Allocates nothing.
+void to_idl(const StatusSample& status, palpate_DaemonStatus& out);
 StatusSample from_idl(const palpate_DaemonStatus& status);
 
 // ---- palpate_tool_pose, _feedback, _response, _event ----------------------------
@@ -157,6 +215,10 @@ ToolEventSample from_idl(const palpate_ToolEvent& event, std::int64_t receive_ti
 /// The end of tool @p tool_id's session, after pose @p last_sequence.
 void to_idl_end(std::string_view tool_id, std::string_view model_id, std::uint64_t last_sequence,
                 palpate_ToolCommand& out);
+/// The kind of a received @p command as the number it holds: a sender may
+/// put any 32-bit value there (palpated ignores one it does not know,
+/// naming it). palpate_TOOL_COMMAND_END ends the tool's session.
+std::int32_t received_kind(const palpate_ToolCommand& command);
 /// A refused pose of @p tool_id: @p reason and its one-line @p message
 /// (cut to the field's 255 characters).
 void to_idl(PoseProblem reason, std::uint64_t pose_sequence, std::string_view message,
