@@ -1,6 +1,8 @@
 // The C API for haptic devices (palpate/device.h, docs/devices.md): a
-// palpate::ToolClient per handle, behind extern "C" functions that catch
-// every exception and turn it into a status and one line of message.
+// palpate::ToolClient per handle (device_handle.hpp), behind extern "C"
+// functions that check their arguments, catch every exception and turn it
+// into a status and one line of message, and copy into their caller's
+// structs.
 //
 // The servo calls (set_pose, force, get_state, next_answer) allocate
 // nothing: the tool is opened in palpate_device_open(), the answers are
@@ -11,7 +13,6 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
-#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdarg>
@@ -24,15 +25,14 @@
 #include <string>
 #include <thread>
 
+#include "device_handle.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/core/ids.hpp"
-#include "palpate/core/ring.hpp"
 #include "palpate/transport/tool_client.hpp"
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-using palpate::Ring;
 
 /// Writes one line into the caller's buffer (when there is one) and
 /// returns @p status. Allocates nothing.
@@ -67,24 +67,6 @@ std::optional<Eigen::Quaterniond> unit_quaternion(const double* wxyz) {
   return q.normalized();
 }
 
-palpate_device_answer to_answer(const palpate::ToolFeedbackSample& s) {
-  palpate_device_answer a{};
-  a.struct_size = sizeof a;
-  a.sequence = s.sequence;
-  a.send_time_ns = s.send_time_ns;
-  a.receive_time_ns = s.receive_time_ns;
-  std::copy(s.force_n.begin(), s.force_n.end(), a.force_n);
-  std::copy(s.torque_nm.begin(), s.torque_nm.end(), a.torque_nm);
-  a.grip_n = s.grip_n;
-  a.contacts = s.contacts;
-  a.tool_state = static_cast<int>(s.state);
-  a.force_limited = s.force_limited ? 1 : 0;
-  a.watchdog = s.watchdog ? 1 : 0;
-  a.compute_ns = s.compute_ns;
-  a.model_valid = s.local.valid ? 1 : 0;
-  return a;
-}
-
 /// Copies the first @p caller_size bytes of @p full into @p out (a struct
 /// the caller may know in an older, shorter version), its struct_size set.
 template <typename T>
@@ -100,75 +82,6 @@ constexpr std::uint32_t kAnswerV1 = sizeof(palpate_device_answer);
 constexpr std::uint32_t kEventV1 = sizeof(palpate_device_event);
 constexpr std::uint32_t kModelV1 = offsetof(palpate_device_model, cut_region);
 constexpr std::uint32_t kOptionsV1 = sizeof(palpate_device_options);
-
-}  // namespace
-
-/// One tool on one model, driven by one device.
-struct palpate_device {
-  palpate_device(const palpate::ToolClientOptions& client_options) : client(client_options) {}
-
-  palpate::ToolClient client;
-  std::string model_id, tool_id;
-  palpate::ModelInfo model;
-
-  // The device's frame in the model's (palpate_device_frame).
-  double scale = 1, force_scale = 1;
-  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
-  Eigen::Quaterniond handle_to_tool = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
-
-  // Poses: the last one given (model frame), and those sent.
-  bool has_pose = false;
-  std::array<double, 3> position{};
-  std::array<double, 4> orientation{1, 0, 0, 0};
-  double jaw = 0;
-  std::int64_t period_ns = 1'000'000, next_due_ns = 0;
-  std::uint64_t first_sequence = 0, sequence = 0, poses_sent = 0;
-  std::int64_t last_send_ns = 0;
-  bool session_live = false;
-
-  // Answers: the next sequence the drain asks for, the newest, the log.
-  std::uint64_t next_sequence = 0;
-  bool has_answer = false;
-  palpate::ToolFeedbackSample newest;
-  std::uint64_t answers_taken = 0, answers_dropped = 0;
-  Ring<palpate_device_answer, 256> answers;
-  std::array<palpate::ToolFeedbackSample, 16> late{};
-
-  palpate::RenderedWrench rendered;
-  Eigen::Vector3d rendered_force = Eigen::Vector3d::Zero();
-  Eigen::Vector3d rendered_torque = Eigen::Vector3d::Zero();
-
-  Ring<palpate_device_event, 64> events;
-
-  void took(const palpate::ToolFeedbackSample& s) {
-    ++answers_taken;
-    if (!answers.push(to_answer(s))) ++answers_dropped;
-    if (!has_answer || s.sequence >= newest.sequence) {
-      newest = s;
-      has_answer = true;
-    }
-  }
-
-  /// Every answer the client took (render() keeps them for their wait) or
-  /// that is waiting in DDS, into the log, without waiting. Allocates nothing.
-  void drain() {
-    if (poses_sent == 0) return;
-    while (next_sequence <= sequence) {
-      const auto s = client.wait_feedback(tool_id, next_sequence, Clock::time_point{});
-      if (!s) break;
-      took(*s);
-      next_sequence = s->sequence + 1;
-    }
-    for (;;) {
-      const std::size_t n = client.take_late_feedback(tool_id, late);
-      for (std::size_t i = 0; i < n; ++i) took(late[i]);
-      if (n < late.size()) break;
-    }
-  }
-};
-
-namespace {
 
 std::int64_t now_or(std::int64_t now_ns) {
   return now_ns != 0 ? now_ns : palpate::ToolClient::now_ns();
