@@ -7,8 +7,12 @@ namespace palpate::detail {
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
 
-ContactRows::ContactRows(int capacity, DeformedSurface& surface, BackgroundLoads& background)
-    : surface_(surface), background_(background), compliance_count_(surface.compliance_count()) {
+ContactRows::ContactRows(int capacity, int tools, DeformedSurface& surface,
+                         BackgroundLoads& background)
+    : surface_(surface),
+      background_(background),
+      compliance_count_(surface.compliance_count()),
+      drag_(static_cast<std::size_t>(tools)) {
   const auto k = static_cast<std::size_t>(capacity);
   rows_.resize(k);
   tool_.resize(k);
@@ -17,6 +21,13 @@ ContactRows::ContactRows(int capacity, DeformedSurface& surface, BackgroundLoads
   rotation_.assign(k, Matrix3d::Identity());
   world_normal_.assign(k, Vector3d::Zero());
   local_.resize(k);
+}
+
+void ContactRows::solved(int tool, bool drags, const Vector3d& hinge_m, const Matrix3d& rotation) {
+  Drag& d = drag_[static_cast<std::size_t>(tool)];
+  d.drags = drags;
+  d.hinge_m = hinge_m;
+  d.rotation = rotation;
 }
 
 void ContactRows::add_held(const Tool& tool, std::span<const HeldPoint> held) {
@@ -29,6 +40,7 @@ void ContactRows::add_held(const Tool& tool, std::span<const HeldPoint> held) {
 
 void ContactRows::add_tips(const Tool& tool, std::span<const TipCandidate> tips) {
   const ToolGeometry& g = *tool.geometry;
+  const Drag& solved = drag_[static_cast<std::size_t>(tool.index)];
   for (int c = 0; c < static_cast<int>(tips.size()); ++c) {
     const TipCandidate& tip = tips[static_cast<std::size_t>(c)];
     Vector3d u = tool.scale * (tip.target - tip.rest);
@@ -37,10 +49,9 @@ void ContactRows::add_tips(const Tool& tool, std::span<const TipCandidate> tips)
     // since the last solve, in the contact's plane (along the normal the
     // tip's push decides); the active set lets it slip back onto the
     // cone's edge (docs/tools.md, "Friction").
-    if (g.friction > 0 && tool.drags) {
-      const Vector3d was =
-          tool.solved_hinge_m +
-          tool.solved_rotation * (tool.rotation.transpose() * (tip.target - tool.hinge_m));
+    if (g.friction > 0 && solved.drags && !tool.ramping_out) {
+      const Vector3d was = solved.hinge_m + solved.rotation * (tool.rotation.transpose() *
+                                                               (tip.target - tool.hinge_m));
       const Vector3d moved = tip.target - was;
       u += moved - tip.normal * tip.normal.dot(moved);
     }

@@ -45,12 +45,6 @@ struct ToolContactEngine::Impl {
     ToolPoseInput pose;
     Matrix3d rotation = Matrix3d::Identity();
     double last_pose_s = 0;
-    // The pose the stored solution was solved at, while the tool has taken
-    // part in every solve since (friction: a sticking contact is dragged by
-    // the tool's motion since).
-    bool has_solved_pose = false;
-    Vector3d solved_hinge = Vector3d::Zero();
-    Matrix3d solved_rotation = Matrix3d::Identity();
     bool has_sequence = false;
     double scale = 1;  // watchdog ramp, 1 → 0
     bool in_watchdog = false;
@@ -121,7 +115,7 @@ struct ToolContactEngine::Impl {
         tip_search(m.surface.triangle_count()),
         solution(static_cast<int>(geometries.size()), l.max_constraints,
                  m.compliance_vertex_count(), m.surface.triangle_count()),
-        constraints(l.max_constraints, surface, background),
+        constraints(l.max_constraints, static_cast<int>(geometries.size()), surface, background),
         linearization(std::max(1, l.max_constraints), m.compliance_vertex_count()) {
     for (auto& g : geometries) {
       Tool tool;
@@ -242,24 +236,16 @@ struct ToolContactEngine::Impl {
   /// Tool @p t as its rows need it (ContactRows::add_held, add_tips).
   detail::ContactRows::Tool row_tool(int t) const {
     const Tool& tool = tools[static_cast<std::size_t>(t)];
-    return {t,
-            &tool.geometry,
-            tool.pose.position_m,
-            tool.rotation,
-            tool.scale,
-            tool.has_solved_pose && !tool.in_watchdog,
-            tool.solved_hinge,
-            tool.solved_rotation};
+    return {t, &tool.geometry, tool.pose.position_m, tool.rotation, tool.scale, tool.in_watchdog};
   }
 
   /// The solve's active rows as the stored solution (ContactSolution); the
   /// surface deformed by its loads from the next tick on.
   void store_solution() {
     solution.begin();
-    for (auto& tool : tools) {
-      tool.has_solved_pose = tool.alive && !tool.in_watchdog;
-      tool.solved_hinge = tool.pose.position_m;
-      tool.solved_rotation = tool.rotation;
+    for (int t = 0; t < static_cast<int>(tools.size()); ++t) {
+      const Tool& tool = tools[static_cast<std::size_t>(t)];
+      constraints.solved(t, tool.alive && !tool.in_watchdog, tool.pose.position_m, tool.rotation);
     }
     for (int b = 0; b < constraints.count(); ++b) {
       if (constraints.row(b).state != detail::ActiveRow::kActive) continue;
@@ -431,7 +417,7 @@ RequestStatus ToolContactEngine::solve(int t, const ToolPoseInput& pose, double 
   tool.answered = false;
   if (tool.in_watchdog || !tool.alive) {
     if (tool.in_watchdog || tool.has_sequence) Impl::push_event(out, ToolEventKind::kResumed);
-    tool.has_solved_pose = false;  // no drag from before
+    s.constraints.forget_drag(t);  // no drag from before
     tool.in_watchdog = false;
     tool.scale = 1;
   }
@@ -497,7 +483,7 @@ bool ToolContactEngine::end(int t, double now_s) {
   tool.in_watchdog = false;
   tool.scale = 1;
   tool.has_sequence = false;  // its next pose starts a new session, not a resumed one
-  tool.has_solved_pose = false;
+  s.constraints.forget_drag(t);
   tool.tip_count = 0;
   // The others feel the tissue it let go of.
   if (had_contacts) s.find_contacts_and_solve();

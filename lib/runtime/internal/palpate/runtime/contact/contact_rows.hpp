@@ -25,31 +25,37 @@
 namespace palpate::detail {
 
 /// The rows of a solve, built tool by tool (begin(), add_held() and
-/// add_tips()) and handed to ActiveSet::solve as rows(). Imposed
+/// add_tips()) and handed to ActiveSet::solve as rows(), and the pose each
+/// tool had at the solve last stored (solved()), which drags its sticking
+/// tip points along while it takes part in every solve. Imposed
 /// displacements in m, model frame (a warped row's in its point's material
 /// frame: d̂ = R̃⁻¹ d, n̂ = R̃ᵀ n / s, δ̂ = δ / s). Allocates nothing after
 /// construction.
 class ContactRows {
  public:
-  /// A tool as its rows need it: its pose at this solve, and the pose the
-  /// stored solution was solved at (the friction drag).
+  /// A tool at this solve, as its rows need it.
   struct Tool {
-    int index = 0;
+    int index = 0;  ///< among the engine's tools
     const ToolGeometry* geometry = nullptr;
     Eigen::Vector3d hinge_m = Eigen::Vector3d::Zero();
     Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< tool → model
-    double scale = 1;  ///< the watchdog's ramp, 1 → 0: of every imposed displacement
-    /// The tool took part in every solve since the stored one and is not
-    /// ramping out: a sticking tip point is dragged by its motion since.
-    bool drags = false;
-    Eigen::Vector3d solved_hinge_m = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d solved_rotation = Eigen::Matrix3d::Identity();
+    double scale = 1;          ///< the watchdog's ramp, 1 → 0: of every imposed displacement
+    bool ramping_out = false;  ///< the watchdog ramps it out: no drag
   };
 
-  /// Room for @p capacity rows. @p surface (deformed by the last solve) and
-  /// @p background (linear engines: loads the tools do not make) must
-  /// outlive it; a warped @p surface makes warped rows.
-  ContactRows(int capacity, DeformedSurface& surface, BackgroundLoads& background);
+  /// Room for @p capacity rows in all (the callers' per-tool caps keep
+  /// within it) of @p tools tools. @p surface (deformed by
+  /// the last solve) and @p background (linear engines: loads the tools do
+  /// not make) must outlive it; a warped @p surface makes warped rows.
+  ContactRows(int capacity, int tools, DeformedSurface& surface, BackgroundLoads& background);
+
+  /// The solve just stored had tool @p tool at @p hinge_m, @p rotation;
+  /// @p drags: it took part (its sticking points are dragged from there by
+  /// its motion until the next solve stored).
+  void solved(int tool, bool drags, const Eigen::Vector3d& hinge_m,
+              const Eigen::Matrix3d& rotation);
+  /// Tool @p tool drags nothing from before (it resumed, or its session ended).
+  void forget_drag(int tool) { drag_[static_cast<std::size_t>(tool)].drags = false; }
 
   /// Forgets the rows built (a new solve).
   void begin() { count_ = 0; }
@@ -57,10 +63,14 @@ class ContactRows {
   /// taken to where the jaws have it, d = s (x + R l − p_rest).
   void add_held(const Tool& tool, std::span<const HeldPoint> held);
   /// A row per tip contact of @p tool, @p tips (deepest first): its target
-  /// on the tip's surface, d = s (target − p_rest), with friction a
-  /// displacement dragged in the contact's plane by the tool's motion since
-  /// the solved pose, without it a normal displacement; a contact not
-  /// penetrating is dormant.
+  /// t on the tip's surface (normal n),
+  ///
+  ///     d = s (t − p_rest) + (I − n nᵀ)(t − w),   w = x⁻ + R⁻ Rᵀ (t − x),
+  ///
+  /// with friction (the drag term while the tool drags from its solved()
+  /// pose x⁻, R⁻: where its motion since took the tissue at t, in the
+  /// contact's plane), else the normal displacement nᵀ d without the drag;
+  /// a contact not penetrating is dormant.
   void add_tips(const Tool& tool, std::span<const TipCandidate> tips);
 
   int count() const { return count_; }
@@ -94,6 +104,12 @@ class ContactRows {
            Eigen::Vector3d value, const Eigen::Vector3d& normal, const Eigen::Vector3d& lever,
            double depth);
 
+  struct Drag {  // a tool at the stored solve
+    bool drags = false;
+    Eigen::Vector3d hinge_m = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  };
+
   DeformedSurface& surface_;
   BackgroundLoads& background_;
   int compliance_count_;
@@ -104,6 +120,7 @@ class ContactRows {
   std::vector<Eigen::Matrix3d> rotation_;
   std::vector<Eigen::Vector3d> world_normal_;
   std::vector<LocalRow> local_;
+  std::vector<Drag> drag_;  // per tool
 };
 
 }  // namespace palpate::detail
