@@ -38,8 +38,8 @@
 #include "palpate/offline/precompute.hpp"
 #include "palpate/runtime/hybrid_region.hpp"
 #include "palpate/runtime/surface_model.hpp"
-#include "palpate/runtime/tool_tick.hpp"
 #include "palpate/runtime/tool_contact.hpp"
+#include "palpate/runtime/tool_tick.hpp"
 
 namespace {
 
@@ -277,8 +277,8 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
       explicit_cut.p99, explicit_cut.max, region.interface_vertices().size(), cutting_tick.p50,
       cutting_tick.p99, cutting_tick.max, incision_cut_us.size(), incision_factorizations,
       incision_factorization_ms, incision_cut.p50, incision_cut.p99, incision_cut.max,
-      incision_tick.p50, incision_tick.p99, incision_tick.max, contacts, contact_without.p50, contact_without.p99, served.p50, served.p99,
-      served.max);
+      incision_tick.p50, incision_tick.p99, incision_tick.max, contacts, contact_without.p50,
+      contact_without.p99, served.p50, served.p99, served.max);
 }
 
 }  // namespace

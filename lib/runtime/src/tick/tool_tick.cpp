@@ -151,8 +151,7 @@ ToolTick::Record ToolTick::make_record(int tool, double now_s, std::uint64_t com
   return {tick, {record_vertices_.data(), m}, {record_forces_.data(), 3 * m}};
 }
 
-void ToolTick::record(int tool, double now_s, std::uint64_t compute_ns,
-                      SessionRecorder& recorder) {
+void ToolTick::record(int tool, double now_s, std::uint64_t compute_ns, SessionRecorder& recorder) {
   const Record r = make_record(tool, now_s, compute_ns);
   recorder.record(r.tick, r.vertex_ids, r.forces_n);
   const ToolOutput& out = engine_.output(tool);
