@@ -17,10 +17,15 @@ set(palpate_pch_common
 
 # fmt's headers depend on FMT_SHARED, which fmt::fmt's users get: fmt is
 # precompiled only for a layer that links it.
+# Call it after the target's target_link_libraries.
 function(palpate_precompile_library target)
   if(PALPATE_PRECOMPILE_HEADERS)
-    target_precompile_headers(${target} PRIVATE ${palpate_pch_common}
-      $<$<IN_LIST:fmt::fmt,$<TARGET_PROPERTY:${target},LINK_LIBRARIES>>:<fmt/format.h>>)
+    set(headers ${palpate_pch_common})
+    get_target_property(links ${target} LINK_LIBRARIES)
+    if("fmt::fmt" IN_LIST links)
+      list(APPEND headers <fmt/format.h>)
+    endif()
+    target_precompile_headers(${target} PRIVATE ${headers})
   endif()
 endfunction()
 
