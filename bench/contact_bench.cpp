@@ -55,6 +55,7 @@
 #include <vector>
 
 #include "common.hpp"
+#include "palpate/core/rotation.hpp"
 #include "palpate/core/statistics.hpp"
 #include "palpate/core/system_info.hpp"
 #include "palpate/runtime/surface_model.hpp"
@@ -87,7 +88,7 @@ Path path_at(int seed, const palpate::ToolGeometry& g) {
   Path p;
   p.inward = Vector3d(n[0], n[1], n[2]);
   p.tangent = p.inward.unitOrthogonal();
-  p.orientation = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), p.inward);
+  p.orientation = palpate::rotation_taking(Vector3d::UnitZ(), p.inward);
   p.start = rest(m, seed) - (g.tip_length_m + g.tip_radius_m + 0.002) * p.inward;
   return p;
 }

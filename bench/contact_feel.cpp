@@ -50,6 +50,7 @@
 #include <string>
 #include <vector>
 
+#include "palpate/core/rotation.hpp"
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/drawn_surface.hpp"
 #include "palpate/runtime/gesture.hpp"
@@ -328,7 +329,7 @@ int main(int argc, char** argv) {
     palpate::GesturePose pose;
     pose.tip_m = c - below * n;
     pose.hinge_m = pose.tip_m + reach * n;
-    pose.orientation = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -n);
+    pose.orientation = palpate::rotation_taking(Vector3d::UnitZ(), -n);
     return pose;
   };
   const TickLog g = play(scene, glide_pose, 3.0, capsule(r, length, friction), true, 24, rate_hz);
@@ -435,7 +436,7 @@ int main(int argc, char** argv) {
       const double d = 0.003 * std::clamp(t / 0.3, 0.0, 1.0);
       palpate::GesturePose pose;
       pose.hinge_m = at + (rb - d) * n;
-      pose.orientation = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -n);
+      pose.orientation = palpate::rotation_taking(Vector3d::UnitZ(), -n);
       return pose;
     };
     const TickLog b = play(scene, between, 2.3, capsule(rb, 0, 0), false);
@@ -469,7 +470,7 @@ int main(int argc, char** argv) {
     const double rs = 0.005;
     palpate::ContactSettings settings;
     ToolContactEngine engine(model, {capsule(rs, 0, 0)}, settings, {});
-    const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -normal);
+    const Eigen::Quaterniond q = palpate::rotation_taking(Vector3d::UnitZ(), -normal);
     std::printf(
         "curve (5 mm frictionless sphere along -n at (%.5f, %.5f, %.5f) m, "
         "n = (%.5f, %.5f, %.5f)):\n",
@@ -525,7 +526,7 @@ int main(int argc, char** argv) {
     palpate::GesturePose pose;
     pose.hinge_m =
         anchor.origin_m + (rr - d) * anchor.normal - 0.5 * rl * anchor.x + side * anchor.y;
-    pose.orientation = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), anchor.x);
+    pose.orientation = palpate::rotation_taking(Vector3d::UnitZ(), anchor.x);
     return pose;
   };
   const TickLog w = play(scene, retractor, 1.2, capsule(rr, rl, 0), false, 64);

@@ -32,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "palpate/core/rotation.hpp"
 #include "palpate/core/statistics.hpp"
 #include "palpate/core/system_info.hpp"
 #include "palpate/offline/mesh_io.hpp"
@@ -175,7 +176,7 @@ void run(const std::filesystem::path& dir, double radius_m, int ticks) {
     const Vector3d n = normals.row(near).transpose();
     ToolPoseInput pose;
     pose.position_m = model.surface.rest_position(near) + (probe.tip_radius_m - 0.0015) * n;
-    pose.orientation = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -n);
+    pose.orientation = palpate::rotation_taking(Vector3d::UnitZ(), -n);
     for (int step = 1; step <= 2000; ++step) {
       pose.sequence = static_cast<std::uint64_t>(step);
       served_tick.engine().check(0, pose);

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "common.hpp"
+#include "palpate/core/rotation.hpp"
 #include "palpate/runtime/constraint_solver.hpp"
 #include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/surface_model.hpp"
@@ -116,8 +117,7 @@ void BM_tick(benchmark::State& state) {
   const int seed = palpate::bench::main_seed(m.surface);
   const auto n = palpate::bench::inward_normal(m.surface, seed);
   const Eigen::Vector3d inward(n[0], n[1], n[2]), tangent = inward.unitOrthogonal();
-  const Eigen::Quaterniond orientation =
-      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), inward);
+  const Eigen::Quaterniond orientation = palpate::rotation_taking(Eigen::Vector3d::UnitZ(), inward);
   const Eigen::Vector3d start =
       m.surface.rest_position(seed) - (g.tip_length_m + g.tip_radius_m + 0.002) * inward;
   std::vector<double> times[2];

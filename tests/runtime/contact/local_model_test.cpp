@@ -14,6 +14,7 @@
 #include <tuple>
 #include <vector>
 
+#include "palpate/core/rotation.hpp"
 #include "palpate/runtime/rotation_field.hpp"
 #include "palpate/runtime/tool_contact.hpp"
 #include "support/box_model_suite.hpp"
@@ -26,7 +27,7 @@ using Eigen::Vector3d;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
-constexpr double kTick = 0.001;  // s
+constexpr double kAnswerTick = 0.001;  // s
 
 // A step small enough that the contact set stays, large enough that the
 // solve's round-off (~1e-12 of newtons) stays far below the change it
@@ -49,7 +50,7 @@ ToolGeometry grasper() {
 
 /// The tool's +z along @p axis (unit): the shortest rotation from +z.
 Eigen::Quaterniond pointing(const Vector3d& axis) {
-  return Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), axis);
+  return palpate::rotation_taking(Vector3d::UnitZ(), axis);
 }
 
 /// One tool's path: where it goes, tick by tick, before the moved tick.
@@ -95,7 +96,7 @@ std::pair<ToolOutput, ToolOutput> play(const SurfaceModel& model, const Scene& s
   for (std::size_t i = 0; i < steps + static_cast<std::size_t>(settle); ++i) {
     for (std::size_t t = 0; t < scene.tools.size(); ++t)
       tick(static_cast<int>(t), scene.paths[t][std::min(i, steps - 1)]);
-    now += kTick;
+    now += kAnswerTick;
   }
   const ToolOutput settled = engine.output(0);
   Step moved = scene.paths.front().back();

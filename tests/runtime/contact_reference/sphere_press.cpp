@@ -30,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "palpate/core/rotation.hpp"
 #include "palpate/runtime/surface_model.hpp"
 #include "palpate/runtime/tool_contact.hpp"
 #include "support/number_list.hpp"
@@ -121,7 +122,7 @@ int main(int argc, char** argv) {
   palpate::SolverLimits limits;
   palpate::ToolContactEngine engine(model, {sphere}, settings, limits);
   // A sphere has no orientation of its own; the tool's +z along the press.
-  const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -n);
+  const Eigen::Quaterniond q = palpate::rotation_taking(Vector3d::UnitZ(), -n);
 
   std::string json = "{\n  \"model\": \"" + model_path +
                      "\",\n  \"radius_m\": " + std::to_string(r) + ",\n  \"point_m\": " + vec(p) +

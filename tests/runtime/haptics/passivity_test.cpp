@@ -23,6 +23,7 @@
 #include <cstdio>
 #include <deque>
 
+#include "palpate/core/rotation.hpp"
 #include "palpate/runtime/haptic_renderer.hpp"
 #include "palpate/runtime/simulated_device.hpp"
 #include "palpate/runtime/tool_contact.hpp"
@@ -98,7 +99,7 @@ class Passivity : public testing::BoxModelSuite<8, 500> {
     HapticRenderer renderer(settings);
     // Pointing down at (75, 25) mm on the top face, its tip 2 mm above.
     const Vector3d surface = rest(top_vertex(75, 25)) + Vector3d(0.3e-3, 0.2e-3, 0);
-    const Quaterniond down = Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -Vector3d::UnitZ());
+    const Quaterniond down = palpate::rotation_taking(Vector3d::UnitZ(), -Vector3d::UnitZ());
     const Vector3d start = surface + Vector3d(0, 0, g.tip_length_m + g.tip_radius_m + kApproachM);
     SimulatedDevice device({}, start);
     const double tick = device.tick_s();

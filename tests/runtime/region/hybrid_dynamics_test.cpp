@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "palpate/core/rotation.hpp"
 #include "palpate/offline/mesh_io.hpp"
 #include "palpate/runtime/drawn_surface.hpp"
 #include "palpate/runtime/hybrid_region.hpp"
@@ -181,7 +182,7 @@ std::pair<double, double> grasp_next_to_region(const SurfaceModel& model, Hybrid
   const int anchor = rest_vertex_near(model, {0.06638, 0, -0.02232});
   const Vector3d surface = model.surface.rest_position(anchor);
   const Vector3d n = vertex_normals(model.surface).row(anchor).transpose();
-  const Eigen::Quaterniond down = Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -n);
+  const Eigen::Quaterniond down = palpate::rotation_taking(Vector3d::UnitZ(), -n);
   const double reach = g.tip_length_m + g.tip_radius_m;
   int count = 0;
   double early = 0, late = 0;
