@@ -36,8 +36,8 @@ using testing::TempDir;
 
 // Small well-conditioned systems on G of order 1e-4 m/N: the daemon and the
 // dense reference agree to ~1e-13 relative; 1e-9 leaves margin.
-constexpr double kRelativeTolerance = 1e-9;
-constexpr auto kTimeout = 10s;
+constexpr double kDdsTolerance = 1e-9;
+constexpr auto kDdsTimeout = 10s;
 
 /// G and the compliance order of a file, for the dense references.
 struct Reference {
@@ -99,11 +99,11 @@ class PalpatedTest : public ::testing::Test {
   static std::unique_ptr<Client> connect(const std::string& id, bool surface = false,
                                          bool status = false) {
     auto client = std::make_unique<Client>(ClientOptions{id, 0, "", surface, status});
-    EXPECT_TRUE(client->wait_for_model("box", kTimeout)) << daemon_->log();
-    EXPECT_TRUE(client->wait_for_service(kTimeout)) << daemon_->log();
+    EXPECT_TRUE(client->wait_for_model("box", kDdsTimeout)) << daemon_->log();
+    EXPECT_TRUE(client->wait_for_service(kDdsTimeout)) << daemon_->log();
     return client;
   }
-  static ModelInfo box_info(Client& client) { return *client.wait_for_model("box", kTimeout); }
+  static ModelInfo box_info(Client& client) { return *client.wait_for_model("box", kDdsTimeout); }
 
   inline static TempDir* dir_ = nullptr;
   inline static std::filesystem::path box_, stiff_;
@@ -134,7 +134,7 @@ TEST_F(PalpatedTest, DescribesEachModelToLateJoiners) {
   }
   EXPECT_NEAR(m.max_displacement_m, 0.1 * (hi - lo).norm(), 1e-15);
   EXPECT_EQ(m.max_force_n, 50.0);
-  EXPECT_TRUE(client->wait_for_model("stiff", kTimeout));
+  EXPECT_TRUE(client->wait_for_model("stiff", kDdsTimeout));
 }
 
 TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
@@ -157,7 +157,7 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
     EXPECT_LT(relative(Eigen::Map<const Eigen::VectorXd>(reply.surface_displacement_m.data(),
                                                          ref.G.rows()),
                        ref.field(reply.results)),
-              kRelativeTolerance);
+              kDdsTolerance);
     EXPECT_LT((vec(reply.total_force_n) - Eigen::Vector3d(0.1, 0.2, -0.3)).norm(), 1e-15);
     EXPECT_GT(reply.solve_ns, 0u);
   }
@@ -178,12 +178,12 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
         G_CC.block<3, 3>(3 * i, 3 * j) =
             ref.G.block<3, 3>(3 * ref.compliance_index[vs[i]], 3 * ref.compliance_index[vs[j]]);
     }
-    EXPECT_LT(relative(F, G_CC.fullPivLu().solve(U)), kRelativeTolerance);
+    EXPECT_LT(relative(F, G_CC.fullPivLu().solve(U)), kDdsTolerance);
     const Eigen::VectorXd u = ref.field(reply.results);
     EXPECT_LT(
         relative(Eigen::Map<const Eigen::VectorXd>(reply.surface_displacement_m.data(), u.size()),
                  u),
-        kRelativeTolerance);
+        kDdsTolerance);
     EXPECT_GE(reply.condition_estimate, 1.0);
   }
   // Mixed, with sliding: each condition holds on the dense field.
@@ -198,14 +198,14 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
     EXPECT_TRUE(reply.surface_displacement_m.empty()) << "not asked for";
     const Eigen::VectorXd u = ref.field(reply.results);
     EXPECT_LT((vec(reply.results[0].force_n) - Eigen::Vector3d(0, 0, -0.2)).norm(), 1e-15);
-    EXPECT_LT((ref.at(u, b) - Eigen::Vector3d(0, 0.001, 0)).norm(), kRelativeTolerance * 0.001);
-    EXPECT_NEAR(n.dot(ref.at(u, c)), -0.0015, kRelativeTolerance * 0.0015);
-    EXPECT_NEAR(ref.at(u, d).x(), 0.001, kRelativeTolerance * 0.001);
+    EXPECT_LT((ref.at(u, b) - Eigen::Vector3d(0, 0.001, 0)).norm(), kDdsTolerance * 0.001);
+    EXPECT_NEAR(n.dot(ref.at(u, c)), -0.0015, kDdsTolerance * 0.0015);
+    EXPECT_NEAR(ref.at(u, d).x(), 0.001, kDdsTolerance * 0.001);
     const Eigen::Vector3d fc = vec(reply.results[2].force_n);
     EXPECT_LT((fc - fc.dot(n) * n).norm(), 1e-12 * fc.norm()) << "sliding: no tangential force";
     for (std::size_t j = 0; j < cs.size(); ++j)
       EXPECT_LT((vec(reply.results[j].displacement_m) - ref.at(u, cs[j].vertex)).norm(),
-                kRelativeTolerance * u.norm());
+                kDdsTolerance * u.norm());
   }
 }
 
@@ -216,7 +216,7 @@ TEST_F(PalpatedTest, AnswersEveryKindOfRequestLikeTheDenseComputation) {
 TEST_F(PalpatedTest, AWarpedModelSaysSoAndAnswersAsTheWarpedSolver) {
   auto client = connect("warped");
   EXPECT_EQ(box_info(*client).mechanics, "linear");
-  const auto described = client->wait_for_model("warped", kTimeout);
+  const auto described = client->wait_for_model("warped", kDdsTimeout);
   ASSERT_TRUE(described.has_value());
   EXPECT_EQ(described->mechanics, "warped");
 
@@ -292,8 +292,7 @@ TEST_F(PalpatedTest, SeveralClientsAtOnceGetOnlyTheirOwnReplies) {
         const auto reply = clients[static_cast<std::size_t>(c)]->request(
             "box", std::vector{ConstraintSpec::displacement(vertex, {0, 0, -0.001 * scale})});
         if (reply.status != RequestStatus::kOk ||
-            relative(vec(reply.total_force_n), scale * vec(unit.total_force_n)) >
-                kRelativeTolerance)
+            relative(vec(reply.total_force_n), scale * vec(unit.total_force_n)) > kDdsTolerance)
           ++wrong[static_cast<std::size_t>(c)];
       }
     });
@@ -315,13 +314,13 @@ TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMove
 
   // A viewer that starts afterwards gets the description and the current state.
   Client viewer(ClientOptions{"viewer", 0, "", true, false});
-  ASSERT_TRUE(viewer.wait_for_model("box", kTimeout));
-  const auto sample = viewer.wait_surface("box", 0, shown.request_id, kTimeout);
+  ASSERT_TRUE(viewer.wait_for_model("box", kDdsTimeout));
+  const auto sample = viewer.wait_surface("box", 0, shown.request_id, kDdsTimeout);
   ASSERT_TRUE(sample) << daemon_->log();
   EXPECT_EQ(sample->source_client_id, "toucher");
   EXPECT_LT(relative(Eigen::Map<const Eigen::VectorXd>(sample->displacement_m.data(), ref.G.rows()),
                      ref.field(shown.results)),
-            kRelativeTolerance);
+            kDdsTolerance);
   EXPECT_LT((vec(sample->total_force_n) - vec(shown.total_force_n)).norm(), 1e-15);
   // The constraint that made the state comes with it, for drawing.
   ASSERT_EQ(sample->constrained_vertices, std::vector<std::uint32_t>{m.surface.vertex_ids[11]});
@@ -344,7 +343,7 @@ TEST_F(PalpatedTest, LateViewerGetsTheShownStateAndOnlyStateChangingRequestsMove
   const Reply next = toucher->request(
       "box", std::vector{ConstraintSpec::force(m.surface.vertex_ids[4], {0, 0, -0.5})});
   ASSERT_EQ(next.status, RequestStatus::kOk);
-  const auto after = viewer.wait_surface("box", sample->sequence_number + 1, 0, kTimeout);
+  const auto after = viewer.wait_surface("box", sample->sequence_number + 1, 0, kDdsTimeout);
   ASSERT_TRUE(after);
   EXPECT_EQ(after->source_request_id, next.request_id) << "only state-changing successes are shown";
   EXPECT_EQ(after->sequence_number, sample->sequence_number + 1);
@@ -418,7 +417,7 @@ TEST_F(PalpatedTest, EveryBadRequestGetsItsErrorAndTheDaemonKeepsServing) {
   // The heartbeat counts the refusals.
   std::optional<StatusSample> status;
   for (int i = 0; i < 50 && (!status || status->error_replies < cases.size()); ++i)
-    status = client->wait_status(kTimeout);
+    status = client->wait_status(kDdsTimeout);
   ASSERT_TRUE(status);
   EXPECT_GE(status->error_replies, cases.size());
   EXPECT_GE(status->requests_served, 2 * cases.size());
@@ -432,9 +431,9 @@ TEST_F(PalpatedTest, RefusesIllConditionedSystemsWithTheEstimate) {
   Daemon strict({"--model", "box=" + box_.string(), "--domain", "3", "--max-condition", "1.5"},
                 dir_->path() / "strict.log");
   Client client(ClientOptions{"conditioning", 3, "", false, false});
-  const auto m = client.wait_for_model("box", kTimeout);
+  const auto m = client.wait_for_model("box", kDdsTimeout);
   ASSERT_TRUE(m) << strict.log();
-  ASSERT_TRUE(client.wait_for_service(kTimeout));
+  ASSERT_TRUE(client.wait_for_service(kDdsTimeout));
   const std::vector<ConstraintSpec> cs{
       ConstraintSpec::displacement(m->surface.vertex_ids[0], {0, 0, 0.001}),
       ConstraintSpec::displacement(m->surface.vertex_ids[1], {0, 0, 0.001})};

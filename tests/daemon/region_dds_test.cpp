@@ -36,7 +36,7 @@ using namespace std::chrono_literals;
 using testing::Daemon;
 using testing::TempDir;
 
-constexpr auto kTimeout = 10s;
+constexpr auto kRegionTimeout = 10s;
 // At rest nothing loads the region: its vertices are where the file puts
 // them, sent as doubles (no arithmetic on the way).
 constexpr double kRestTolerance_m = 1e-12;
@@ -84,7 +84,7 @@ class RegionStream : public ::testing::Test {
 TEST_F(RegionStream, TheDescriptionNamesTheRegionAndTheStreamCarriesItsSurface) {
   ASSERT_FALSE(model_->cut_region_spec.empty());
   Client client(ClientOptions{"region-viewer", 0, "", true, false});
-  const auto info = client.wait_for_model("cut", kTimeout);
+  const auto info = client.wait_for_model("cut", kRegionTimeout);
   ASSERT_TRUE(info) << daemon_->log();
   EXPECT_EQ(info->cut_region, model_->cut_region_spec);
 
@@ -99,7 +99,7 @@ TEST_F(RegionStream, TheDescriptionNamesTheRegionAndTheStreamCarriesItsSurface) 
   ASSERT_FALSE(visible.empty());
   ASSERT_FALSE(hidden.empty());
 
-  const auto rest = client.wait_surface("cut", 1, 0, kTimeout);
+  const auto rest = client.wait_surface("cut", 1, 0, kRegionTimeout);
   ASSERT_TRUE(rest) << daemon_->log();
   EXPECT_GE(rest->topology_version, 1u);
   ASSERT_EQ(rest->region_positions_m.size(), 3 * static_cast<std::size_t>(nrv));
@@ -128,7 +128,7 @@ TEST_F(RegionStream, TheDescriptionNamesTheRegionAndTheStreamCarriesItsSurface) 
   const Reply reply = client.request("cut", press);
   ASSERT_EQ(reply.status, RequestStatus::kOk) << reply.message;
   const auto pressed =
-      client.wait_surface("cut", rest->sequence_number + 1, reply.request_id, kTimeout);
+      client.wait_surface("cut", rest->sequence_number + 1, reply.request_id, kRegionTimeout);
   ASSERT_TRUE(pressed) << daemon_->log();
   EXPECT_EQ(pressed->topology_version, rest->topology_version);
   EXPECT_EQ(pressed->region_triangles, rest->region_triangles);
@@ -140,10 +140,10 @@ TEST_F(RegionStream, TheDescriptionNamesTheRegionAndTheStreamCarriesItsSurface) 
 // model without a region has its own.
 TEST_F(RegionStream, AModelWithoutARegionStreamsNone) {
   Client client(ClientOptions{"plain-viewer", 0, "", true, false});
-  const auto plain = client.wait_for_model("plain", kTimeout);
+  const auto plain = client.wait_for_model("plain", kRegionTimeout);
   ASSERT_TRUE(plain) << daemon_->log();
   EXPECT_EQ(plain->cut_region, "");
-  const auto none = client.wait_surface("plain", 1, 0, kTimeout);
+  const auto none = client.wait_surface("plain", 1, 0, kRegionTimeout);
   ASSERT_TRUE(none) << daemon_->log();
   EXPECT_EQ(none->topology_version, 0u);
   EXPECT_TRUE(none->region_positions_m.empty());
@@ -170,10 +170,10 @@ TEST_F(RegionStream, AProbeFeelsTheRegionAndAHookCutsIt) {
   Driver hand;
   hand.client.open_tool("probe");
   hand.client.open_tool("hook");
-  ASSERT_TRUE(hand.client.wait_for_daemon(kTimeout)) << daemon_->log();
+  ASSERT_TRUE(hand.client.wait_for_daemon(kRegionTimeout)) << daemon_->log();
   Client viewer(ClientOptions{"cut-viewer", 0, "", true, false});
-  ASSERT_TRUE(viewer.wait_for_model("cut", kTimeout)) << daemon_->log();
-  const auto before = viewer.wait_surface("cut", 1, 0, kTimeout);
+  ASSERT_TRUE(viewer.wait_for_model("cut", kRegionTimeout)) << daemon_->log();
+  const auto before = viewer.wait_surface("cut", 1, 0, kRegionTimeout);
   ASSERT_TRUE(before) << daemon_->log();
 
   // A 4 mm sphere 2 mm into the region's top at (80, 32) mm, a region vertex
@@ -197,7 +197,7 @@ TEST_F(RegionStream, AProbeFeelsTheRegionAndAHookCutsIt) {
   const std::string log_before = daemon_->log();
   const Eigen::Vector3d start(0.088, 0.020, 0.060), end(0.088, 0.044, 0.060);
   for (int i = 0; i <= 240; ++i) hand.pose("hook", start + (end - start) * (i / 240.0), 0);
-  const auto after = viewer.wait_surface("cut", before->sequence_number + 1, 0, kTimeout);
+  const auto after = viewer.wait_surface("cut", before->sequence_number + 1, 0, kRegionTimeout);
   ASSERT_TRUE(after) << daemon_->log();
   std::optional<SurfaceSample> cut = after;
   for (int i = 0; i < 100 && cut && cut->topology_version == before->topology_version; ++i) {

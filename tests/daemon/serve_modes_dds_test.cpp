@@ -40,10 +40,10 @@ using namespace std::chrono_literals;
 using testing::Daemon;
 using testing::TempDir;
 
-constexpr auto kTimeout = 10s;
+constexpr auto kServeTimeout = 10s;
 // A domain of its own: the other suites' daemons are on domain 0.
 constexpr std::uint32_t kDomain = 17;
-constexpr std::array<double, 4> kPointingDown{0, 1, 0, 0};  // tool +z along the model's −z
+constexpr std::array<double, 4> kToolPointingDown{0, 1, 0, 0};  // tool +z along the model's −z
 
 /// What one palpated answered: the replies to a fixed list of requests,
 /// and the feedback of a probe pressed in fixed steps, one pose at a time.
@@ -77,9 +77,9 @@ class ServeModes : public ::testing::Test {
     Answers answers;
     {
       Client client(ClientOptions{"serve-" + name, kDomain, ""});
-      const auto model = client.wait_for_model("box", kTimeout);
+      const auto model = client.wait_for_model("box", kServeTimeout);
       EXPECT_TRUE(model) << daemon.log();
-      EXPECT_TRUE(client.wait_for_service(kTimeout)) << daemon.log();
+      EXPECT_TRUE(client.wait_for_service(kServeTimeout)) << daemon.log();
       if (!model) return answers;
       const int top = testing::box_top_vertex(model->surface.rest_positions_m,
                                               model->surface.compliance_vertex_count, 50, 20);
@@ -92,13 +92,13 @@ class ServeModes : public ::testing::Test {
           {ConstraintSpec::displacement(v, {0, 0, -30})}};  // refused: too long
       for (const auto& request : requests)
         answers.replies.push_back(client.request("box", request, /*want_surface=*/true,
-                                                 /*update_state=*/false, kTimeout));
+                                                 /*update_state=*/false, kServeTimeout));
 
       ToolClientOptions tool_options;
       tool_options.domain_id = kDomain;
       ToolClient tools(tool_options);
       tools.open_tool("probe");
-      EXPECT_TRUE(tools.wait_for_daemon(kTimeout)) << daemon.log();
+      EXPECT_TRUE(tools.wait_for_daemon(kServeTimeout)) << daemon.log();
       const Eigen::Vector3d rest(
           &model->surface.rest_positions_m[3 * static_cast<std::size_t>(top)]);
       std::uint64_t sequence = static_cast<std::uint64_t>(ToolClient::now_ns() / 1000);
@@ -109,7 +109,7 @@ class ServeModes : public ::testing::Test {
         std::optional<ToolFeedbackSample> answer;
         for (int attempt = 0; attempt < 5 && !answer; ++attempt) {  // best effort: rarely lost
           tools.send_pose("probe", "box", ++sequence, {hinge.x(), hinge.y(), hinge.z()},
-                          kPointingDown, 0);
+                          kToolPointingDown, 0);
           answer = tools.wait_feedback("probe", sequence, std::chrono::steady_clock::now() + 1s);
         }
         EXPECT_TRUE(answer) << "step " << step << "\n" << daemon.log();
@@ -117,7 +117,7 @@ class ServeModes : public ::testing::Test {
         answers.press_forces.emplace_back(answer->force_n[0], answer->force_n[1],
                                           answer->force_n[2]);
       }
-      EXPECT_TRUE(tools.end_session("probe", "box", kTimeout)) << daemon.log();
+      EXPECT_TRUE(tools.end_session("probe", "box", kServeTimeout)) << daemon.log();
     }
     EXPECT_EQ(daemon.stop(SIGTERM), 0) << daemon.log();
     log_ = daemon.log();

@@ -18,32 +18,20 @@
 
 #include "palpate/core/error.hpp"
 #include "support/expect_error.hpp"
+#include "support/files.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {
 namespace {
 
 using testing::expect_error;
+using testing::listing;
+using testing::slurp;
 using testing::TempDir;
-
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 void spit(const std::filesystem::path& p, const std::string& text) {
   std::ofstream out(p, std::ios::binary);
   out << text;
-}
-
-std::vector<std::string> listing(const std::filesystem::path& dir) {
-  std::vector<std::string> names;
-  for (const auto& e : std::filesystem::directory_iterator(dir))
-    names.push_back(e.path().filename().string());
-  std::sort(names.begin(), names.end());
-  return names;
 }
 
 /// The pid of a child that has exited and been reaped: no process has it

@@ -27,12 +27,15 @@
 #include "palpate/core/error.hpp"
 #include "palpate/file/hash.hpp"
 #include "support/expect_error.hpp"
+#include "support/files.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {
 namespace {
 
 using testing::expect_error;
+using testing::listing;
+using testing::slurp;
 using testing::TempDir;
 
 using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
@@ -72,22 +75,7 @@ bool same_bits(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
          std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<std::size_t>(a.size())) == 0;
 }
 
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 /// Names in @p dir (to see that nothing, not even a temporary, is left).
-std::vector<std::string> listing(const std::filesystem::path& dir) {
-  std::vector<std::string> names;
-  for (const auto& e : std::filesystem::directory_iterator(dir))
-    names.push_back(e.path().filename().string());
-  std::sort(names.begin(), names.end());
-  return names;
-}
-
 /// content_sha256 recomputed from the model and G in memory, following
 /// docs/compliance-file.md ("content_sha256: what is hashed"), not the writer.
 std::string expected_digest(const ComplianceModel& m, const Eigen::MatrixXd& G) {

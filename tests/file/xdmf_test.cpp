@@ -23,20 +23,15 @@
 #include "palpate/runtime/surface_model.hpp"
 #include "support/box_job.hpp"
 #include "support/expect_error.hpp"
+#include "support/files.hpp"
 #include "support/test_meshes.hpp"
 
 namespace palpate {
 namespace {
 
 using testing::expect_error;
+using testing::slurp;
 using testing::TempDir;
-
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 size_t occurrences(const std::string& text, const std::string& what) {
   size_t count = 0;

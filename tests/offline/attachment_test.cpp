@@ -27,23 +27,23 @@ using testing::TempDir;
 
 // A 0.1 × 0.05 × 0.04 m box of 4 × 2 × 2 cells: vertex (i, j, k) at
 // (0.025 i, 0.025 j, 0.02 k).
-constexpr int kNx = 4, kNy = 2, kNz = 2;
+constexpr int kBoxNx = 4, kBoxNy = 2, kBoxNz = 2;
 
 TetMesh box() {
-  TetMesh mesh = box_mesh(0.1, 0.05, 0.04, kNx, kNy, kNz);
+  TetMesh mesh = box_mesh(0.1, 0.05, 0.04, kBoxNx, kBoxNy, kBoxNz);
   mesh.source = "box.msh";
   return mesh;
 }
 
-int vertex(int i, int j, int k) { return box_vertex(i, j, k, kNx, kNy); }
+int vertex(int i, int j, int k) { return box_vertex(i, j, k, kBoxNx, kBoxNy); }
 
 /// Sorted vertex ids of the grid vertices (i, j, k) for which @p keep is true.
 template <typename Keep>
 std::vector<int> grid_vertices(Keep keep) {
   std::set<int> ids;
-  for (int k = 0; k <= kNz; ++k)
-    for (int j = 0; j <= kNy; ++j)
-      for (int i = 0; i <= kNx; ++i)
+  for (int k = 0; k <= kBoxNz; ++k)
+    for (int j = 0; j <= kBoxNy; ++j)
+      for (int i = 0; i <= kBoxNx; ++i)
         if (keep(i, j, k)) ids.insert(vertex(i, j, k));
   return {ids.begin(), ids.end()};
 }
@@ -114,7 +114,7 @@ TEST(Attachment, EachRegionSelectsExactlyItsVertices) {
     AttachmentSpec spec;
     spec.half_spaces.push_back({{0.09, 0, 0}, {2.5, 0, 0}});
     EXPECT_EQ(select_fixed_vertices(mesh, spec),
-              grid_vertices([](int i, int, int) { return i == kNx; }));
+              grid_vertices([](int i, int, int) { return i == kBoxNx; }));
   }
   {
     // z ≤ 0.01 m: the normal points down.
@@ -132,7 +132,7 @@ TEST(Attachment, ThePartsOfASpecAreUnited) {
   spec.half_spaces.push_back({{0, 0, 0.01}, {0, 0, -1}});  // z = 0, overlapping x = 0
   spec.spheres.push_back({{0.1, 0.05, 0.04}, 1e-6});       // one corner
   EXPECT_EQ(select_fixed_vertices(mesh, spec), grid_vertices([](int i, int j, int k) {
-              return i == 0 || k == 0 || (i == kNx && j == kNy && k == kNz);
+              return i == 0 || k == 0 || (i == kBoxNx && j == kBoxNy && k == kBoxNz);
             }));
 }
 

@@ -11,6 +11,7 @@
 #include <memory>
 #include <set>
 
+#include "offline/region_box.hpp"
 #include "palpate/offline/mesh_io.hpp"
 #include "palpate/offline/sparse_cholesky.hpp"
 #include "support/expect_error.hpp"
@@ -19,10 +20,7 @@
 namespace palpate {
 namespace {
 
-constexpr int kNx = 6, kNy = 4, kNz = 4;
-constexpr double kLx = 0.1, kLy = 0.06, kLz = 0.05;
-
-TetMesh organ() { return testing::box_mesh(kLx, kLy, kLz, kNx, kNy, kNz); }
+using namespace testing::region_box;  // NOLINT: the organ and its region
 
 std::vector<int> clamped_at_x0(const TetMesh& mesh) {
   std::vector<int> fixed;
@@ -35,11 +33,6 @@ Eigen::Vector3d centroid(const TetMesh& mesh, int t) {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   for (int i = 0; i < 4; ++i) c += mesh.vertices.row(mesh.tetrahedra(t, i)).transpose();
   return c / 4;
-}
-
-// The block of cells i ≥ 4, 1 ≤ j ≤ 2, k ≥ 2: at the free end, under the top face.
-RegionSpec far_top_box() {
-  return RegionSpec::box({kLx * 4 / kNx, kLy * 1 / kNy, kLz * 2 / kNz}, {kLx, kLy * 3 / kNy, kLz});
 }
 
 // Checks that do not depend on how the region was chosen, computed here

@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "offline/region_box.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/file/compliance_file.hpp"
 #include "palpate/offline/attachment.hpp"
@@ -139,16 +140,7 @@ TEST(CutRegionJob, RoundTripsThroughTheStoredToml) {
 
 // ---- a run ----------------------------------------------------------------
 
-constexpr int kNx = 6, kNy = 4, kNz = 4;
-constexpr double kLx = 0.1, kLy = 0.06, kLz = 0.05;
-
-TetMesh organ() { return testing::box_mesh(kLx, kLy, kLz, kNx, kNy, kNz); }
-
-// The block of cells i ≥ 4, 1 ≤ j ≤ 2, k ≥ 2: at the free end, under the top
-// face (cut_region_test.cpp's).
-RegionSpec far_top_box() {
-  return RegionSpec::box({kLx * 4 / kNx, kLy * 1 / kNy, kLz * 2 / kNz}, {kLx, kLy * 3 / kNy, kLz});
-}
+using namespace testing::region_box;  // NOLINT: the organ and its region
 
 // For the measured differences in the test's XML output (--gtest_output=xml).
 std::string scientific(double value) {

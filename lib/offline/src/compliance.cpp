@@ -13,6 +13,7 @@
 #include <numeric>
 #include <thread>
 
+#include "palpate/core/detail/stopwatch.hpp"
 #include "palpate/core/error.hpp"
 #include "palpate/offline/dense.hpp"
 
@@ -45,9 +46,7 @@ class BlasThreads {
   int previous_ = 0;
 };
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using detail::seconds_since;
 
 }  // namespace
 

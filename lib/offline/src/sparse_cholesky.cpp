@@ -6,6 +6,8 @@
 #include <chrono>
 #include <cstring>
 
+#include "palpate/core/detail/stopwatch.hpp"
+
 namespace palpate {
 
 namespace {
@@ -100,9 +102,7 @@ cholmod_factor* analyze(cholmod_sparse* A, std::span<const int> permutation, Com
   return L;
 }
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using detail::seconds_since;
 
 }  // namespace
 

@@ -21,7 +21,7 @@ using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
 // Everything here is a few products of doubles: 1e-12 of the newtons.
 constexpr double kTolerance = 1e-12;
-constexpr double kTick = 0.00025;  // s, a 4 kHz device
+constexpr double kDeviceTick = 0.00025;  // s, a 4 kHz device
 
 /// A press: F₀ along +z at x₀, a coupled 6 × 6 stiffness (not symmetric:
 /// a tilted contact with friction).
@@ -64,14 +64,14 @@ TEST(HapticRenderer, TheLocalModelAtTheDevicesPose) {
   r.take(a, 0);
   // At the answered pose: the answer's contact wrench (not the fed-back one).
   RenderedWrench w = r.render(0, a.model.position_m, a.model.orientation);
-  w = r.render(kTick, a.model.position_m, a.model.orientation);
+  w = r.render(kDeviceTick, a.model.position_m, a.model.orientation);
   EXPECT_LE((w.force_n - a.model.force_n).norm(), kTolerance);
   EXPECT_LE((w.torque_nm - a.model.torque_nm).norm(), kTolerance);
   // Moved 0.2 mm and turned 0.01 rad about x: w₀ + K (δx, θ).
   const Vector3d dx(0.0002, -0.0001, -0.0002), theta(0.01, 0, 0);
   const Quaterniond turned =
       Quaterniond(Eigen::AngleAxisd(0.01, Vector3d::UnitX())) * a.model.orientation;
-  w = r.render(2 * kTick, a.model.position_m + dx, turned);
+  w = r.render(2 * kDeviceTick, a.model.position_m + dx, turned);
   Eigen::Matrix<double, 6, 1> q;
   q << dx, theta;
   const Eigen::Matrix<double, 6, 1> expected =
@@ -89,7 +89,7 @@ TEST(HapticRenderer, ATouchingToolIsNeverPulledInAHoldingOneMayBe) {
   // 5 mm out along the force: the linear model would pull (1.2 − 400·0.005 < 0).
   const Vector3d out = a.model.position_m + Vector3d(0, 0, 0.005);
   touching.render(0, out, a.model.orientation);
-  const RenderedWrench w = touching.render(kTick, out, a.model.orientation);
+  const RenderedWrench w = touching.render(kDeviceTick, out, a.model.orientation);
   Vector3d linear, unused;
   a.model.holding = true;
   HapticRenderer::evaluate(a.model, out, a.model.orientation, linear, unused);
@@ -101,7 +101,8 @@ TEST(HapticRenderer, ATouchingToolIsNeverPulledInAHoldingOneMayBe) {
   HapticRenderer holding(without_passivity());
   holding.take(a, 0);
   holding.render(0, out, a.model.orientation);
-  EXPECT_LE((holding.render(kTick, out, a.model.orientation).force_n - linear).norm(), kTolerance);
+  EXPECT_LE((holding.render(kDeviceTick, out, a.model.orientation).force_n - linear).norm(),
+            kTolerance);
 }
 
 TEST(HapticRenderer, WithoutALocalModelTheFedBackForceIsHeld) {
@@ -111,17 +112,17 @@ TEST(HapticRenderer, WithoutALocalModelTheFedBackForceIsHeld) {
   const RenderAnswer a = press();
   r.take(a, 0);
   r.render(0, Vector3d::Zero(), Quaterniond::Identity());
-  const RenderedWrench w = r.render(kTick, Vector3d(0.05, 0, 0), Quaterniond::Identity());
+  const RenderedWrench w = r.render(kDeviceTick, Vector3d(0.05, 0, 0), Quaterniond::Identity());
   EXPECT_LE((w.force_n - a.fed_back_force_n).norm(), kTolerance);
   RenderAnswer old = a;
   old.model.valid = false;  // an older palpated's answer
   HapticRenderer r2(without_passivity());
   r2.take(old, 0);
   r2.render(0, Vector3d::Zero(), Quaterniond::Identity());
-  EXPECT_LE(
-      (r2.render(kTick, Vector3d(0.05, 0, 0), Quaterniond::Identity()).force_n - a.fed_back_force_n)
-          .norm(),
-      kTolerance);
+  EXPECT_LE((r2.render(kDeviceTick, Vector3d(0.05, 0, 0), Quaterniond::Identity()).force_n -
+             a.fed_back_force_n)
+                .norm(),
+            kTolerance);
 }
 
 TEST(HapticRenderer, AnAnswerIsHeldThenRampedOut) {
@@ -158,11 +159,11 @@ TEST(HapticRenderer, TheDevicesForceAndSlewLimits) {
   RenderedWrench w = r.render(0, a.model.position_m, a.model.orientation);
   EXPECT_EQ(w.force_n.norm(), 0.0) << "the first call sets the clock";
   for (int i = 1; i <= 4; ++i) {
-    w = r.render(i * kTick, a.model.position_m, a.model.orientation);
+    w = r.render(i * kDeviceTick, a.model.position_m, a.model.orientation);
     EXPECT_NEAR(w.force_n.norm(), 0.1 * i, 1e-12);
     EXPECT_TRUE(w.limited);
   }
-  w = r.render(10 * kTick, a.model.position_m, a.model.orientation);
+  w = r.render(10 * kDeviceTick, a.model.position_m, a.model.orientation);
   EXPECT_NEAR(w.force_n.norm(), 0.5, 1e-12);
   EXPECT_LE((w.force_n - 0.5 * a.model.force_n.normalized()).norm(), 1e-12);
   // The torque is scaled with the clamped force.
@@ -214,7 +215,7 @@ TEST(HapticRenderer, APassiveWallNeedsNoDamping) {
     RenderAnswer answer = wall.free();
     Vector3d previous = Vector3d(0, 0, 0.001);
     for (int i = 0; i <= 8000; ++i) {
-      const double t = i * kTick;
+      const double t = i * kDeviceTick;
       // palpated answers at 1 kHz: the same model, again and again.
       if (i == 100) answer = wall.wall();
       if (i % 4 == 0) {
@@ -226,7 +227,7 @@ TEST(HapticRenderer, APassiveWallNeedsNoDamping) {
       if (std::min(z, previous.z()) < 0)
         hold_leak += 0.5 * wall.k * (z - previous.z()) * (z - previous.z());
       least = std::min(least, w.energy_j);
-      damped += w.damping * (z - previous.z()) * (z - previous.z()) / kTick;  // α v² Δt
+      damped += w.damping * (z - previous.z()) * (z - previous.z()) / kDeviceTick;  // α v² Δt
       previous.z() = z;
       deepest = std::max(deepest, w.force_n.z());
     }
@@ -257,7 +258,7 @@ TEST(HapticRenderer, TheEnergyIsTheWorkOfEachWrenchOverTheTickItWasHeld) {
   Vector3d force = Vector3d::Zero(), previous = Vector3d::Zero();
   RenderAnswer a = Wall{}.free();
   for (int i = 0; i <= 400; ++i) {
-    const double t = i * kTick;
+    const double t = i * kDeviceTick;
     const Vector3d x(0.0002 * std::sin(7.0 * t), 0, -0.02 * t);  // pressing in at 20 mm/s
     if (i % 4 == 0) {  // an answer every 1 ms: the force at the pose it answers
       ++a.sequence;
@@ -286,7 +287,7 @@ TEST(HapticRenderer, AnEnergyDebtOutlivesTheContactUntilTheHandPaysIt) {
   a.fed_back_force_n = Vector3d(0, 0, 2);
   r.take(a, 0);
   double t = 0;
-  for (int i = 0; i < 20; ++i, t += kTick)  // 2 N held while the hand leaves at 40 mm/s
+  for (int i = 0; i < 20; ++i, t += kDeviceTick)  // 2 N held while the hand leaves at 40 mm/s
     r.render(t, Vector3d(0, 0, 0.00001 * i), Quaterniond::Identity());
   const double debt = r.render(t, Vector3d(0, 0, 0.0002), Quaterniond::Identity()).energy_j;
   // The first call renders nothing (its slew limit has no time yet): 2 N
@@ -295,7 +296,7 @@ TEST(HapticRenderer, AnEnergyDebtOutlivesTheContactUntilTheHandPaysIt) {
   RenderAnswer free = Wall{}.free();
   free.sequence = 2;
   r.take(free, t);
-  t += kTick;
+  t += kDeviceTick;
   EXPECT_NEAR(r.render(t, Vector3d(0, 0, 0.0002), Quaterniond::Identity()).energy_j, debt, 1e-15)
       << "free, the debt stays";
   // Now allowed to damp: the next motion pays it back, and no more.
@@ -304,7 +305,7 @@ TEST(HapticRenderer, AnEnergyDebtOutlivesTheContactUntilTheHandPaysIt) {
   HapticRenderer paying(damping);
   paying.take(a, 0);
   t = 0;
-  for (int i = 0; i < 20; ++i, t += kTick) {
+  for (int i = 0; i < 20; ++i, t += kDeviceTick) {
     // The same exit, but the controller damps it: E never falls below what
     // one tick's misprediction of the motion costs (none, here: the hand
     // moves steadily).
@@ -329,7 +330,7 @@ TEST(HapticRenderer, TheControllersDampingIsNotSlewedIntoASpring) {
   a.force_limit_n = 100;
   double largest = 0, most_damping = 0;
   for (int i = 0; i < 400; ++i) {
-    const double t = i * kTick;
+    const double t = i * kDeviceTick;
     if (i % 4 == 0) {  // palpated answers at 1 kHz, the same force
       ++a.sequence;
       r.take(a, t);
@@ -338,7 +339,8 @@ TEST(HapticRenderer, TheControllersDampingIsNotSlewedIntoASpring) {
       return 0.04 * time + 0.0005 * std::sin(2 * std::numbers::pi * 20 * time);
     };
     const RenderedWrench w = r.render(t, Vector3d(0, 0, z(t)), Quaterniond::Identity());
-    const double speed = std::abs(z(t) - z(t - kTick)) / kTick;  // the controller's estimate
+    const double speed =
+        std::abs(z(t) - z(t - kDeviceTick)) / kDeviceTick;  // the controller's estimate
     if (t > 0.005)
       largest = std::max(largest, (w.force_n - a.fed_back_force_n).norm() - 50 * speed);
     most_damping = std::max(most_damping, w.damping);
@@ -368,7 +370,7 @@ TEST(HapticRenderer, AnActiveFieldIsMadePassiveAndWithoutTheObserverItGivesEnerg
     HapticRenderer r(s);
     a.sequence = 0;
     for (int i = 0; i <= 8000; ++i) {  // 2 s, 4 turns
-      const double t = i * kTick, phase = 2 * std::numbers::pi * 2 * t;
+      const double t = i * kDeviceTick, phase = 2 * std::numbers::pi * 2 * t;
       if (i % 4 == 0) {  // palpated answers at 1 kHz
         ++a.sequence;
         r.take(a, t);

@@ -18,7 +18,7 @@ namespace {
 // The normals are unit vectors computed from a handful of products and sums
 // of O(1) coordinates: each component is within ~10 ε ≈ 2e-15 of the exact
 // value. 1e-13 leaves a margin and still catches a wrong weight or sign.
-constexpr double kTolerance = 1e-13;
+constexpr double kDrawnTolerance = 1e-13;
 
 struct Builder {
   DrawnSurface surface;
@@ -92,7 +92,7 @@ DrawnSurface box_surface(double a, double b, double c) {
 void expect_rows_near(const Eigen::MatrixX3d& got, const Eigen::MatrixX3d& expected) {
   ASSERT_EQ(got.rows(), expected.rows());
   for (Eigen::Index v = 0; v < got.rows(); ++v)
-    EXPECT_LT((got.row(v) - expected.row(v)).norm(), kTolerance)
+    EXPECT_LT((got.row(v) - expected.row(v)).norm(), kDrawnTolerance)
         << "vertex " << v << ": " << got.row(v) << " expected " << expected.row(v);
 }
 
@@ -125,7 +125,7 @@ TEST(VertexNormals, OfABoxAreTheFaceNormalsAndTheAreaWeightedCornerNormals) {
       expected.row(v) = s.rest_position(v).cwiseQuotient(half).transpose();
     expect_rows_near(normals, expected);
     if (half == Eigen::Vector3d(1, 1, 1)) {
-      EXPECT_NEAR(std::abs(normals(0, 0)), 1 / std::sqrt(3.0), kTolerance);
+      EXPECT_NEAR(std::abs(normals(0, 0)), 1 / std::sqrt(3.0), kDrawnTolerance);
     }
   }
 }
@@ -166,7 +166,7 @@ TEST(VertexNormals, AreZeroWhereNoTriangleOfNonZeroAreaMeetsAVertex) {
   b.triangle(s, t, w);
   const Eigen::MatrixX3d normals = vertex_normals(b.surface);
   for (int v : {o, x, y})
-    EXPECT_LT((normals.row(v) - Eigen::RowVector3d(0, 0, 1)).norm(), kTolerance);
+    EXPECT_LT((normals.row(v) - Eigen::RowVector3d(0, 0, 1)).norm(), kDrawnTolerance);
   for (int v : {lonely, p, q, r, s, t, w})
     EXPECT_EQ(normals.row(v), Eigen::RowVector3d::Zero()) << "vertex " << v;
 }
@@ -196,12 +196,12 @@ TEST(VertexNormals, WeighTheTrianglesByTheirAreas) {
   const Eigen::MatrixX3d normals = vertex_normals(b.surface);
   const Eigen::RowVector3d expected =
       Eigen::RowVector3d(0, s * s, L * L) / std::sqrt(std::pow(s, 4) + std::pow(L, 4));
-  EXPECT_LT((normals.row(o) - expected).norm(), kTolerance) << normals.row(o);
+  EXPECT_LT((normals.row(o) - expected).norm(), kDrawnTolerance) << normals.row(o);
   // The vertices of one triangle only have that triangle's normal.
-  EXPECT_LT((normals.row(lx) - Eigen::RowVector3d(0, 0, 1)).norm(), kTolerance);
-  EXPECT_LT((normals.row(sx) - Eigen::RowVector3d(0, 1, 0)).norm(), kTolerance);
+  EXPECT_LT((normals.row(lx) - Eigen::RowVector3d(0, 0, 1)).norm(), kDrawnTolerance);
+  EXPECT_LT((normals.row(sx) - Eigen::RowVector3d(0, 1, 0)).norm(), kDrawnTolerance);
   // Unit rows.
-  for (int v = 0; v < normals.rows(); ++v) EXPECT_NEAR(normals.row(v).norm(), 1.0, kTolerance);
+  for (int v = 0; v < normals.rows(); ++v) EXPECT_NEAR(normals.row(v).norm(), 1.0, kDrawnTolerance);
 }
 
 }  // namespace

@@ -33,7 +33,7 @@ using Eigen::VectorXd;
 /// The sample organ at 12 mm, held near one end, two materials (the
 /// tumour four times stiffer), its whole surface compliance, and a ball
 /// region cutting the surface at the far end, ready to step.
-struct Organ {
+struct BallRegionOrgan {
   testing::TempDir dir;
   TetMesh mesh;
   std::vector<int> fixed;
@@ -45,7 +45,7 @@ struct Organ {
   RegionModel region;
   OutsideCompliance outside;
 
-  Organ() {
+  BallRegionOrgan() {
     write_sample_organ(dir / "organ.msh", 0.012);
     mesh = read_mesh(dir / "organ.msh", {});
     validate_and_compact(mesh);
@@ -97,7 +97,8 @@ double slowest_frequency(TensorMassModel& model) {
 /// Steps the region, damped at γ = 2 ω_min, from rest until every mode has
 /// decayed by e⁻³⁰, under a constant load on its own vertices and the
 /// rest's loads entering as u_Γ⁰.
-TensorMassModel settled(const Organ& o, const VectorXd& region_load_n, const VectorXd& offset_m) {
+TensorMassModel settled(const BallRegionOrgan& o, const VectorXd& region_load_n,
+                        const VectorXd& offset_m) {
   TensorMassModel probe(o.region.vertices_m, o.region.tetrahedra, o.region.element_stiffness,
                         {1060, 0}, o.region.fixed);
   probe.set_interface_coupling(o.region.interface, o.outside.coupling_stiffness);
@@ -117,7 +118,7 @@ TensorMassModel settled(const Organ& o, const VectorXd& region_load_n, const Vec
 /// computes: the region's own from the model, the rest's from
 /// u_S = G_SΓ f_Γ + G_SS f_S with f_Γ = S (u_Γ − u_Γ⁰), the force the region
 /// exerts on the rest. Returns the relative error against @p expected.
-double relative_error_on_surface(const Organ& o, const TensorMassModel& model,
+double relative_error_on_surface(const BallRegionOrgan& o, const TensorMassModel& model,
                                  const VectorXd& offset_m, const VectorXd& outside_load_n,
                                  int loaded, const Vector3d& f_n) {
   const auto& out = o.outside;
@@ -153,7 +154,7 @@ int nearest(const TetMesh& mesh, const std::vector<int>& among, const Eigen::Row
 }
 
 TEST(HybridRegion, SettlesOnTheWholeOrgansPrecomputedAnswer) {
-  const Organ o;
+  const BallRegionOrgan o;
   ASSERT_GT(o.region.interface.size(), 10u);
   const Vector3d f_n(0.1, 0.05, -0.4);  // N: a small load (displacements ≪ the mesh size)
 

@@ -145,8 +145,8 @@ double relative_difference(const VectorXd& hybrid, const VectorXd& expected, int
 }
 
 /// Ticks of 1 ms until u changes by less than 1e-13 of itself in a tick.
-int settle(HybridRegion& h, const std::vector<std::pair<int, Vector3d>>& rest_loads,
-           const std::vector<RegionTip>& tips) {
+int settle_region(HybridRegion& h, const std::vector<std::pair<int, Vector3d>>& rest_loads,
+                  const std::vector<RegionTip>& tips) {
   std::vector<int> indices;
   std::vector<double> forces;
   for (const auto& [index, f] : rest_loads) {
@@ -176,7 +176,7 @@ TEST(HybridServing, ALoadOnTheRestSettlesOnTheWholeOrgan) {
   EXPECT_GT(h.interface_face_count(), 20);
   const int loaded = rest_vertex_near(o.model, {0.056, 0.032, kLz});
   const Vector3d f(0.05, -0.1, -0.5);
-  const int ticks = settle(h, {{loaded, f}}, {});
+  const int ticks = settle_region(h, {{loaded, f}}, {});
   std::printf("settled in %d ticks (%d substeps of %.3g µs each)\n", ticks, h.substeps(),
               h.substep_s() * 1e6);
   ASSERT_GT(ticks, 0);
@@ -196,7 +196,7 @@ TEST(HybridServing, ATipOnTheRegionSettlesOnTheWholeOrgan) {
   HybridRegion h(o.model, settling_settings());
   // A 6 mm sphere 1.5 mm into the top face over the region.
   const RegionTip tip{{0.082, 0.030, kLz + 0.0045}, {0.082, 0.030, kLz + 0.0045}, 0.006};
-  ASSERT_GT(settle(h, {}, {tip}), 0);
+  ASSERT_GT(settle_region(h, {}, {tip}), 0);
   EXPECT_GT(h.pressed_vertices(), 0);
   // The tool feels what it pushes: minus the sum of the loads on the region.
   Vector3d on_region = Vector3d::Zero();
@@ -262,7 +262,7 @@ TEST(HybridServing, ACutSettlesOnTheOrganWithoutWhatItRemoved) {
 
   const int loaded = rest_vertex_near(o.model, {0.056, 0.032, kLz});
   const Vector3d f(0.05, -0.1, -0.5);
-  ASSERT_GT(settle(h, {{loaded, f}}, {}), 0);
+  ASSERT_GT(settle_region(h, {{loaded, f}}, {}), 0);
   VectorXd load = VectorXd::Zero(3 * o.mesh.vertices.rows());
   load.segment<3>(3 * mesh_vertex(o.model.source_vertex_ids[o.model.surface.vertex_ids[loaded]])) =
       f;

@@ -26,12 +26,12 @@ constexpr double kDeg = std::numbers::pi / 180;
 // formula error (the smallest expected difference is 1e-4 m).
 constexpr double kTol = 1e-12;
 
-/// An octahedron of radius 10 mm centred at the origin, outward triangles:
+/// An octahedron_model of radius 10 mm centred at the origin, outward triangles:
 /// top (0, 0, 10 mm) and the four equator vertices move (compliance
 /// vertices), the bottom one is attached. Mesh vertex ids are 100 + index.
-ModelInfo octahedron() {
+ModelInfo octahedron_model() {
   ModelInfo m;
-  m.model_id = "octahedron";
+  m.model_id = "octahedron_model";
   m.surface.compliance_vertex_count = 5;
   const double r = 0.01;
   // drawn: 0 top, 1 +x, 2 +y, 3 -x, 4 -y, 5 bottom (fixed)
@@ -157,7 +157,7 @@ TEST(Gesture, ErrorsNameTheFileLineAndKey) {
 }
 
 TEST(Gesture, OutwardNormalsAreAreaWeighted) {
-  const ModelInfo m = octahedron();
+  const ModelInfo m = octahedron_model();
   const DrawnSurface& s = view(m);
   expect_near(outward_normal(s, 0), {0, 0, 1});
   expect_near(outward_normal(s, 1), {1, 0, 0});
@@ -176,7 +176,7 @@ TEST(Gesture, OutwardNormalsAreAreaWeighted) {
 }
 
 TEST(Gesture, AutoAnchorIsTheFreeVertexFarthestFromTheAttachment) {
-  const ModelInfo m = octahedron();
+  const ModelInfo m = octahedron_model();
   const AnchorFrame a = auto_anchor(view(m));
   EXPECT_EQ(a.drawn_index, 0);
   EXPECT_EQ(a.vertex_id, 100u);
@@ -208,7 +208,7 @@ TEST(Gesture, AutoAnchorIsTheFreeVertexFarthestFromTheAttachment) {
 }
 
 TEST(Gesture, SecondToolIsAnchoredAtTheNearestVertexToTheOffset) {
-  const ModelInfo m = octahedron();
+  const ModelInfo m = octahedron_model();
   const Gesture g = parse_gesture(kTwoTools, "two.toml");
   const auto anchors = place_gesture(g, view(m));
   ASSERT_EQ(anchors.size(), 2u);
@@ -234,7 +234,7 @@ TEST(Gesture, SecondToolIsAnchoredAtTheNearestVertexToTheOffset) {
 // region covers the two upper triangles at +x (top, +x, ±y): the top, +x,
 // +y and −y vertices are Γ, and only −x (drawn 3) is left to anchor on.
 TEST(Gesture, AnchorsAvoidTheCutRegionsInterface) {
-  const ModelInfo m = octahedron();
+  const ModelInfo m = octahedron_model();
   // Upper triangles i = 0 (0, 1, 2) and 3 (0, 4, 1): drawn triangles 0 and 6.
   const std::vector<std::uint32_t> covered = {0, 6};
   const Gesture g = parse_gesture(kTwoTools, "two.toml");
@@ -280,8 +280,8 @@ TEST(Gesture, AnchorMayBeAPointInMillimetres) {
   ASSERT_TRUE(g.anchor_point_m.has_value());
   expect_near(*g.anchor_point_m, {0.001, -0.0025, 0.03});
   EXPECT_EQ(g.anchor_vertex_id, -1);
-  // Near the top of the octahedron (0, 0, 10) mm: the top vertex.
-  EXPECT_EQ(place_gesture(g, view(octahedron()))[0].vertex_id, 100u);
+  // Near the top of the octahedron_model (0, 0, 10) mm: the top vertex.
+  EXPECT_EQ(place_gesture(g, view(octahedron_model()))[0].vertex_id, 100u);
   expect_error<InputError>(
       [] {
         parse_gesture(
@@ -308,7 +308,7 @@ TEST(Gesture, KeyframeOrientationPointsTheShaftIntoTheOrganAndTilts) {
 }
 
 TEST(Gesture, SamplesInterpolateLinearlyAndSlerp) {
-  const ModelInfo m = octahedron();
+  const ModelInfo m = octahedron_model();
   const Gesture g = parse_gesture(kTwoTools, "two.toml");
   const GesturePlayer player(g, place_gesture(g, view(m)));
   ASSERT_EQ(player.tool_count(), 2);
@@ -349,7 +349,7 @@ TEST(Gesture, SamplesInterpolateLinearlyAndSlerp) {
 TEST(Gesture, TheShippedGesturesReadAndPlaceOnAnyOrgan) {
   const auto dir = std::filesystem::path(PALPATE_SOURCE_DIR) / "config" / "gestures";
   ASSERT_TRUE(std::filesystem::is_directory(dir)) << dir;
-  const ModelInfo m = octahedron();
+  const ModelInfo m = octahedron_model();
   int count = 0;
   for (const auto& entry : std::filesystem::directory_iterator(dir)) {
     if (entry.path().extension() != ".toml") continue;

@@ -30,7 +30,7 @@ using Eigen::Vector3d;
 // Both paths solve the same SPD systems (condition ≤ ~1e5 here) in a
 // different order of unknowns and of operations: they agree to ~1e-12
 // relative to the largest force; 1e-10 is the bound the change promises.
-constexpr double kRelativeTolerance = 1e-10;
+constexpr double kActiveSetTolerance = 1e-10;
 
 class ActiveSetTest : public ::testing::Test {
  protected:
@@ -161,10 +161,10 @@ TEST_F(ActiveSetTest, IncrementalEqualsRefactoringOnRandomProblems) {
       joins += initial[rr].state == ActiveRow::kDormant && b[rr].state == ActiveRow::kActive;
       slides += b[rr].kind != initial[rr].kind ? 1 : 0;
       if (b[rr].state != ActiveRow::kActive) continue;
-      EXPECT_LE((incremental.force(r) - reference.force(r)).norm(), kRelativeTolerance * f_scale)
+      EXPECT_LE((incremental.force(r) - reference.force(r)).norm(), kActiveSetTolerance * f_scale)
           << "problem " << problem << " row " << r;
       EXPECT_LE((incremental.displacement(r) - reference.displacement(r)).norm(),
-                kRelativeTolerance * u_scale)
+                kActiveSetTolerance * u_scale)
           << "problem " << problem << " row " << r;
     }
   }
@@ -227,7 +227,7 @@ TEST_F(ActiveSetTest, EngineFeelsTheSameEitherWay) {
     const ToolOutput& a = incremental.output(0);
     const ToolOutput& b = reference.output(0);
     ASSERT_EQ(a.contacts, b.contacts) << "tick " << i;
-    EXPECT_LE((a.force_n - b.force_n).norm(), kRelativeTolerance * b.force_n.norm())
+    EXPECT_LE((a.force_n - b.force_n).norm(), kActiveSetTolerance * b.force_n.norm())
         << "tick " << i;
     most_contacts = std::max(most_contacts, b.contacts);
   }

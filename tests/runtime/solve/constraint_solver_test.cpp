@@ -24,7 +24,7 @@ namespace {
 // G has entries of order 1e-4 m/N; the small systems are well conditioned
 // (condition ≤ 1e4), so solves agree with dense references to ~1e-12
 // relative; 1e-9 leaves three orders of margin.
-constexpr double kRelativeTolerance = 1e-9;
+constexpr double kSolverTolerance = 1e-9;
 
 struct Request {
   std::uint32_t vertex;
@@ -110,9 +110,9 @@ TEST_F(ConstraintSolverTest, ForcesGiveTheColumnsOfG) {
   f.segment<3>(9) = forces[0].value;
   f.segment<3>(51) = forces[1].value;
   const Eigen::VectorXd expected = model().G * f;
-  EXPECT_LT(relative(u, expected), kRelativeTolerance);
+  EXPECT_LT(relative(u, expected), kSolverTolerance);
   EXPECT_LT(relative(solver.displacements().segment<3>(0), expected.segment<3>(9)),
-            kRelativeTolerance);
+            kSolverTolerance);
   EXPECT_LT((solver.total_force() - Eigen::Vector3d(0.1, -0.2, -1.2)).norm(), 1e-15);
 }
 
@@ -135,11 +135,11 @@ TEST_F(ConstraintSolverTest, ImposedDisplacementsSolveTheCompliance) {
       G_CC.block<3, 3>(3 * static_cast<Eigen::Index>(a), 3 * static_cast<Eigen::Index>(b)) =
           model().G.block<3, 3>(3 * patch[a], 3 * patch[b]);
   const Eigen::VectorXd F = G_CC.fullPivLu().solve(U);
-  EXPECT_LT(relative(solver.forces(), F), kRelativeTolerance);
-  EXPECT_LT(relative(solver.displacements(), U), kRelativeTolerance);
+  EXPECT_LT(relative(solver.forces(), F), kSolverTolerance);
+  EXPECT_LT(relative(solver.displacements(), U), kSolverTolerance);
   Eigen::VectorXd u(model().G.rows());
   solver.surface_displacement(u);
-  EXPECT_LT(relative(u, full_field(solver)), kRelativeTolerance);
+  EXPECT_LT(relative(u, full_field(solver)), kSolverTolerance);
   // The condition estimate (LAPACK dpocon) against the exact 1-norm condition:
   // a lower bound, usually within a factor 3.
   const double exact = G_CC.cwiseAbs().colwise().sum().maxCoeff() *
@@ -169,9 +169,9 @@ TEST_F(ConstraintSolverTest, MixedConstraintsMeetTheirDefinitions) {
   auto u_at = [&](int i) { return Eigen::Vector3d(u.segment<3>(3 * i)); };
 
   EXPECT_LT((f.segment<3>(0) - requests[0].value).norm(), 1e-15);
-  EXPECT_LT((u_at(9) - requests[1].value).norm(), kRelativeTolerance * requests[1].value.norm());
-  EXPECT_NEAR(n1.dot(u_at(14)), -0.002, kRelativeTolerance * 0.002);
-  EXPECT_NEAR(n2.dot(u_at(30)), 0.0015, kRelativeTolerance * 0.0015);
+  EXPECT_LT((u_at(9) - requests[1].value).norm(), kSolverTolerance * requests[1].value.norm());
+  EXPECT_NEAR(n1.dot(u_at(14)), -0.002, kSolverTolerance * 0.002);
+  EXPECT_NEAR(n2.dot(u_at(30)), 0.0015, kSolverTolerance * 0.0015);
   // Sliding is frictionless: the force is along the normal.
   const Eigen::Vector3d f14 = f.segment<3>(6), f30 = f.segment<3>(9);
   EXPECT_LT((f14 - f14.dot(n1) * n1).norm(), 1e-12 * f14.norm());
@@ -179,7 +179,7 @@ TEST_F(ConstraintSolverTest, MixedConstraintsMeetTheirDefinitions) {
   // The reported displacements of the constrained vertices are those of u.
   for (int j : {0, 1, 2, 3})
     EXPECT_LT((solver.displacements().segment<3>(3 * j) - u_at(solver.load_indices()[j])).norm(),
-              kRelativeTolerance * u.norm());
+              kSolverTolerance * u.norm());
 }
 
 TEST_F(ConstraintSolverTest, ReusesTheFactorizationWhileTheSetStaysTheSame) {
@@ -405,7 +405,7 @@ TEST_F(ConstraintSolverTest, SplitsTheSurfaceFieldOverTwoThreadsBitForBit) {
     u2.setConstant(std::nan(""));
     two.surface_displacement(u2);
     EXPECT_EQ(u1, u2) << "first " << first;
-    EXPECT_LT(relative(u2, full_field(two)), kRelativeTolerance);
+    EXPECT_LT(relative(u2, full_field(two)), kSolverTolerance);
   }
 }
 
@@ -474,15 +474,15 @@ TEST_F(ConstraintSolverTest, PointsOnTrianglesMeetTheirDefinitions) {
   const Eigen::VectorXd f = solver.forces();
   const Eigen::VectorXd u_S = m.G * (H.transpose() * f);
   const Eigen::VectorXd u_C = H * u_S;
-  EXPECT_LT((u_C.segment<3>(0) - d1).norm(), kRelativeTolerance * d1.norm());
-  EXPECT_NEAR(n2.dot(u_C.segment<3>(3)), -0.0015, kRelativeTolerance * 0.0015);
+  EXPECT_LT((u_C.segment<3>(0) - d1).norm(), kSolverTolerance * d1.norm());
+  EXPECT_NEAR(n2.dot(u_C.segment<3>(3)), -0.0015, kSolverTolerance * 0.0015);
   const Eigen::Vector3d fn = f.segment<3>(3);
   EXPECT_LT((fn - fn.dot(n2) * n2).norm(), 1e-12 * fn.norm()) << "sliding: along the normal";
   EXPECT_LT((f.segment<3>(6) - f3).norm(), 1e-15);
-  EXPECT_LT(relative(solver.displacements(), u_C), kRelativeTolerance);
+  EXPECT_LT(relative(solver.displacements(), u_C), kSolverTolerance);
   Eigen::VectorXd u(rows);
   solver.surface_displacement(u);
-  EXPECT_LT(relative(u, u_S), kRelativeTolerance);
+  EXPECT_LT(relative(u, u_S), kSolverTolerance);
   // The loads carry the whole force but the attachment's share.
   Eigen::Vector3d loads = Eigen::Vector3d::Zero();
   for (std::size_t l = 0; l < solver.load_indices().size(); ++l)

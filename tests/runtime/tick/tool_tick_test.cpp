@@ -48,11 +48,11 @@ ToolPoseInput pose_at(const Vector3d& centre, std::uint64_t sequence) {
 /// The probe pressed 3 mm into the region's top at once (one tick from
 /// outside to inside) and held for @p ticks: per tick, what the tool was
 /// sent and the region's push on its tip, and every record made.
-struct Press {
+struct RegionPress {
   std::vector<Vector3d> sent, push;
 };
-Press press_the_region(ToolTick& tick, int ticks, SessionRecorder* recorder) {
-  Press p;
+RegionPress press_the_region(ToolTick& tick, int ticks, SessionRecorder* recorder) {
+  RegionPress p;
   const Vector3d above(0.080, 0.032, kLz + 0.010);
   const Vector3d in(0.080, 0.032, kLz + 0.006 - 0.003);
   for (int k = 1; k <= ticks; ++k) {
@@ -77,7 +77,7 @@ TEST(ToolTick, TheRegionsPushIsSlewLimitedLikeTheContacts) {
   const testing::Organ o;
   HybridRegion region(o.model);
   ToolTick tick(o.model, {slow_probe()}, {}, {}, nullptr, &region);
-  const Press p = press_the_region(tick, 400, nullptr);
+  const RegionPress p = press_the_region(tick, 400, nullptr);
   const double allowed = kRateNPerS * kTickS;
   double largest_sent = 0, largest_push = 0;
   for (std::size_t k = 1; k < p.sent.size(); ++k) {
@@ -109,7 +109,7 @@ TEST(ToolTick, TheRecordedForceIsTheForceSent) {
   SessionInfo info;
   info.model_id = "organ";
   info.tools = {slow_probe()};
-  Press p;
+  RegionPress p;
   {
     SessionRecorder recorder(file, info);
     p = press_the_region(tick, 200, &recorder);

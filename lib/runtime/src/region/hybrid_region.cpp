@@ -18,8 +18,8 @@ namespace {
 
 using Eigen::Vector3d;
 
-constexpr const char* kWhat = detail::kRegionWhat;
-constexpr double kMaxAdvanceS = detail::kRegionMaxAdvanceS;
+using detail::kRegionMaxAdvanceS;
+using detail::kRegionWhat;
 
 std::array<int, 3> sorted(std::array<int, 3> t) {
   std::sort(t.begin(), t.end());
@@ -43,32 +43,32 @@ const CutRegionData& region_of(const SurfaceModel& model) {
     throw InputError(fmt::format(
         "{}: model '{}' ({}) has no cuttable region; a compliance file made with [cut_region] "
         "(format 1.3, docs/precompute.md \"A cuttable region\") is accepted",
-        kWhat, model.id, model.path.string()));
+        kRegionWhat, model.id, model.path.string()));
   return *model.cut_region;
 }
 
 TensorMassMaterial material_of(const CutRegionData& region, const HybridRegionSettings& s) {
   if (!(s.step_safety > 0 && s.step_safety < 1))
-    throw InputError(
-        fmt::format("{}: step safety {}; a fraction in (0, 1) is accepted", kWhat, s.step_safety));
+    throw InputError(fmt::format("{}: step safety {}; a fraction in (0, 1) is accepted",
+                                 kRegionWhat, s.step_safety));
   if (!(s.contact_stiffness_n_per_m >= 0) || !std::isfinite(s.contact_stiffness_n_per_m))
     throw InputError(fmt::format("{}: contact stiffness {} N/m; a finite value ≥ 0 is accepted",
-                                 kWhat, s.contact_stiffness_n_per_m));
+                                 kRegionWhat, s.contact_stiffness_n_per_m));
   if (s.max_tips < 1 || s.max_tips > 64)
-    throw InputError(fmt::format("{}: {} tips; 1 to 64 are accepted", kWhat, s.max_tips));
-  if (!(s.implicit_step_s > 0 && s.implicit_step_s <= kMaxAdvanceS))
-    throw InputError(fmt::format("{}: implicit step {} s; a step in (0, {}] s is accepted", kWhat,
-                                 s.implicit_step_s, kMaxAdvanceS));
+    throw InputError(fmt::format("{}: {} tips; 1 to 64 are accepted", kRegionWhat, s.max_tips));
+  if (!(s.implicit_step_s > 0 && s.implicit_step_s <= kRegionMaxAdvanceS))
+    throw InputError(fmt::format("{}: implicit step {} s; a step in (0, {}] s is accepted",
+                                 kRegionWhat, s.implicit_step_s, kRegionMaxAdvanceS));
   if (!(s.interface_damping >= 0) || !std::isfinite(s.interface_damping))
-    throw InputError(fmt::format("{}: interface damping κ = {}; a finite κ ≥ 0 is accepted", kWhat,
-                                 s.interface_damping));
+    throw InputError(fmt::format("{}: interface damping κ = {}; a finite κ ≥ 0 is accepted",
+                                 kRegionWhat, s.interface_damping));
   if (s.refactor_rank < 3 || s.refactor_rank > 3000)
-    throw InputError(
-        fmt::format("{}: refactor rank {}; 3 to 3000 DOFs are accepted", kWhat, s.refactor_rank));
+    throw InputError(fmt::format("{}: refactor rank {}; 3 to 3000 DOFs are accepted", kRegionWhat,
+                                 s.refactor_rank));
   if (!std::isfinite(s.damping_per_s))
     throw InputError(fmt::format(
         "{}: damping {} 1/s; a finite γ ≥ 0, or a negative value for the file's, is accepted",
-        kWhat, s.damping_per_s));
+        kRegionWhat, s.damping_per_s));
   return {region.density_kg_m3, s.damping_per_s >= 0 ? s.damping_per_s : region.damping_per_s};
 }
 
@@ -103,7 +103,7 @@ HybridRegion::HybridRegion(const SurfaceModel& model, const HybridRegionSettings
         "{}: model '{}': G on the region's boundary Γ ({} vertices) is not positive definite, so "
         "the rest of the organ has no stiffness there; a compliance file precompute wrote and "
         "checked is accepted",
-        kWhat, model.id, n));
+        kRegionWhat, model.id, n));
   coupling_ = llt.solve(Eigen::MatrixXd::Identity(3 * n, 3 * n));
   coupling_ = 0.5 * (coupling_ + coupling_.transpose()).eval();
   if (n > 0) {
@@ -253,7 +253,7 @@ void HybridRegion::add_tip_forces(std::span<const RegionTip> tips, bool accumula
 
 void HybridRegion::add_rest_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const {
   if (u_m.size() != model_ref_.compliance_rows())
-    throw InputError(fmt::format("{}: a field of {} values for {} compliance rows", kWhat,
+    throw InputError(fmt::format("{}: a field of {} values for {} compliance rows", kRegionWhat,
                                  u_m.size(), model_ref_.compliance_rows()));
   for (std::size_t k = 0; k < interface_.size(); ++k) {
     const Vector3d f = interface_force_n_.segment<3>(3 * static_cast<Eigen::Index>(k));
@@ -268,7 +268,7 @@ void HybridRegion::add_rest_displacement(Eigen::Ref<Eigen::VectorXd> u_m) const 
 int HybridRegion::cut(const Vector3d& blade_a_m, const Vector3d& blade_b_m) {
   if (!blade_a_m.allFinite() || !blade_b_m.allFinite())
     throw InputError(fmt::format(
-        "{}: a blade with a non-finite end; finite positions in metres are accepted", kWhat));
+        "{}: a blade with a non-finite end; finite positions in metres are accepted", kRegionWhat));
   model_.tetrahedra_crossed_by_segment(blade_a_m, blade_b_m, removed_);
   for (int t : removed_) model_.remove_tetrahedron(t);
   return after_cut(static_cast<int>(removed_.size()));
@@ -278,7 +278,7 @@ int HybridRegion::cut(const Blade& before, const Blade& after) {
   if (!before.a_m.allFinite() || !before.b_m.allFinite() || !after.a_m.allFinite() ||
       !after.b_m.allFinite())
     throw InputError(fmt::format(
-        "{}: a blade with a non-finite end; finite positions in metres are accepted", kWhat));
+        "{}: a blade with a non-finite end; finite positions in metres are accepted", kRegionWhat));
   return after_cut(model_.cut_swept_blade(before, after, removed_));
 }
 

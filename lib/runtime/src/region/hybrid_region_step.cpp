@@ -19,34 +19,32 @@ namespace palpate {
 
 using Eigen::Vector3d;
 
-namespace {
-constexpr const char* kWhat = detail::kRegionWhat;
-constexpr double kMaxAdvanceS = detail::kRegionMaxAdvanceS;
-}  // namespace
+using detail::kRegionMaxAdvanceS;
+using detail::kRegionWhat;
 
 void HybridRegion::advance(double tick_s, std::span<const int> rest_indices,
                            std::span<const double> rest_forces_n, std::span<const RegionTip> tips) {
   if (!(tick_s > 0) || !std::isfinite(tick_s))
     throw InputError(
-        fmt::format("{}: tick of {} s; a finite duration > 0 is accepted", kWhat, tick_s));
+        fmt::format("{}: tick of {} s; a finite duration > 0 is accepted", kRegionWhat, tick_s));
   if (tips.size() > static_cast<std::size_t>(settings_.max_tips))
-    throw InputError(fmt::format("{}: {} tips; at most {} (max_tips) are accepted", kWhat,
+    throw InputError(fmt::format("{}: {} tips; at most {} (max_tips) are accepted", kRegionWhat,
                                  tips.size(), settings_.max_tips));
   if (rest_forces_n.size() != 3 * rest_indices.size())
     throw InputError(
         fmt::format("{}: {} rest forces for {} loaded vertices; 3 per vertex are "
                     "accepted",
-                    kWhat, rest_forces_n.size(), rest_indices.size()));
+                    kRegionWhat, rest_forces_n.size(), rest_indices.size()));
   for (const int l : rest_indices)
     if (l < 0 || l >= model_ref_.compliance_vertex_count())
       throw InputError(fmt::format("{}: a rest load on compliance vertex {}; 0..{} are accepted",
-                                   kWhat, l, model_ref_.compliance_vertex_count() - 1));
+                                   kRegionWhat, l, model_ref_.compliance_vertex_count() - 1));
 
   offset_from_rest_loads(rest_indices, rest_forces_n);
   if (settings_.integrator == RegionIntegrator::kImplicit) {
     // The whole steps nearest to the time owed: a tick a little short or
     // long of Δt still takes one step.
-    pending_s_ = std::min(pending_s_ + tick_s, kMaxAdvanceS);
+    pending_s_ = std::min(pending_s_ + tick_s, kRegionMaxAdvanceS);
     substeps_ = static_cast<int>(std::floor(pending_s_ / substep_s_ + 0.5));
     pending_s_ -= substeps_ * substep_s_;
     if (substeps_ > 0) advance_implicit(tips);
@@ -54,7 +52,7 @@ void HybridRegion::advance(double tick_s, std::span<const int> rest_indices,
   }
   // Substeps of a fixed Δt (the bound): the tick's time, plus what the
   // last tick left over, in whole steps; the remainder waits for the next.
-  pending_s_ = std::min(pending_s_ + tick_s, kMaxAdvanceS);
+  pending_s_ = std::min(pending_s_ + tick_s, kRegionMaxAdvanceS);
   substeps_ = static_cast<int>(std::floor(pending_s_ / substep_s_));
   pending_s_ -= substeps_ * substep_s_;
   if (substeps_ > 0) advance_explicit(tips);
@@ -203,7 +201,8 @@ void HybridRegion::update_explicit_bound() {
   double omega2 = elastic2;
   if (least_skin_mass < inf)
     omega2 += settings_.max_tips * settings_.contact_stiffness_n_per_m / least_skin_mass;
-  substep_bound_s_ = omega2 > 0 ? settings_.step_safety * 2 / std::sqrt(omega2) : kMaxAdvanceS;
+  substep_bound_s_ =
+      omega2 > 0 ? settings_.step_safety * 2 / std::sqrt(omega2) : kRegionMaxAdvanceS;
 }
 
 void HybridRegion::retime_explicit_step() {

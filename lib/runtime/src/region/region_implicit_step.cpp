@@ -19,7 +19,7 @@ using Eigen::Matrix3d;
 using Eigen::VectorXd;
 
 namespace {
-constexpr const char* kWhat = "cut region (implicit step)";
+constexpr const char* kImplicitStepWhat = "cut region (implicit step)";
 // The update may grow to this many times the bound while the worker
 // factors: a cut waits for the worker only past it (the capacitance's
 // refactorization, O(rank³) per cut, is then about 2 ms at 48 × 4).
@@ -75,7 +75,7 @@ struct RegionFactorization {
         throw InputError(fmt::format(
             "{}: the step matrix of the region's {} interior DOFs is not positive definite; "
             "element stiffnesses precompute wrote (positive semi-definite) are accepted",
-            kWhat, ni));
+            kImplicitStepWhat, ni));
       f->interior = VertexBlockFactor(l);
       f->a_ig = f->a.block(0, ni, ni, ng);
       if (ng > 0) {
@@ -94,7 +94,7 @@ struct RegionFactorization {
         throw InputError(fmt::format(
             "{}: the step matrix on the region's boundary Γ ({} DOFs) is not positive definite; "
             "a compliance file precompute wrote and checked is accepted",
-            kWhat, ng));
+            kImplicitStepWhat, ng));
     }
     f->schur_inverse = std::move(z);  // its lower half
     f->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -17,7 +17,7 @@ namespace {
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
 
-constexpr const char* kWhat = "tensor-mass region";
+constexpr const char* kTensorMassWhat = "tensor-mass region";
 
 Vector3d row(const Eigen::MatrixX3d& m, int r) { return m.row(r).transpose(); }
 
@@ -40,10 +40,10 @@ TensorMassModel::TensorMassModel(CRef<Eigen::MatrixX3d> rest_positions_m,
     throw InputError(
         fmt::format("{}: density {} kg/m³; a finite density > 0 is accepted "
                     "(soft tissue: about 1060 kg/m³)",
-                    kWhat, material.density_kg_m3));
+                    kTensorMassWhat, material.density_kg_m3));
   if (!(material.mass_damping_per_s >= 0) || !std::isfinite(material.mass_damping_per_s))
-    throw InputError(fmt::format("{}: mass damping γ = {} 1/s; a finite γ ≥ 0 is accepted", kWhat,
-                                 material.mass_damping_per_s));
+    throw InputError(fmt::format("{}: mass damping γ = {} 1/s; a finite γ ≥ 0 is accepted",
+                                 kTensorMassWhat, material.mass_damping_per_s));
   density_kg_m3_ = material.density_kg_m3;
   damping_per_s_ = material.mass_damping_per_s;
   for (int v = 0; v < nv; ++v)
@@ -51,12 +51,12 @@ TensorMassModel::TensorMassModel(CRef<Eigen::MatrixX3d> rest_positions_m,
       throw InputError(
           fmt::format("{}: vertex {} has a non-finite rest position ({}, {}, {}) m; "
                       "finite coordinates in metres are accepted",
-                      kWhat, v, rest_m_(v, 0), rest_m_(v, 1), rest_m_(v, 2)));
+                      kTensorMassWhat, v, rest_m_(v, 0), rest_m_(v, 1), rest_m_(v, 2)));
   if (static_cast<int>(element_k_.size()) != nt)
     throw InputError(
         fmt::format("{}: {} element stiffnesses for {} tetrahedra; one 12 × 12 "
                     "matrix per tetrahedron is accepted",
-                    kWhat, element_k_.size(), nt));
+                    kTensorMassWhat, element_k_.size(), nt));
   tet_volume_m3_.resize(nt);
   for (int t = 0; t < nt; ++t) {
     for (int k = 0; k < 4; ++k)
@@ -64,34 +64,35 @@ TensorMassModel::TensorMassModel(CRef<Eigen::MatrixX3d> rest_positions_m,
         throw InputError(
             fmt::format("{}: tetrahedron {} has vertex index {}; indices 0..{} "
                         "(the rows of the rest positions) are accepted",
-                        kWhat, t, tets_(t, k), nv - 1));
+                        kTensorMassWhat, t, tets_(t, k), nv - 1));
     for (int a = 0; a < 4; ++a)
       for (int b = a + 1; b < 4; ++b)
         if (tets_(t, a) == tets_(t, b))
           throw InputError(
               fmt::format("{}: tetrahedron {} uses vertex {} twice; four distinct "
                           "vertices are accepted",
-                          kWhat, t, tets_(t, a)));
+                          kTensorMassWhat, t, tets_(t, a)));
     tet_volume_m3_[t] = tet_volume(rest_m_, tets_, t);
     if (!(tet_volume_m3_[t] > 0))
-      throw InputError(fmt::format(
-          "{}: tetrahedron {} (vertices {}, {}, {}, {}) has volume {} m³; "
-          "positively oriented tetrahedra (volume > 0) are accepted",
-          kWhat, t, tets_(t, 0), tets_(t, 1), tets_(t, 2), tets_(t, 3), tet_volume_m3_[t]));
+      throw InputError(
+          fmt::format("{}: tetrahedron {} (vertices {}, {}, {}, {}) has volume {} m³; "
+                      "positively oriented tetrahedra (volume > 0) are accepted",
+                      kTensorMassWhat, t, tets_(t, 0), tets_(t, 1), tets_(t, 2), tets_(t, 3),
+                      tet_volume_m3_[t]));
     const Matrix12d& k = element_k_[t];
     if (!k.allFinite())
       throw InputError(
           fmt::format("{}: the element stiffness of tetrahedron {} has a non-finite "
                       "entry; finite values in N/m are accepted",
-                      kWhat, t));
+                      kTensorMassWhat, t));
     // Round-off of the element formula is ~10⁻¹⁶ of its largest entry.
     const double asymmetry = (k - k.transpose()).cwiseAbs().maxCoeff();
     if (asymmetry > 1e-10 * k.cwiseAbs().maxCoeff())
-      throw InputError(
-          fmt::format("{}: the element stiffness of tetrahedron {} is not symmetric "
-                      "(|K − Kᵀ| up to {:.3g} of its largest entry {:.3g} N/m); "
-                      "symmetric to 1e-10 relative is accepted",
-                      kWhat, t, asymmetry / k.cwiseAbs().maxCoeff(), k.cwiseAbs().maxCoeff()));
+      throw InputError(fmt::format(
+          "{}: the element stiffness of tetrahedron {} is not symmetric "
+          "(|K − Kᵀ| up to {:.3g} of its largest entry {:.3g} N/m); "
+          "symmetric to 1e-10 relative is accepted",
+          kTensorMassWhat, t, asymmetry / k.cwiseAbs().maxCoeff(), k.cwiseAbs().maxCoeff()));
   }
   // Each element's highest ω² with its own lumped masses, M_t = (ρ V_t / 4) I:
   // uᵀ K u = Σ_t u_tᵀ K^t u_t ≤ max_t ω_t² Σ_t u_tᵀ M_t u_t = max_t ω_t² uᵀ M u,
@@ -107,12 +108,12 @@ TensorMassModel::TensorMassModel(CRef<Eigen::MatrixX3d> rest_positions_m,
   for (int v : fixed_vertices) {
     if (v < 0 || v >= nv)
       throw InputError(fmt::format("{}: fixed vertex {} does not exist; indices 0..{} are accepted",
-                                   kWhat, v, nv - 1));
+                                   kTensorMassWhat, v, nv - 1));
     if (fixed_[v] != 0)
       throw InputError(
           fmt::format("{}: fixed vertex {} is listed twice; distinct vertices are "
                       "accepted",
-                      kWhat, v));
+                      kTensorMassWhat, v));
     fixed_[v] = 1;
   }
 
@@ -165,30 +166,30 @@ void TensorMassModel::set_interface_coupling(const std::vector<int>& interface_v
       throw InputError(
           fmt::format("{}: interface vertex {} does not exist; indices 0..{} are "
                       "accepted",
-                      kWhat, v, nv - 1));
+                      kTensorMassWhat, v, nv - 1));
     if (seen[v] != 0)
       throw InputError(
           fmt::format("{}: interface vertex {} is listed twice; distinct vertices are "
                       "accepted",
-                      kWhat, v));
+                      kTensorMassWhat, v));
     if (fixed_[v] != 0)
       throw InputError(
           fmt::format("{}: interface vertex {} is fixed; an interface vertex must be "
                       "free (the rest of the organ holds it through S)",
-                      kWhat, v));
+                      kTensorMassWhat, v));
     seen[v] = 1;
   }
   if (stiffness_n_per_m.rows() != n || stiffness_n_per_m.cols() != n)
     throw InputError(
         fmt::format("{}: the interface stiffness S is {} × {} for {} interface "
                     "vertices; 3n × 3n = {} × {} is accepted",
-                    kWhat, stiffness_n_per_m.rows(), stiffness_n_per_m.cols(),
+                    kTensorMassWhat, stiffness_n_per_m.rows(), stiffness_n_per_m.cols(),
                     interface_vertices.size(), n, n));
   if (!stiffness_n_per_m.allFinite())
     throw InputError(
         fmt::format("{}: the interface stiffness S has a non-finite entry; finite "
                     "values in N/m are accepted",
-                    kWhat));
+                    kTensorMassWhat));
   double largest_eigenvalue = 0;
   if (n > 0) {
     const double largest = stiffness_n_per_m.cwiseAbs().maxCoeff();
@@ -199,7 +200,7 @@ void TensorMassModel::set_interface_coupling(const std::vector<int>& interface_v
           fmt::format("{}: the interface stiffness S is not symmetric (|S − Sᵀ| up to "
                       "{:.3g} of its largest entry); symmetric to 1e-10 relative is "
                       "accepted",
-                      kWhat, asymmetry / largest));
+                      kTensorMassWhat, asymmetry / largest));
     // An indefinite S would feed energy in: the explicit step would diverge
     // whatever Δt. The tolerance is the eigensolver's round-off.
     const Eigen::VectorXd eigenvalues =
@@ -211,7 +212,7 @@ void TensorMassModel::set_interface_coupling(const std::vector<int>& interface_v
       throw InputError(
           fmt::format("{}: the interface stiffness S has the eigenvalue {:.6g} N/m; "
                       "a positive semi-definite S is accepted",
-                      kWhat, least));
+                      kTensorMassWhat, least));
   }
   interface_ = interface_vertices;
   coupling_ = stiffness_n_per_m;
@@ -263,7 +264,7 @@ void TensorMassModel::step(double time_step_s, CRef<Eigen::VectorXd> external_fo
 void TensorMassModel::set_state(CRef<Eigen::VectorXd> u_m, CRef<Eigen::VectorXd> u_previous_m) {
   if (u_m.size() != u_.size() || u_previous_m.size() != u_.size())
     throw InputError(fmt::format("{}: a state of sizes {} and {}; 3 × {} vertices = {} is accepted",
-                                 kWhat, u_m.size(), u_previous_m.size(), vertex_count(),
+                                 kTensorMassWhat, u_m.size(), u_previous_m.size(), vertex_count(),
                                  u_.size()));
   u_ = u_m;
   u_previous_ = u_previous_m;

@@ -18,7 +18,7 @@ namespace {
 
 using Eigen::Matrix3d;
 
-constexpr const char* kWhat = "tensor-mass region";
+constexpr const char* kTensorMassCutWhat = "tensor-mass region";
 
 /// The face opposite local vertex k, ordered so that (b − a) × (c − a) points
 /// out of a positively oriented tetrahedron.
@@ -102,10 +102,11 @@ void TensorMassModel::build_topology() {
     } else if (face_tets_.back()[1] < 0) {
       face_tets_.back()[1] = key[3];
     } else {
-      throw InputError(fmt::format(
-          "{}: the face ({}, {}, {}) belongs to tetrahedra {}, {} and {}; "
-          "a face of at most two tetrahedra is accepted",
-          kWhat, key[0], key[1], key[2], face_tets_.back()[0], face_tets_.back()[1], key[3]));
+      throw InputError(
+          fmt::format("{}: the face ({}, {}, {}) belongs to tetrahedra {}, {} and {}; "
+                      "a face of at most two tetrahedra is accepted",
+                      kTensorMassCutWhat, key[0], key[1], key[2], face_tets_.back()[0],
+                      face_tets_.back()[1], key[3]));
     }
     tet_faces_[key[3]][key[4]] = static_cast<int>(face_tets_.size()) - 1;
   }
@@ -231,12 +232,12 @@ int TensorMassModel::tetrahedra_at_edge(int i, int j) const {
 void TensorMassModel::remove_tetrahedron(int tet) {
   if (tet < 0 || tet >= tetrahedron_count())
     throw InputError(fmt::format("{}: tetrahedron {} does not exist; indices 0..{} are accepted",
-                                 kWhat, tet, tetrahedron_count() - 1));
+                                 kTensorMassCutWhat, tet, tetrahedron_count() - 1));
   if (tet_alive_[tet] == 0)
     throw InputError(
         fmt::format("{}: tetrahedron {} is already removed; a remaining tetrahedron "
                     "is accepted",
-                    kWhat, tet));
+                    kTensorMassCutWhat, tet));
   tet_alive_[tet] = 0;
   --remaining_tets_;
   for (int k = 0; k < 4; ++k) resum_vertex(tets_(tet, k));
