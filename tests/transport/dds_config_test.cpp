@@ -11,6 +11,7 @@
 #include "palpate/core/error.hpp"
 #include "palpate/transport/dds.hpp"
 #include "support/expect_error.hpp"
+#include "support/files.hpp"
 
 #ifndef PALPATE_SOURCE_DIR
 #error "PALPATE_SOURCE_DIR: the checkout, for config/dds-loopback.xml"
@@ -33,10 +34,8 @@ struct NoUri {
 };
 
 TEST(DdsConfig, TheBuiltInOneIsTheLoopbackFile) {
-  std::ifstream file(std::string(PALPATE_SOURCE_DIR) + "/config/dds-loopback.xml");
-  std::stringstream text;
-  text << file.rdbuf();
-  std::string expected = text.str();
+  std::string expected = palpate::testing::slurp(std::filesystem::path(PALPATE_SOURCE_DIR) /
+                                                 "config/dds-loopback.xml");
   while (!expected.empty() && std::isspace(static_cast<unsigned char>(expected.back())))
     expected.pop_back();
   EXPECT_EQ(dds::loopback_config(), expected);
