@@ -6,7 +6,6 @@
 
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "palpate/core/error.hpp"
 #include "palpate/transport/dds.hpp"
