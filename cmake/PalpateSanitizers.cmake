@@ -17,10 +17,14 @@ if(PALPATE_FUZZ)
 endif()
 # Coverage instrumentation for libFuzzer on TARGET, when PALPATE_FUZZ is on.
 # Only code a fuzz target runs needs it; instrumenting the tests, the clients
-# and the viewer as well made the sanitizer build slower for nothing.
+# and the viewer as well made the sanitizer build slower for nothing. Nor
+# does Eigen's and the standard library's template code, which is most of
+# what the instrumented tests run (fuzz_coverage_ignore.txt says why).
+set(PALPATE_FUZZ_COVERAGE_FLAGS -fsanitize=fuzzer-no-link
+    -fsanitize-coverage-ignorelist=${CMAKE_CURRENT_LIST_DIR}/fuzz_coverage_ignore.txt)
 function(palpate_fuzz_coverage target)
   if(PALPATE_FUZZ)
-    target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link)
+    target_compile_options(${target} PRIVATE ${PALPATE_FUZZ_COVERAGE_FLAGS})
   endif()
 endfunction()
 
