@@ -19,7 +19,7 @@ using Eigen::Vector3d;
 /// The smallest distance between sampled points of the segment and the
 /// triangle (n × n barycentric grid, n segment samples): an upper bound of
 /// the true distance, within the samples' spacing of it. Plain doubles in
-/// the loop: its 35 million points are this test's time, and the sanitizer
+/// the loop: its 23 million points are this test's time, and the sanitizer
 /// build compiles the tests' own code unoptimized (docs/sanitizers.md).
 double sampled_distance(const Vector3d& s0, const Vector3d& axis, double length, const Vector3d& a,
                         const Vector3d& b, const Vector3d& c, int n) {

@@ -211,7 +211,7 @@ TEST(TensorMass, SegmentCrossesTheTetrahedraItMeets) {
   const Vector3d a(0.003, 0.011, 0.037), b(0.036, 0.027, 0.004);
   const auto crossed = r.model.tetrahedra_crossed_by_segment(a, b);
   // Barycentric coordinates of x in tetrahedron t: the rows of the inverse
-  // of [vertices; 1], in plain doubles for the loop below (its 12 million
+  // of [vertices; 1], in plain doubles for the loop below (its 7.7 million
   // evaluations are this test's time, and the sanitizer build compiles the
   // tests' own code unoptimized: docs/sanitizers.md).
   std::vector<std::array<double, 16>> to_bary(mesh.tetrahedra.rows());
