@@ -65,6 +65,7 @@ void ContactRows::add_tips(const Tool& tool, std::span<const TipCandidate> tips)
           tip.normal, lever, tip.depth);
     LocalRow& l = local_[static_cast<std::size_t>(count_ - 1)];
     l.target = tip.target;
+    l.material = false;  // kept on its triangle next tick: set after the solve
     l.radius = g.tip_radius_m;
     l.distance = g.tip_radius_m - tip.depth;
     if (!tip.active) rows_[static_cast<std::size_t>(count_ - 1)].state = ActiveRow::kDormant;
@@ -124,6 +125,7 @@ void ContactRows::add(const Tool& tool, int tip, const SurfacePoint& point, Cons
   row.depth = row.tip ? depth : 0.0;
   row.join_gap_m = 1e-3 * tool.geometry->tip_radius_m;
   row.state = ActiveRow::kActive;
+  row.slipped = false;
 }
 
 }  // namespace palpate::detail

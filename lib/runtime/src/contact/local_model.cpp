@@ -106,8 +106,9 @@ LocalModel::Matrix6d LocalModel::stiffness(std::span<const ActiveRow> rows,
         continue;
       }
       Vector3d dp = Vector3d::Zero();
-      if (row.count == 3) dp = across * dc;
-      if (row.count == 2 && edge.squaredNorm() > 0) dp = edge * (edge.dot(dc) / edge.squaredNorm());
+      if (row.count == 3 && !l.material) dp = across * dc;
+      if (row.count == 2 && !l.material && edge.squaredNorm() > 0)
+        dp = edge * (edge.dot(dc) / edge.squaredNorm());
       const Vector3d dn = l.distance > 1e-9 * l.radius ? Vector3d(across * (dp - dc) / l.distance)
                                                        : Vector3d::Zero();
       // A sticking point is also taken along with the tool's motion at it,

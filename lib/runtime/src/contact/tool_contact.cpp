@@ -50,6 +50,7 @@ struct ToolContactEngine::Impl {
     bool in_watchdog = false;
     std::vector<detail::TipCandidate> tips;  // this tick's tip contacts, deepest first
     int tip_count = 0;
+    std::vector<detail::TipCandidate> kept;  // last tick's, while the search reads them
     ToolOutput out;
     ToolOutput pending;    // solve()'s events, until answer()
     bool answered = true;  // answer() since the last solve()
@@ -112,7 +113,7 @@ struct ToolContactEngine::Impl {
         surface(m, w),
         grasps(static_cast<int>(geometries.size()), per_tool_cap, l.max_constraints,
                m.compliance_vertex_count(), m.surface.triangle_count()),
-        tip_search(m.surface.triangle_count()),
+        tip_search(m.surface.triangle_count() + per_tool_cap),
         solution(static_cast<int>(geometries.size()), l.max_constraints,
                  m.compliance_vertex_count(), m.surface.triangle_count()),
         constraints(l.max_constraints, static_cast<int>(geometries.size()), surface, background),
@@ -121,6 +122,7 @@ struct ToolContactEngine::Impl {
       Tool tool;
       tool.geometry = std::move(g);
       tool.tips.resize(static_cast<std::size_t>(per_tool_cap));
+      tool.kept.resize(static_cast<std::size_t>(per_tool_cap));
       tools.push_back(std::move(tool));
     }
     surface.set_loads(0, solution.load_indices().data(), solution.load_forces().data(), 0);
@@ -172,9 +174,15 @@ struct ToolContactEngine::Impl {
       out.events[static_cast<std::size_t>(out.event_count++)] = kind;
   }
 
-  /// Tool @p t's tip contacts (docs/tools.md, "Tip contacts").
-  void find_tips(int t) {
+  /// Tool @p t's tip contacts (docs/tools.md, "Tip contacts"), its
+  /// @p had points of the last tick kept where they still touch.
+  void find_tips(int t, int had) {
     Tool& tool = tools[static_cast<std::size_t>(t)];
+    std::swap(tool.tips, tool.kept);
+    // Sticking tissue is material: a frictional tip keeps its points
+    // (docs/tools.md, "Material contact points"); a frictionless one finds
+    // the closest points anew.
+    const int kept = tool.geometry.friction > 0 ? had : 0;
     const int room = std::max(0, per_tool_cap - static_cast<int>(grasps.held(t).size()));
     const detail::TipQuery query{t,
                                  &tool.geometry,
@@ -184,6 +192,7 @@ struct ToolContactEngine::Impl {
                                  grasps.holding(t),
                                  search_radius(tool.geometry)};
     tool.tip_count = tip_search.find(query, surface, grasps.owner(), solution.triangle_owner(),
+                                     {tool.kept.data(), static_cast<std::size_t>(kept)},
                                      {tool.tips.data(), static_cast<std::size_t>(room)});
   }
 
@@ -199,8 +208,9 @@ struct ToolContactEngine::Impl {
       // Ramping out: the last contacts, scaled down, not found again (the
       // scaled-back tissue would leave the frozen tip and come back).
       if (tool.alive && tool.in_watchdog) continue;
+      const int had = tool.tip_count;
       tool.tip_count = 0;
-      if (tool.alive) find_tips(t);
+      if (tool.alive) find_tips(t, had);
     }
     return solve_all();
   }
@@ -248,7 +258,15 @@ struct ToolContactEngine::Impl {
       constraints.solved(t, tool.alive && !tool.in_watchdog, tool.pose.position_m, tool.rotation);
     }
     for (int b = 0; b < constraints.count(); ++b) {
-      if (constraints.row(b).state != detail::ActiveRow::kActive) continue;
+      const bool active = constraints.row(b).state == detail::ActiveRow::kActive;
+      if (constraints.tip(b) >= 0) {  // kept next tick as touching or not, sliding or not
+        detail::TipCandidate& tip = tools[static_cast<std::size_t>(constraints.tool(b))]
+                                        .tips[static_cast<std::size_t>(constraints.tip(b))];
+        tip.touched = active;
+        tip.stuck = active && !constraints.row(b).slipped ? tip.stuck + 1 : 0;
+        constraints.local(b).material = tip.stuck >= detail::kMaterialAfter;
+      }
+      if (!active) continue;
       const Tool& tool = tools[static_cast<std::size_t>(constraints.tool(b))];
       const ContactPoint& point =
           solution.add(active_set, constraints, b, tool.pose.position_m, tool.rotation, background);

@@ -23,6 +23,7 @@ using Kind = ConstraintKind;
 /// A sticking point starts to slide: its three rows become the normal one,
 /// b_n = nᵀ b, and its tangential force is zero.
 void slide(ActiveRow& row) {
+  row.slipped = true;
   row.kind = Kind::kNormalDisplacement;
   row.value = Vector3d(row.normal.dot(row.value), 0, 0);
 }
@@ -248,9 +249,10 @@ bool ActiveSet::slip_onto_cones() {
     const Slip& slip = slips_[index(i)];
     ActiveRow& row = rows_[index(slip.row)];
     const double a = slip_step_[index(2 * i)], b = slip_step_[index(2 * i + 1)];
-    if (info == 0 && std::isfinite(a) && std::isfinite(b))
+    if (info == 0 && std::isfinite(a) && std::isfinite(b)) {
       row.value += a * slip.t + b * slip.s;
-    else
+      row.slipped = true;
+    } else
       slide(row);  // no such targets (never met): they slide, their tangential force zero
   }
   return true;

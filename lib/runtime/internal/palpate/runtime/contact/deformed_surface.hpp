@@ -112,6 +112,9 @@ class DeformedSurface {
   void set_hidden(int triangle, bool hidden) {
     triangle_hidden_.at(static_cast<std::size_t>(triangle)) = hidden ? 1 : 0;
   }
+  bool hidden(int triangle) const {
+    return triangle_hidden_[static_cast<std::size_t>(triangle)] != 0;
+  }
 
   /// (1 + 1e-6) √(fᵀ G f): far_from()'s spread of the loads' displacements.
   double spread() const;

@@ -49,7 +49,11 @@ namespace palpate::detail {
 /// What the local model needs of a row beyond its ActiveRow.
 struct LocalRow {
   int tool = 0;
-  bool tip = false;  ///< a tip's point (found again each tick), else held by the jaws
+  bool tip = false;  ///< a tip's point, else held by the jaws
+  /// A tip's point kept on its triangle next tick (a material point, docs/tools.md
+  /// "Material contact points"), else found again where the tool's motion
+  /// moves the closest point.
+  bool material = false;
   /// How the row's target turns with the tool: δtarget = δx + δθ × lever, m.
   Eigen::Vector3d lever = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< world, unit (tip rows)

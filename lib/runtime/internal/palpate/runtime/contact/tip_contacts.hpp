@@ -8,6 +8,15 @@
 /// and its closest point is put back on the tip's surface along the normal
 /// from the axis. Deepest first, each point once, points kept apart so that
 /// their rows are independent. Allocation-free after construction.
+///
+/// The points are material (docs/tools.md, "Material contact points"): a
+/// point found once keeps its triangle and barycentric weights from tick to
+/// tick, its gap and normal recomputed where the surface has it now, while
+/// it stays within reach of the tip; a new point is added only where the
+/// deformed surface meets the tip farther than the spacing from every kept
+/// one. A tool held still therefore solves the same points every tick, and
+/// their complementarity (the active set), not the search, decides which
+/// of them push.
 
 #include <Eigen/Core>
 #include <array>
@@ -31,7 +40,20 @@ struct TipCandidate : SurfacePoint {
   /// Penetrating (or within the hysteresis shell); else a near triangle the
   /// solve may push into the tip.
   bool active = false;
+  /// Its row was in contact at the last solve (set by the engine after it):
+  /// it stays while within the hysteresis shell.
+  bool touched = false;
+  /// Solves in a row its row stuck in (set by the engine after each: 0
+  /// when it slid or pushed no more). From kMaterialAfter on the point is
+  /// kept material; before, it is found again as its triangle's closest
+  /// point, which carries the count over.
+  int stuck = 0;
 };
+
+/// Solves in a row a tip point must stick in before it is kept as a
+/// material point (docs/tools.md, "Material contact points"): a sliding
+/// contact stays the closest point, a held one becomes material.
+inline constexpr int kMaterialAfter = 2;
 
 /// A tool's segment: a capsule's from its hinge along +z; a sphere's is its centre.
 inline double tip_length(const ToolGeometry& g) {
@@ -65,15 +87,24 @@ class TipContacts {
   /// one whose point another tool's jaws may take: tissue between open
   /// jaws is not pushed. @p previous_owner (per triangle: the tool whose tip
   /// touched it last tick) keeps a contact within 5 % of r outside the tip
-  /// (hysteresis).
+  /// (hysteresis). @p kept are the tool's points of the last tick (its
+  /// `out` then, `touched` set by the solve): they come first, where they
+  /// still are within reach; @p kept must not alias @p out.
   int find(const TipQuery& q, DeformedSurface& surface, std::span<const int> owner,
-           std::span<const int> previous_owner, std::span<TipCandidate> out);
+           std::span<const int> previous_owner, std::span<const TipCandidate> kept,
+           std::span<TipCandidate> out);
 
  private:
   struct Ranked {
     double depth;
     int index;  // into found_
   };
+  /// The candidate of point @p point of triangle @p tri, at distance @p d from
+  /// the axis point @p on_segment; false: not a point the tip can push.
+  bool make_candidate(const TipQuery& q, DeformedSurface& surface, int tri,
+                      const std::array<double, 3>& weights, const Eigen::Vector3d& point,
+                      const Eigen::Vector3d& on_segment, double distance, bool active,
+                      TipCandidate& candidate) const;
   std::vector<TipCandidate> found_;
   std::vector<Ranked> ranked_;  // found_'s depths, to sort
 };

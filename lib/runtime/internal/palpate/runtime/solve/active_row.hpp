@@ -25,6 +25,9 @@ struct ActiveRow {
   double depth = 0;       ///< penetration, m: the shallowest goes first when singular
   double join_gap_m = 0;  ///< a dormant point joins when pushed this far into the tip
   char state = kActive;   ///< kActive, kReleased (let go this tick) or kDormant (watched)
+  /// A tip point that slid in this solve (onto its cone's edge, or its
+  /// tangential rows let go): false until then.
+  bool slipped = false;
 };
 
 }  // namespace palpate::detail
