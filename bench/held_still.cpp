@@ -135,8 +135,11 @@ int main(int argc, char** argv) {
     if (spots.size() == spot_count) break;
   }
 
-  const Tip tips[] = {
-      {"sphere", 0.001}, {"sphere", 0.003}, {"sphere", 0.006}, {"sphere", 0.0125}, {"capsule", 0.004}};
+  const Tip tips[] = {{"sphere", 0.001},
+                      {"sphere", 0.003},
+                      {"sphere", 0.006},
+                      {"sphere", 0.0125},
+                      {"capsule", 0.004}};
   std::printf("%s: %zu spots\n", file.c_str(), spots.size());
   std::printf("%-8s %5s %4s %6s %5s %8s %10s %10s %6s\n", "tip", "r_mm", "mu", "spot", "depth",
               "F_N", "dF_p99_N", "d2F_p99_N", "count");
