@@ -179,10 +179,6 @@ struct ToolContactEngine::Impl {
   void find_tips(int t, int had) {
     Tool& tool = tools[static_cast<std::size_t>(t)];
     std::swap(tool.tips, tool.kept);
-    // Sticking tissue is material: a frictional tip keeps its points
-    // (docs/tools.md, "Material contact points"); a frictionless one finds
-    // the closest points anew.
-    const int kept = tool.geometry.friction > 0 ? had : 0;
     const int room = std::max(0, per_tool_cap - static_cast<int>(grasps.held(t).size()));
     const detail::TipQuery query{t,
                                  &tool.geometry,
@@ -192,7 +188,7 @@ struct ToolContactEngine::Impl {
                                  grasps.holding(t),
                                  search_radius(tool.geometry)};
     tool.tip_count = tip_search.find(query, surface, grasps.owner(), solution.triangle_owner(),
-                                     {tool.kept.data(), static_cast<std::size_t>(kept)},
+                                     {tool.kept.data(), static_cast<std::size_t>(had)},
                                      {tool.tips.data(), static_cast<std::size_t>(room)});
   }
 
@@ -263,7 +259,11 @@ struct ToolContactEngine::Impl {
         detail::TipCandidate& tip = tools[static_cast<std::size_t>(constraints.tool(b))]
                                         .tips[static_cast<std::size_t>(constraints.tip(b))];
         tip.touched = active;
-        tip.stuck = active && !constraints.row(b).slipped ? tip.stuck + 1 : 0;
+        // Sticking: its three components imposed, no slip (a frictionless
+        // point's normal row never sticks, so it is never kept).
+        const detail::ActiveRow& row = constraints.row(b);
+        const bool stuck = active && row.kind == ConstraintKind::kDisplacement && !row.slipped;
+        tip.stuck = stuck ? tip.stuck + 1 : 0;
         constraints.local(b).material = tip.stuck >= detail::kMaterialAfter;
       }
       if (!active) continue;
