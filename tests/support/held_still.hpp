@@ -23,7 +23,7 @@ namespace palpate::testing {
 
 /// One hold at one depth, after its settling.
 struct Hold {
-  int spot = 0;   ///< the compliance vertex pressed
+  int spot = 0;  ///< the compliance vertex pressed
   int depth_mm = 0;
   double mean_force_n = 0, step_p99_n = 0, second_p99_n = 0;
   int least_count = 0, most_count = 0;

@@ -25,16 +25,14 @@ Tolerances, per press (force along the press, relative to the reference):
   0.1 %: the tick-to-tick iteration reached a fixed point): within 1 %
   (measured 0.3 % at most: the same fixed point, up to the reference's
   refinement tolerance);
-- a press whose contact set alternates from tick to tick (a limit cycle of 2
-  to 6 ticks, or no cycle at all under the 20 mm sphere): the mean force
-  within 10 %, the issue's target, on the presses of `lower_face_x20_y10`,
-  `upper_face_x40_ym10` and `lower_face_x20_y10_wide` (measured: −1.5 % to
-  −5.5 % under the 20 mm sphere, its held ticks from 14 % below the
-  reference to 3 % above); on `lower_face_x0_y30` at
-  4 and 5 mm the cycle's mean is 7 % and 13 % below the reference (every tick
-  of the cycle is below it, and its triangles are penetrated by up to 0.8 mm):
-  the 10 % target is not met there, and the test holds it to 20 % so that it
-  fails if this gets worse (docs/model/contact-reference.md explains the cycle).
+- a press whose contact set still alternates from tick to tick (a limit
+  cycle, or no cycle at all): the mean force within 5 %, issue 34's target
+  for every press. Since frictionless points' loads are placed by the
+  secant step (docs/tools.md, "Where a frictionless point pushes"), 19 of
+  the 20 presses are steady (within 0.2 %); the 20 mm sphere at 1 mm still
+  alternates (held ticks 3.4 % below to 0.4 % above, mean −1.5 %). Before,
+  8 alternated, and on `lower_face_x0_y30` at 4 and 5 mm the cycle's mean
+  was 7 % and 13 % below the reference (docs/model/contact-reference.md).
 
 Usage: sphere_press_test.py PRECOMPUTE SPHERE_PRESS
 """
@@ -54,22 +52,22 @@ PRECOMPUTE = SPHERE_PRESS = None
 ENV = dict(os.environ, OPENBLAS_NUM_THREADS="1")
 
 DEPTHS_MM = (1, 2, 3, 4, 5)
-TEN_PERCENT = {d: 0.10 for d in DEPTHS_MM}  # the issue's target at every depth
+FIVE_PERCENT = {d: 0.05 for d in DEPTHS_MM}  # issue 34's target at every depth
 
 # The sample organ is an ellipsoid, semi-axes 80 x 50 x 40 mm: a point aimed
 # at on its lower (or upper) face, moved onto the mesh; pressed along the ellipsoid's
 # outward normal there. Tolerance per depth (mm), see the docstring.
 SCENARIOS = {
     "lower_face_x20_y10": dict(aim=(0.02, 0.01), radius_mm=5,
-                       alternating_tolerance=TEN_PERCENT),
+                       alternating_tolerance=FIVE_PERCENT),
     "lower_face_x0_y30": dict(aim=(0.0, 0.03), radius_mm=5,
-                                     alternating_tolerance={**TEN_PERCENT, 4: 0.20, 5: 0.20}),
+                              alternating_tolerance=FIVE_PERCENT),
     "upper_face_x40_ym10": dict(aim=(0.04, -0.01), side=1, radius_mm=5,
-                                alternating_tolerance=TEN_PERCENT),
+                                alternating_tolerance=FIVE_PERCENT),
     # A wide tip (a palpating finger, a retractor): 20 mm, over twice the
     # triangles' size, where palpate's contact set never settles.
     "lower_face_x20_y10_wide": dict(aim=(0.02, 0.01), radius_mm=20,
-                                    alternating_tolerance=TEN_PERCENT),
+                                    alternating_tolerance=FIVE_PERCENT),
 }
 STEADY_TOLERANCE = 0.01
 

@@ -11,6 +11,46 @@ namespace palpate::detail {
 
 using Eigen::Vector3d;
 
+namespace {
+
+/// Where on its triangle a frictionless point that pushed last tick applies its
+/// load now (docs/tools.md, "Where a frictionless point pushes"): its weights w
+/// then, moved by β times the step r = c − w to the closest point c of its
+/// triangle now (@p closest). Plain iteration, β = 1, of "the load is at the
+/// closest point of the triangle it deforms" overshoots where a wide tip's
+/// load tilts its triangle more than the tip's curvature follows (a slope
+/// s < −1 of c in w): the load then jumps between two places every tick.
+/// Where the last step did not shrink (nor grow fourfold: then the tool
+/// moved) and overshot, the slope along it, from
+/// the tick before (w', r'), s − 1 = (r − r')·(w − w') / |w − w'|², gives
+/// β = 1 / (1 − s), the secant's landing on the fixed point of that line;
+/// else β = 1 (the plain step, which then converges). β ∈ (0, 1]: the load
+/// stays on the segment from w to c, on the triangle.
+std::array<double, 3> load_place(const TipCandidate& last, const std::array<double, 3>& step,
+                                 const std::array<double, 3>& closest) {
+  if (!last.placed) return closest;
+  const std::array<double, 3>& w = last.corner_weights;
+  double moved2 = 0, turned = 0, step2 = 0, step_before2 = 0;
+  for (std::size_t j = 0; j < 3; ++j) {
+    const double dw = w[j] - last.weights_before[j];
+    moved2 += dw * dw;
+    turned += (step[j] - last.step_before[j]) * dw;
+    step2 += step[j] * step[j];
+    step_before2 += last.step_before[j] * last.step_before[j];
+  }
+  // A step that shrank converges; one more than four times the last is the
+  // tool's own motion (the line through both says nothing of the fixed
+  // point); s < 0 ⇔ (s − 1)·|Δw|² = turned < −|Δw|².
+  if (step2 < step_before2 || step2 > 16 * step_before2 || !(moved2 > 0) || -turned <= moved2)
+    return closest;
+  const double beta = moved2 / -turned;
+  std::array<double, 3> place{};
+  for (std::size_t j = 0; j < 3; ++j) place[j] = w[j] + beta * step[j];
+  return place;
+}
+
+}  // namespace
+
 TipContacts::TipContacts(int triangles)
     : found_(static_cast<std::size_t>(triangles)), ranked_(static_cast<std::size_t>(triangles)) {}
 
@@ -36,6 +76,7 @@ bool TipContacts::make_candidate(const TipQuery& q, DeformedSurface& surface, in
     normal = (p - on_segment) / distance;
   candidate = TipCandidate{
       {tri, 0, {}, {}, Vector3d::Zero()}, r - distance, normal, on_segment + r * normal, p, active};
+  candidate.corner_weights = weights;
   bool movable = false;
   for (int i = 0; i < 3; ++i) {
     const double w = weights[static_cast<std::size_t>(i)];
@@ -151,16 +192,40 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
     const detail::SegmentTrianglePair pair =
         closest_segment_triangle(q.hinge, axis, tip_length(g), a, b, cc);
     const bool was = previous_owner[static_cast<std::size_t>(tri)] == q.tool;
-    const bool active = pair.distance < r || (was && pair.distance < r + shell);
-    if (!active && pair.distance >= r + near) continue;
+    // A frictionless point that pushed last tick from this triangle: its
+    // load moves toward the closest point by the secant's step
+    // (load_place); its gap, normal and target stay the closest point's,
+    // the tangent plane there. (A sliding frictional point's place is also
+    // where the tool drags it: the line through its last two places mixes
+    // the drag with the overshoot: measured, the secant made a frictional
+    // glide's largest step 1.7 times what it was.)
+    const TipCandidate* last = nullptr;
+    int stuck = 0;
+    for (const TipCandidate& k : kept)
+      if (k.triangle == tri && k.stuck < kMaterialAfter) {
+        stuck = std::max(stuck, k.stuck);  // its triangle's count of sticking solves
+        if (k.touched && g.friction == 0) last = &k;
+      }
+    std::array<double, 3> weights = pair.on_triangle.weights;
+    std::array<double, 3> step{};
+    if (last != nullptr) {
+      for (std::size_t j = 0; j < 3; ++j) step[j] = weights[j] - last->corner_weights[j];
+      weights = load_place(*last, step, weights);
+    }
+    const double distance = pair.distance;
+    const bool active = distance < r || (was && distance < r + shell);
+    if (!active && distance >= r + near) continue;
     if (between_jaws(pair.on_triangle.point, was)) continue;
     TipCandidate& candidate = found_[static_cast<std::size_t>(total)];
-    if (!make_candidate(q, surface, tri, pair.on_triangle.weights, pair.on_triangle.point,
-                        pair.on_segment, pair.distance, active, candidate))
+    if (!make_candidate(q, surface, tri, weights, pair.on_triangle.point, pair.on_segment, distance,
+                        active, candidate))
       continue;
-    for (const TipCandidate& k : kept)  // its triangle's count of sticking solves
-      if (k.triangle == tri && k.stuck < kMaterialAfter)
-        candidate.stuck = std::max(candidate.stuck, k.stuck);
+    candidate.stuck = stuck;
+    if (last != nullptr) {
+      candidate.weights_before = last->corner_weights;
+      candidate.step_before = step;
+      candidate.placed = true;
+    }
     ranked_[static_cast<std::size_t>(total)] = {candidate.depth, total};
     ++total;
   }

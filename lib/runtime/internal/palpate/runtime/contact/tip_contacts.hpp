@@ -48,6 +48,15 @@ struct TipCandidate : SurfacePoint {
   /// kept material; before, it is found again as its triangle's closest
   /// point, which carries the count over.
   int stuck = 0;
+  /// Where on its triangle the point lies, per corner of the triangle (the
+  /// weights above, in corner order, 0 off the point).
+  std::array<double, 3> corner_weights{};
+  /// The secant of a frictionless point's place (docs/tools.md, "Where a
+  /// frictionless point pushes"): its weights the tick before, and the step from
+  /// them to the closest point then; `placed` once it has them.
+  std::array<double, 3> weights_before{};
+  std::array<double, 3> step_before{};
+  bool placed = false;
 };
 
 /// Solves in a row a tip point must stick in before it is kept as a
