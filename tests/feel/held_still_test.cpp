@@ -14,13 +14,14 @@
 // its neighbour, by turns (docs/tools.md, "Limits of the model"). The test
 // holds that line: at most that one.
 
+#include "support/held_still.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <vector>
 
 #include "palpate/runtime/surface_model.hpp"
-#include "support/held_still.hpp"
 
 namespace palpate::feel::held_still {
 namespace {
@@ -39,8 +40,8 @@ TEST(HeldStill, EveryTipHeldAtEveryDepthFeelsStillButOne) {
   int holds = 0;
   ::testing::Message buzzing;
   int not_still = 0;
-  for (const Tip tip : {Tip{false, 0.001}, Tip{false, 0.003}, Tip{false, 0.006},
-                        Tip{false, 0.0125}, Tip{true, 0.004}})
+  for (const Tip tip : {Tip{false, 0.001}, Tip{false, 0.003}, Tip{false, 0.006}, Tip{false, 0.0125},
+                        Tip{true, 0.004}})
     for (const double friction : {0.0, 0.3}) {
       const ToolGeometry g = testing::held_tip(tip.capsule, tip.radius_m, friction);
       for (const int spot : spots)
@@ -49,8 +50,8 @@ TEST(HeldStill, EveryTipHeldAtEveryDepthFeelsStillButOne) {
           if (h.still()) continue;
           ++not_still;
           buzzing << "\n  " << g.id << " r " << tip.radius_m * 1e3 << " mm, friction " << friction
-                  << ", spot " << spot << " at " << h.depth_mm << " mm: |dF| p99 "
-                  << h.step_p99_n << " N, count " << h.least_count << "-" << h.most_count;
+                  << ", spot " << spot << " at " << h.depth_mm << " mm: |dF| p99 " << h.step_p99_n
+                  << " N, count " << h.least_count << "-" << h.most_count;
         }
     }
   EXPECT_LE(not_still, 1) << "holds not still:" << buzzing;
