@@ -16,6 +16,7 @@ using Eigen::Vector3d;
 
 constexpr double kTick = 0.001;  // s
 constexpr int kSettle = 50, kHold = 300;
+constexpr int kSlide = 1000;  // ticks: 1 mm at 1 mm/s
 
 double p99(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -85,7 +86,7 @@ ToolGeometry held_tip(bool capsule, double radius_m, double friction) {
 }
 
 std::vector<Hold> hold_at_every_depth(const SurfaceModel& organ, const ToolGeometry& g, int spot,
-                                      const HoldTrace& trace) {
+                                      const HoldTrace& trace, bool slide) {
   const Vector3d normal = vertex_normals(organ.surface).row(spot);
   const Vector3d at = organ.surface.rest_position(spot) + 0.0013 * normal.unitOrthogonal();
   const double reach =
@@ -120,6 +121,17 @@ std::vector<Hold> hold_at_every_depth(const SurfaceModel& organ, const ToolGeome
     Hold h = measure(log, log.size() - kHold);
     h.spot = spot;
     h.depth_mm = target_mm;
+    if (slide)
+      for (int i = 0; i < kSlide; ++i) {
+        pose.position_m += 1e-6 * normal.unitOrthogonal();  // 1 mm/s at 1 kHz
+        tick();
+        const ToolOutput& now_out = log.back();
+        const ToolOutput& before = log[log.size() - 2];
+        const double bound = 0.01 * now_out.force_n.norm() + 1e-3;
+        const double ratio = (now_out.force_n - before.force_n).norm() / bound;
+        h.slide_ratio = std::max(h.slide_ratio, ratio);
+        if (ratio > 1) ++h.slide_over;
+      }
     holds.push_back(h);
     if (log.back().force_limited) break;  // deeper holds the limit
   }

@@ -28,6 +28,11 @@ struct Hold {
   double mean_force_n = 0, step_p99_n = 0, second_p99_n = 0;
   int least_count = 0, most_count = 0;
   bool still() const { return step_p99_n <= 1e-3 && least_count == most_count; }
+  /// With `slide`: then moved 1 mm sideways at 1 mm/s, the largest ratio of
+  /// a tick's |ΔF| to issue 34's bound for it, 1 % of |F| + 1 mN (≤ 1 meets
+  /// it), and the ticks over the bound.
+  double slide_ratio = 0;
+  int slide_over = 0;
 };
 
 /// The @p count flattest spots of @p organ, 30 mm apart (compliance vertices).
@@ -42,8 +47,10 @@ ToolGeometry held_tip(bool capsule, double radius_m, double friction);
 using HoldTrace = std::function<void(const ToolContactEngine&, int depth_mm)>;
 
 /// Tip @p tip pressed at @p spot and held at every depth until its force
-/// limit; throws on a refused pose or a failed solve.
+/// limit; with @p slide, each hold is followed by a slow slide sideways (1 mm
+/// at 1 mm/s, along the spot's tangent), and the next depth is pressed
+/// where it ended. Throws on a refused pose or a failed solve.
 std::vector<Hold> hold_at_every_depth(const SurfaceModel& organ, const ToolGeometry& tip, int spot,
-                                      const HoldTrace& trace = {});
+                                      const HoldTrace& trace = {}, bool slide = false);
 
 }  // namespace palpate::testing
