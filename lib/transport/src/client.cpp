@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cstring>
 
 #include "client_common.hpp"
@@ -132,12 +133,29 @@ std::uint64_t Client::foreign_replies() const { return impl_->foreign_replies; }
 
 Reply Client::request(const std::string& model_id, std::span<const ConstraintSpec> constraints,
                       bool want_surface, bool update_state, std::chrono::milliseconds timeout) {
+  // A request sent before palpated's reply writer has matched this client's
+  // reply reader gets a reply nobody receives (docs/dds.md, "Reply
+  // routing"): a first request right after the model was described lost it
+  // on about half the runs. So the request waits for the match first, out
+  // of its own timeout (two status reads when matched already).
+  const auto deadline = Clock::now() + timeout;
+  if (!wait_for_service(timeout))
+    throw SystemError(fmt::format(
+        "no palpated serves client {} on domain {}: its request reader and reply writer did not "
+        "match within {} ms (is palpated running on domain {}, with a DDS configuration that "
+        "reaches this process?)",
+        impl_->options.client_id, impl_->options.domain_id, timeout.count(),
+        impl_->options.domain_id));
   const std::uint64_t id = send(model_id, constraints, want_surface, update_state);
-  auto reply = wait_reply(id, timeout);
+  const auto left =
+      std::max(std::chrono::milliseconds(0),
+               std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+  auto reply = wait_reply(id, left);
   if (!reply)
     throw SystemError(fmt::format(
-        "no reply to request {} of client {} within {} ms (is palpated running on domain {}?)", id,
-        impl_->options.client_id, timeout.count(), impl_->options.domain_id));
+        "no reply to request {} of client {} within {} ms: palpated on domain {} is matched "
+        "but did not answer (see its log: event=reply_dropped, a stall, or it stopped)",
+        id, impl_->options.client_id, timeout.count(), impl_->options.domain_id));
   return std::move(*reply);
 }
 

@@ -72,7 +72,10 @@ class Client {
   /// Replies received that were addressed to another client (partitions
   /// should make this 0; the tests check it).
   std::uint64_t foreign_replies() const;
-  /// send + wait_reply. @throws SystemError on timeout.
+  /// wait_for_service, send and wait_reply, all within @p timeout: the
+  /// first request of a new client is not lost to discovery.
+  /// @throws SystemError on timeout, saying whether palpated was not
+  /// matched or matched and did not answer.
   Reply request(const std::string& model_id, std::span<const ConstraintSpec> constraints,
                 bool want_surface = false, bool update_state = true,
                 std::chrono::milliseconds timeout = std::chrono::seconds(5));
