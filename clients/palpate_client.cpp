@@ -68,6 +68,12 @@ void print_reply(const palpate::Reply& reply) {
   std::printf("request %llu: %s", static_cast<unsigned long long>(reply.request_id),
               palpate::status_name(reply.status));
   if (!reply.message.empty()) std::printf(" — %s", reply.message.c_str());
+  // A refused request was not solved: no estimate, time or force to show
+  // (its message says why, with the estimate where that was the reason).
+  if (reply.status != palpate::RequestStatus::kOk) {
+    std::printf("\n");
+    return;
+  }
   std::printf("\n  condition estimate %.3g, solve %.1f µs, total force (%.6g, %.6g, %.6g) N\n",
               reply.condition_estimate, static_cast<double>(reply.solve_ns) * 1e-3,
               reply.total_force_n[0], reply.total_force_n[1], reply.total_force_n[2]);
