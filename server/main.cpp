@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "palpate/core/error.hpp"
+#include "palpate/core/organ_size.hpp"
 #include "palpate/core/suggest.hpp"
 #include "palpate/core/system_info.hpp"
 #include "palpate/core/version.hpp"
@@ -218,6 +219,14 @@ int run(int argc, char** argv) {
       std::printf("model %s: %s, %d compliance vertices, %s\n", model.id.c_str(),
                   entry.file.c_str(), model.compliance_vertex_count(),
                   model.material_summary.c_str());
+      if (const double across = palpate::bounding_diagonal_m(model.surface.rest_positions_m);
+          !palpate::plausible_organ_size(across))
+        std::fprintf(stderr,
+                     "palpated: warning: model %s: the organ is %.3g m across, not an organ's "
+                     "size (%g to %g m): was the mesh in other units (palpate-precompute "
+                     "--mesh-unit)?\n",
+                     model.id.c_str(), across, palpate::kPlausibleOrganMinM,
+                     palpate::kPlausibleOrganMaxM);
       if (!model.cut_region_spec.empty() && entry.warped)
         std::fprintf(stderr, "palpated: warning: model %s: its cut region (%s): %s\n",
                      model.id.c_str(), model.cut_region_spec.c_str(),

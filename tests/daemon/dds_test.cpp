@@ -507,6 +507,27 @@ TEST(PalpatedStartUp, StopsWithAClearMessageOnBadFilesAndConfiguration) {
     const auto box = testing::write_box_compliance(dir.path());
     const auto [code, log] = run({"--model", "box=" + box.string(), "--check-config"});
     EXPECT_EQ(code, 0) << log;
+    EXPECT_EQ(log.find("warning"), std::string::npos) << log;
+  }
+  {
+    // The box in millimetres read as metres: 100 m long. Served, with a
+    // warning where precompute gave one (issue 35), in --check-config and
+    // in the log of a served model.
+    const auto huge = testing::write_clamped_compliance(testing::box_mesh(100, 50, 40, 4, 2, 2),
+                                                        dir.path(), "huge", 85e3);
+    const auto [code, log] = run({"--model", "huge=" + huge.string(), "--check-config"});
+    EXPECT_EQ(code, 0) << log;
+    EXPECT_NE(log.find("palpated: warning: model huge: the organ is 119 m across, not an "
+                       "organ's size (0.01 to 1 m)"),
+              std::string::npos)
+        << log;
+    Daemon served({"--model", "huge=" + huge.string(), "--domain", "5"}, dir / "huge.log");
+    Client client(ClientOptions{"huge-check", 5, "", false, false});
+    EXPECT_TRUE(client.wait_for_model("huge", kDdsTimeout)) << served.log();
+    EXPECT_EQ(served.stop(SIGTERM), 0) << served.log();
+    EXPECT_NE(served.log().find("event=organ_size_suspicious model=huge across_m=119"),
+              std::string::npos)
+        << served.log();
   }
 }
 

@@ -9,6 +9,7 @@
 #include "daemon_stats.hpp"
 #include "palpate.h"
 #include "palpate/core/error.hpp"
+#include "palpate/core/organ_size.hpp"
 #include "palpate/transport/dds.hpp"
 #include "palpate/transport/realtime.hpp"
 #include "palpate/transport/wire.hpp"
@@ -164,6 +165,15 @@ void Service::Impl::load_models() {
     if (!loaded.cut_region_spec.empty() && entry.warped)
       spdlog::warn("event=cut_region_not_simulated model={} region=\"{}\" hint=\"{}\"", loaded.id,
                    loaded.cut_region_spec, palpate::kCutRegionNotSimulated);
+    // What precompute warned of, said again where the file is served: a
+    // mesh in millimetres read as metres serves an organ hundreds of metres
+    // across whose every press is a thousandth of what it should be.
+    if (const double across = bounding_diagonal_m(loaded.surface.rest_positions_m);
+        !plausible_organ_size(across))
+      spdlog::warn(
+          "event=organ_size_suspicious model={} across_m={:.3g} accepted_m={:g}-{:g} hint=\"not "
+          "an organ's size: was the mesh in other units (palpate-precompute --mesh-unit)?\"",
+          loaded.id, across, kPlausibleOrganMinM, kPlausibleOrganMaxM);
     served_ids += (served_ids.empty() ? "" : ", ") + loaded.id;
     models.push_back(
         std::make_unique<daemon::ServedModel>(std::move(loaded), options, entry.warped));

@@ -10,6 +10,8 @@
 #include <string_view>
 #include <vector>
 
+#include "palpate/core/organ_size.hpp"
+
 namespace palpate {
 
 /// Young's moduli of soft tissues and their phantoms, Pa: from about 1 kPa
@@ -19,10 +21,8 @@ inline constexpr double kPlausibleYoungModulusMaxPa = 1e6;
 /// Above this Poisson ratio, linear (P1) tetrahedra lock: λ/μ = 2ν/(1 − 2ν)
 /// passes 49, and the element is much too stiff in pressing and bending.
 inline constexpr double kLockingPoissonRatio = 0.49;
-/// Organ sizes, m: the diagonal of the bounding box, from a small sample or
-/// a kidney (1 cm) to a whole liver's 0.3 m with room (1 m).
-inline constexpr double kPlausibleOrganMinM = 0.01;
-inline constexpr double kPlausibleOrganMaxM = 1.0;
+// Organ sizes (kPlausibleOrganMinM, kPlausibleOrganMaxM): palpate/core/organ_size.hpp,
+// which palpated checks too.
 
 /// Densities of soft tissues, kg/m³: fat about 950, liver and muscle about
 /// 1,060, cortical bone 1,900; outside this range a density was probably
