@@ -69,6 +69,12 @@ if [ ! -f "$gesture" ]; then
   echo "demo: PALPATE_DEMO_GESTURE=$gesture: no such file (the gestures are in config/gestures/)" >&2
   exit 2
 fi
+# A mistyped input is said before minutes of install and build, not after.
+# (The sample organ's mesh is made below, so its job needs no file yet.)
+if [ -n "$input" ] && [ "$cut_demo" = 0 ] && [ ! -f "$input" ]; then
+  echo "demo: $input: no such file (expected a job .toml or a mesh .msh/.mesh/.vtk/.stl)" >&2
+  exit 2
+fi
 warp_flags=()
 netns_mode=${PALPATE_DEMO_NETNS:-private}
 build=${PALPATE_BUILD_DIR:-build}
@@ -131,10 +137,6 @@ if [ -z "$input" ] || [ "$cut_demo" = 1 ]; then
   say "the sample organ (about 1,900 vertices, the scale of the 1999 INRIA liver)"
   "$precompute" make-sample -o out/sample-organ.msh --size 0.008
   [ -n "$input" ] || input=config/sample-organ.toml
-fi
-if [ ! -f "$input" ]; then
-  echo "demo: $input: no such file (expected a job .toml or a mesh .msh/.mesh/.vtk/.stl)" >&2
-  exit 2
 fi
 case $input in
   *.toml) job=$input ;;
