@@ -361,6 +361,15 @@ int run(int argc, char** argv) {
                       e.message);
           if (e.kind == PALPATE_DEVICE_EVENT_GRASP)
             std::printf(" (%u point%s held)", e.held_points, e.held_points == 1 ? "" : "s");
+          // Not a fault: palpated ramps a silent tool's force out, and this
+          // client's poses were late (a busy machine); said once, in words.
+          const bool first = kind < run.events.size() && run.events[kind] == 1;
+          if (e.kind == PALPATE_DEVICE_EVENT_WATCHDOG && first)
+            std::printf(
+                " (no pose reached palpated within its watchdog timeout: this process "
+                "was late, e.g. a busy machine; the force ramps down until poses come)");
+          if (e.kind == PALPATE_DEVICE_EVENT_RESUMED && first)
+            std::printf(" (poses arrive again: the force comes back)");
           std::printf("  [pose %llu]\n", pose);
           if (event_lines == kMaxEventLines)
             std::printf("  … further events are only counted (summary)\n");
