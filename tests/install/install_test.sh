@@ -35,6 +35,16 @@ fi
 
 # The CMake consumer, every public header in a unit of its own.
 cp -r "$source/tests/install/consumer" "$work/consumer"
+# README's first client, exactly as README has it (the block after
+# <!-- first-client -->), built below with the consumer at CMake's defaults.
+awk '/^<!-- first-client -->$/ { take = 1; next }
+     take && /^```cpp$/ { inside = 1; next }
+     inside && /^```$/ { exit }
+     inside { print }' "$source/README.md" >"$work/consumer/first_client.cpp"
+[ -s "$work/consumer/first_client.cpp" ] || {
+  echo "install_test: README has no <!-- first-client --> block" >&2
+  exit 1
+}
 mkdir -p "$work/consumer-build/headers"
 i=0
 for h in $(cd "$prefix/include" && find palpate -name '*.hpp' | sort); do
@@ -51,6 +61,31 @@ cmake --build "$work/consumer-build" -j2 >"$work/consumer-build.log" 2>&1 || {
 "$work/consumer-build/consumer"
 "$work/consumer-build/device_client"
 "$work/consumer-build/device_c"
+
+# The first client against a real palpated started just before it, twenty
+# times in a row, each a new process: its first request is not lost to
+# discovery (issue 35), and it prints what README says.
+"$prefix/bin/palpate-precompute" -q make-sample -o "$work/organ.msh"
+"$prefix/bin/palpate-precompute" -q -j "$source/config/sample-organ.toml" --mesh "$work/organ.msh" \
+  --no-xdmf -o "$work/organ.h5"
+"$prefix/bin/palpated" --model organ="$work/organ.h5" >"$work/palpated.log" 2>&1 &
+palpated_pid=$!
+trap 'kill "$palpated_pid" 2>/dev/null || true' EXIT
+for run in $(seq 20); do
+  out=$("$work/consumer-build/first_client") || {
+    echo "install_test: README's first client failed on run $run: $out" >&2
+    cat "$work/palpated.log" >&2
+    exit 1
+  }
+  case $out in
+    "ok: vertex "*" moved ("*") m") ;;
+    *) echo "install_test: README's first client printed '$out' on run $run" >&2; exit 1 ;;
+  esac
+done
+echo "install_test: README's first client, 20 runs: $out"
+kill "$palpated_pid"
+wait "$palpated_pid" 2>/dev/null || true
+trap - EXIT
 
 # pkg-config, for builds without CMake.
 PKG_CONFIG_PATH=$prefix/lib/pkgconfig
