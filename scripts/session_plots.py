@@ -10,7 +10,9 @@ section "Plots") and writes three PNGs:
                        per tick (pose taken -> feedback written, `compute_ns`),
                        µs on a log axis, per tool, with its p50, p99 and max
                        marked;
-  <stem>-contacts.png  per tool, contacts per tick against time, events marked.
+  <stem>-contacts.png  per tool, the vertices carrying contact force per tick against
+                       time, events marked (a contact point on a triangle loads up to
+                       its 3 vertices: more than palpate-pliers' contact points).
 <stem> is the file name without ".h5" ("-partial" appended for a "<file>.partial"
 left by a crash, which is plotted up to its last flush). Each PNG is written
 under a temporary name in the output directory and renamed into place.
@@ -220,16 +222,20 @@ def force_figure(session):
 
 
 def contacts_figure(session):
-    fig, axes = tool_rows(session, "Contacts per tick, per tool")
+    # The recording keeps the contact forces per vertex: a point on a
+    # triangle loads up to three, so these exceed the tool's contact points
+    # (palpate-pliers' "max contacts"), and are named for what they count.
+    fig, axes = tool_rows(session, "Vertices carrying contact force per tick, per tool")
     for ax, tool in zip(axes, session.tools):
         if len(tool.time_s) == 0:
             no_ticks(ax, tool)
             continue
         ax.plot(tool.time_s, tool.contact_count, drawstyle="steps-post", color="black",
-                linewidth=1.0, label="contacts")
+                linewidth=1.0, label="loaded vertices")
         mark_events(ax, tool)
-        ax.set_title(f"tool {tool.id}: max contacts per tick {int(tool.contact_count.max())}")
-        ax.set_ylabel("contacts (count)")
+        ax.set_title(f"tool {tool.id}: at most {int(tool.contact_count.max())} loaded vertices "
+                     "per tick")
+        ax.set_ylabel("loaded vertices (count)")
         ax.yaxis.get_major_locator().set_params(integer=True)
         ax.set_ylim(bottom=0)
         ax.grid(True, alpha=0.3)

@@ -305,11 +305,12 @@ class SessionPlots(unittest.TestCase):
         self.assertEqual(len(fig.axes), 2)
         for ax, tool in zip(fig.axes, self.session.tools):
             with self.subTest(tool=tool.id):
-                line = lines_by_label(ax)["contacts"]
+                line = lines_by_label(ax)["loaded vertices"]
                 np.testing.assert_array_equal(line.get_xdata(), tool.time_s)
                 np.testing.assert_array_equal(line.get_ydata(), tool.contact_count)
-                self.assertIn(f"max contacts per tick {int(EXPECTED[tool.id]['contact_count'].max())}",
-                              ax.get_title())
+                # Named for what it counts, vertices, not contact points (issue 35).
+                self.assertIn(f"at most {int(EXPECTED[tool.id]['contact_count'].max())} loaded "
+                              "vertices per tick", ax.get_title())
 
     def test_the_latency_figure_draws_the_cdfs_and_marks_p50_p99_max(self):
         fig = plots.figures(self.session)["latency"]
