@@ -12,7 +12,7 @@ section "Plots") and writes three PNGs:
                        marked;
   <stem>-contacts.png  per tool, the vertices carrying contact force per tick against
                        time, events marked (a contact point on a triangle loads up to
-                       its 3 vertices: more than palpate-pliers' contact points).
+                       its 3 vertices: usually more than palpate-pliers' contact points).
 <stem> is the file name without ".h5" ("-partial" appended for a "<file>.partial"
 left by a crash, which is plotted up to its last flush). Each PNG is written
 under a temporary name in the output directory and renamed into place.
