@@ -130,14 +130,10 @@ int TipContacts::find(const TipQuery& q, DeformedSurface& surface, std::span<con
     const int one[1] = {k.triangle};
     surface.deform_corners(one);
     const int* corner = surface.corners(k.triangle);
-    std::array<double, 3> weights{};
+    const std::array<double, 3>& weights = k.corner_weights;  // 0 off the point
     Vector3d p = Vector3d::Zero();
-    for (int i = 0; i < k.count; ++i)
-      for (int j = 0; j < 3; ++j)
-        if (corner[j] == k.vertices[static_cast<std::size_t>(i)]) {
-          weights[static_cast<std::size_t>(j)] = k.weights[static_cast<std::size_t>(i)];
-          p += k.weights[static_cast<std::size_t>(i)] * surface.deformed(corner[j]);
-        }
+    for (std::size_t j = 0; j < 3; ++j)
+      if (weights[j] != 0) p += weights[j] * surface.deformed(corner[j]);
     const Vector3d on_segment = closest_on_segment(q.hinge, axis, tip_length(g), p);
     const double distance = (p - on_segment).norm();
     const bool active = distance < r || (k.touched && distance < r + shell);
