@@ -59,7 +59,7 @@ std::vector<UnitReading> unit_readings(double diagonal) {
   std::vector<UnitReading> readings;
   for (const char* name : {"m", "cm", "mm"}) {
     const double d = diagonal * parse_length_unit(name).to_metres;
-    readings.push_back({name, d, d >= kPlausibleOrganMinM && d <= kPlausibleOrganMaxM});
+    readings.push_back({name, d, plausible_organ_size(d)});
   }
   return readings;
 }
@@ -77,7 +77,7 @@ std::string likely_unit(double diagonal) {
 
 std::optional<std::string> organ_size_warning(double diagonal_m, std::string_view unit,
                                               std::string_view source) {
-  if (diagonal_m >= kPlausibleOrganMinM && diagonal_m <= kPlausibleOrganMaxM) return std::nullopt;
+  if (plausible_organ_size(diagonal_m)) return std::nullopt;
   const double in_file = diagonal_m / parse_length_unit(std::string(unit)).to_metres;
   const std::string guess = likely_unit(in_file);
   const double with_guess = in_file * parse_length_unit(guess).to_metres;
