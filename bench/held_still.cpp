@@ -91,11 +91,13 @@ int main(int argc, char** argv) {
       trace.assign(argv + a + 1, argv + a + 5), a += 4;
     else if (arg[0] == '-')
       die("unknown option " + arg +
-          "; accepted: --spots N, --all, --trace TIP FRICTION SPOT DEPTH");
+          "; accepted: --spots N, --all, --slide, --trace TIP FRICTION SPOT DEPTH");
     else
       file = arg;
   }
-  if (file.empty()) die("usage: palpate_held_still COMPLIANCE.h5 [--spots N] [--all]");
+  if (file.empty())
+    die("usage: palpate_held_still COMPLIANCE.h5 [--spots N] [--all] [--slide] "
+        "[--trace TIP FRICTION SPOT DEPTH]");
   namespace t = palpate::testing;
   const palpate::SurfaceModel organ = palpate::load_surface_model("organ", file);
   const std::vector<int> spots = t::flattest_spots(organ, spot_count);
