@@ -28,6 +28,15 @@ recordings and their plots still exist, unchanged, after the second, which
 added one recording of its own, and the demo's listing counts them all.
 No timing is asserted.
 
+What the demo prints cannot go stale: README's "What the demo prints"
+block quotes, per tool, the line "max |force| F N, max grip G N, max
+contacts C" and the grasp events' "(N point(s) held)"; the first run must
+print the same tools with F and G within 3 % + 0.05 N of the quoted ones
+(a repeat of the gesture, or a feedback that arrived late, moves a maximum
+by a tick), C within one and the same held counts. And the demo's default
+tools stay within their 8 N device limit: no tool's max |force| reaches it
+(the gestures are sized for it, config/gestures/demo.toml).
+
 CTest runs it inside a private network namespace whose only interface is
 loopback (palpate_isolated_test), as root: the demo creates its own nested
 namespace. It refuses to run anywhere else.
@@ -52,6 +61,13 @@ DONE = re.compile(
 KEPT = "kept (--reuse): it already holds this problem"
 # Four parts, each rounded down to 0.1 s, against a total rounded down too.
 PARTS_TOLERANCE_S = 0.4
+# README's quoted summary against a run: forces and grips (N).
+QUOTED_RELATIVE, QUOTED_ABSOLUTE_N = 0.03, 0.05
+DEFAULT_FORCE_LIMIT_N = 8.0  # palpated's default tools (docs/tools.md, "The tool")
+TOOL_LINE = re.compile(r"^  (?P<tool>\w+): \d+ poses", re.M)
+MAX_LINE = re.compile(r"max \|force\| (?P<force>\d+\.\d+) N, max grip (?P<grip>\d+\.\d+) N, "
+                      r"max contacts (?P<contacts>\d+)")
+HELD = re.compile(r"^ +\d+\.\d+ s +(?P<tool>\w+) +grasp \((?P<held>\d+) points? held\)", re.M)
 
 
 def fail(message):
@@ -135,6 +151,58 @@ def check_run(name, output, out):
              "(want 0 of at least 4: holder, palpated, viewer, screenshots)")
 
 
+def summary(text):
+    """{tool: (max force N, max grip N, max contacts)} and [(tool, held)] of a demo's output."""
+    tools = {}
+    for match in TOOL_LINE.finditer(text):
+        # Its "max |force|" line is the second after "  TOOL: N poses".
+        line = MAX_LINE.search("\n".join(text[match.end():].splitlines()[1:3]))
+        if line:
+            tools[match["tool"]] = (float(line["force"]), float(line["grip"]), int(line["contacts"]))
+    return tools, [(m["tool"], int(m["held"])) for m in HELD.finditer(text)]
+
+
+def readme_quote(source):
+    """The first fenced block after README's heading "## What the demo prints"."""
+    text = open(os.path.join(source, "README.md"), encoding="utf-8").read()
+    heading = text.find("\n## What the demo prints")
+    if heading < 0:
+        fail('README.md has no heading "## What the demo prints"; update this test')
+    start = text.find("\n```\n", heading)
+    end = text.find("\n```\n", start + 1)
+    if start < 0 or end < 0:
+        fail('README.md: no fenced block after "## What the demo prints"')
+    return text[start + 5:end]
+
+
+def check_quoted_summary(name, output, source):
+    quoted, quoted_held = summary(readme_quote(source))
+    printed, printed_held = summary(output)
+    if not quoted:
+        fail("README.md's demo output quotes no 'max |force| F N, max grip G N, max contacts C' line; update this test")
+    if set(quoted) != set(printed):
+        fail(f"{name}: README quotes tools {sorted(quoted)}, the demo printed {sorted(printed)}")
+    for tool, (force, grip, contacts) in quoted.items():
+        run = printed[tool]
+        for what, want, got in (("max |force|", force, run[0]), ("max grip", grip, run[1])):
+            if abs(got - want) > QUOTED_RELATIVE * want + QUOTED_ABSOLUTE_N:
+                fail(f"{name}: {tool}: {what} {got:.3f} N, README says {want:.3f} N (tolerance "
+                     f"{QUOTED_RELATIVE:.0%} + {QUOTED_ABSOLUTE_N} N): regenerate README's block from a demo run")
+        if abs(run[2] - contacts) > 1:
+            fail(f"{name}: {tool}: max contacts {run[2]}, README says {contacts} (tolerance 1)")
+        if run[0] >= DEFAULT_FORCE_LIMIT_N - 1e-3:
+            fail(f"{name}: {tool}: max |force| {run[0]:.3f} N reaches the default tools' "
+                 f"{DEFAULT_FORCE_LIMIT_N} N limit: the demo's gesture must stay within it")
+    # A grasp's held points, in the order they come (the quote may elide later ones).
+    for (tool, held), got in zip(quoted_held, printed_held):
+        if (tool, held) != got:
+            fail(f"{name}: grasp events: README quotes {tool} holding {held}, the demo printed "
+                 f"{got[0]} holding {got[1]}")
+    if len(printed_held) < len(quoted_held):
+        fail(f"{name}: README quotes {len(quoted_held)} grasp events, the demo printed {len(printed_held)}")
+    print(f"demo_test: {name}: the summary README quotes holds: {printed}")
+
+
 def recordings(folder):
     """{recording: mtime_ns} in the demo's recordings folder."""
     path = os.path.join(folder, "recordings")
@@ -186,6 +254,7 @@ def main():
     # ---- the first run: precomputes, records one session
     first = run_demo("first run", source, job, env, os.path.join(work, "first.log"))
     check_run("first run", first, out)
+    check_quoted_summary("first run", first, source)
     if KEPT in first:
         fail("first run: the compliance file did not exist, yet the precompute says it kept it")
     if not os.path.isfile(compliance):

@@ -8,8 +8,23 @@ A fenced block runs when the line before its ```sh (or ```bash) fence is
                                       (the OpenHELP liver, docs/data.md)
     <!-- doc-test: timeout=600 -->    a longer limit than --timeout
 
-(options separated by commas). GitHub does not show the comment. Blocks
-without it are not run, on purpose:
+(options separated by commas). GitHub does not show the comment.
+
+A plain fenced block (``` with no language) after
+
+    <!-- doc-test: quote -->
+
+quotes what the document's last marked block before it printed, and cannot
+go stale: its measured lines are compared with that block's output, in
+order. They are palpate-pliers' per-tool `max |force| F N, max grip G N,
+max contacts C` (F and G within 3 % + 0.05 N: a feedback that arrived a
+tick late moves a maximum by a tick; C within one) and its grasp events'
+`grasp (N points held)` (equal), and the rows of scripts/session_report.py's
+table (the tool equal, its max force and max grip as above). A quote with none of them is an error (it
+would check nothing); its other lines (latencies, counts that depend on
+the machine's load) are the reader's example, not checked.
+
+Blocks without a doc-test marker are not run, on purpose:
 - the README's two commands, scripts/demo.sh and scripts/test.sh: they
   install packages and take minutes; CI runs them (.ci/run). This harness
   starts from the state the first one leaves: a build, and the sample organ
@@ -56,6 +71,15 @@ import time
 
 DEFAULT_DOCS = ["README.md", "docs/tutorial-stl-to-haptics.md"]
 MARKER = re.compile(r"^<!--\s*doc-test\s*(?::\s*(?P<options>[^>]*?))?\s*-->\s*$")
+# What a quote's measured lines say, and how close a run must come.
+MAX_LINE = re.compile(r"max \|force\| (?P<force>\d+\.\d+) N, max grip (?P<grip>\d+\.\d+) N, "
+                      r"max contacts (?P<contacts>\d+)")
+HELD = re.compile(r"grasp \((?P<held>\d+) points? held\)")
+# A row of scripts/session_report.py's table: tool, ticks, duration, in
+# contact, grasping, max force N, mean force in contact N, max grip N, ...
+REPORT_ROW = re.compile(r"^(?P<tool>\w+) +\d+ +[\d.]+ +[\d.]+ +[\d.]+ +(?P<force>[\d.]+) +[\d.]+ +"
+                        r"(?P<grip>[\d.]+) +[\d.]+ +\d+")
+QUOTE_RELATIVE, QUOTE_ABSOLUTE_N, QUOTE_CONTACTS = 0.03, 0.05, 1
 FENCE_OPEN = re.compile(r"^(?P<fence>`{3,})\s*(?P<lang>\S*)")
 SKIPPED_DIRS = {".git", "out", "node_modules"}
 
@@ -64,6 +88,44 @@ class Block:
     def __init__(self, doc, line, text, needs_data, timeout):
         self.doc, self.line, self.text = doc, line, text
         self.needs_data, self.timeout = needs_data, timeout
+        self.quotes = []  # (line, text) of the quotes of its output that follow it
+
+
+def measured(text):
+    """The measured lines of a quote or an output: [(kind, values)] in order."""
+    found = []
+    for line in text.split("\n"):
+        if m := MAX_LINE.search(line):
+            found.append(("max", (float(m["force"]), float(m["grip"]), int(m["contacts"]))))
+        if m := HELD.search(line):
+            found.append(("held", int(m["held"])))
+        if m := REPORT_ROW.match(line):
+            found.append(("row", (float(m["force"]), float(m["grip"]), m["tool"])))
+    return found
+
+
+def check_quote(doc, line, quote, output):
+    """The differences between a quote and the output it quotes, as messages."""
+    want, got = measured(quote), measured(output)
+    failures = []
+    for kind in ("max", "held", "row"):
+        w = [v for k, v in want if k == kind]
+        g = [v for k, v in got if k == kind]
+        if len(g) < len(w):
+            failures.append(f"{doc}:{line}: the quote has {len(w)} '{kind}' line(s), the block printed {len(g)}")
+        for i, (a, b) in enumerate(zip(w, g)):
+            if kind == "held" and a != b:
+                failures.append(f"{doc}:{line}: grasp {i + 1}: the quote says {a} point(s) held, the run {b}")
+            if kind == "row" and a[2] != b[2]:
+                failures.append(f"{doc}:{line}: report row {i + 1}: tool {b[2]}, the quote says {a[2]}")
+            if kind in ("max", "row"):
+                for what, x, y in (("max |force|", a[0], b[0]), ("max grip", a[1], b[1])):
+                    if abs(x - y) > QUOTE_RELATIVE * x + QUOTE_ABSOLUTE_N:
+                        failures.append(f"{doc}:{line}: summary {i + 1}: {what} {y:.3f} N, the quote says "
+                                        f"{x:.3f} N (tolerance {QUOTE_RELATIVE:.0%} + {QUOTE_ABSOLUTE_N} N)")
+                if kind == "max" and abs(a[2] - b[2]) > QUOTE_CONTACTS:
+                    failures.append(f"{doc}:{line}: summary {i + 1}: max contacts {b[2]}, the quote says {a[2]}")
+    return failures
 
 
 def extract_blocks(doc, path, default_timeout):
@@ -80,14 +142,32 @@ def extract_blocks(doc, path, default_timeout):
             i += 1
             continue
         needs_data, timeout = False, default_timeout
-        for option in filter(None, (o.strip() for o in (marker["options"] or "").split(","))):
+        options = [o.strip() for o in (marker["options"] or "").split(",") if o.strip()]
+        if options == ["quote"]:
+            fence = FENCE_OPEN.match(lines[i + 1]) if i + 1 < len(lines) else None
+            if not fence or fence["lang"]:
+                sys.exit(f"{doc}:{i + 1}: a doc-test quote marker must be followed by a plain ``` fence")
+            if not blocks:
+                sys.exit(f"{doc}:{i + 1}: a doc-test quote before any marked block: it quotes nothing")
+            end = next((j for j in range(i + 2, len(lines)) if lines[j].startswith(fence["fence"])), None)
+            if end is None:
+                sys.exit(f"{doc}:{i + 2}: the block is never closed")
+            quote = "\n".join(lines[i + 2:end])
+            if not measured(quote):
+                sys.exit(f"{doc}:{i + 2}: the quote has no measured line ('max |force| F N, max grip G N, "
+                         "max contacts C', 'grasp (N points held)' or a session report's row): "
+                         "it would check nothing")
+            blocks[-1].quotes.append((i + 2, quote))
+            i = end + 1
+            continue
+        for option in options:
             if option == "needs-data":
                 needs_data = True
             elif option.startswith("timeout="):
                 timeout = float(option.split("=", 1)[1])
             else:
                 sys.exit(f"{doc}:{i + 1}: unknown doc-test option '{option}' "
-                         "(accepted: needs-data, timeout=SECONDS)")
+                         "(accepted: needs-data, timeout=SECONDS; or quote alone)")
         fence = FENCE_OPEN.match(lines[i + 1]) if i + 1 < len(lines) else None
         if not fence or fence["lang"] not in ("sh", "bash", "shell"):
             sys.exit(f"{doc}:{i + 1}: a doc-test marker must be followed by a ```sh fence")
@@ -224,12 +304,26 @@ def run_document(doc, blocks, copy, env):
     # A file, not a pipe, for the status lines: a daemon the script starts
     # inherits the descriptor, and must not keep its reader waiting.
     open(status_path, "w").close()
-    process = subprocess.Popen(["bash", base + ".sh"], cwd=copy, env=env,
-                               stdin=subprocess.DEVNULL, start_new_session=True)
+    # The output goes to a file too, read back as it comes (shown in order)
+    # and, at the end, split at each block's header for its quotes.
+    output_path = base + ".out"
+    with open(output_path, "wb") as output_file:
+        process = subprocess.Popen(["bash", base + ".sh"], cwd=copy, env=env, stdin=subprocess.DEVNULL,
+                                   stdout=output_file, stderr=subprocess.STDOUT, start_new_session=True)
     current, started, ended, fails, failures = None, None, set(), [], []
-    pending, position = "", 0
+    pending, position, shown = "", 0, 0
+
+    def show():
+        nonlocal shown
+        with open(output_path, "rb") as f:
+            f.seek(shown)
+            chunk = f.read()
+        shown += len(chunk)
+        sys.stdout.write(chunk.decode(errors="replace"))
+
     while True:
         code = process.poll()
+        show()
         with open(status_path, encoding="utf-8") as f:
             f.seek(position)
             chunk = f.read()
@@ -262,6 +356,7 @@ def run_document(doc, blocks, copy, env):
     deadline = time.monotonic() + 3
     while alive_in_group(process.pid) and time.monotonic() < deadline:
         time.sleep(0.05)
+    show()
     if alive_in_group(process.pid):
         failures.append(f"{doc}: still running when the document ended (start them with "
                         f"`& pid=$!` and stop them with `kill $pid`): "
@@ -282,6 +377,19 @@ def run_document(doc, blocks, copy, env):
     elif len(ended) != len(blocks):
         failures.append(f"{doc}: the script ended after {len(ended)} of {len(blocks)} blocks "
                         "(an `exit` in a block?)")
+    else:
+        output = open(output_path, encoding="utf-8", errors="replace").read()
+        for index, block in enumerate(blocks):
+            header = f"\n==> {block.doc}:{block.line}\n"
+            begin = output.find(header)
+            end = output.find("\n==> ", begin + len(header)) if begin >= 0 else -1
+            printed = output[begin + len(header):end if end >= 0 else len(output)]
+            for line, quote in block.quotes:
+                checked = check_quote(doc, line, quote, printed)
+                failures += checked
+                if not checked:
+                    print(f"doc-test: {doc}:{line}: the quote of the block at line {block.line} holds "
+                          f"({len(measured(quote))} measured line(s))")
     return failures
 
 
