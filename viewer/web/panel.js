@@ -43,10 +43,15 @@ export function renderRates(page, status) {
   document.querySelector('#rates tbody').replaceChildren(...rows.map(([k, v]) => row(cell(k), cell(v, 'num'))));
 }
 
+/** "1 point held", "3 points held": a grasp's held points, as palpate-pliers says it. */
+function heldPoints(n) {
+  return `${n} point${n === 1 ? '' : 's'} held`;
+}
+
 /** Adds an event or warning message at the top of the list; returns its text. */
 export function addEvent(e) {
   const text = e.type === 'warning' ? `warning: ${e.message}`
-    : `${e.tool_id}: ${e.kind}${e.kind === 'grasp' ? ` (${e.held_vertices} vertices)` : ''}`;
+    : `${e.tool_id}: ${e.kind}${e.kind === 'grasp' ? ` (${heldPoints(e.held_vertices)})` : ''}`;
   const list = document.getElementById('events');
   const li = document.createElement('li');
   li.textContent = text;
