@@ -9,6 +9,7 @@
 
 #include "palpate/core/error.hpp"
 #include "palpate/runtime/contact/background_loads.hpp"
+#include "palpate/runtime/contact/contact_episodes.hpp"
 #include "palpate/runtime/contact/contact_rows.hpp"
 #include "palpate/runtime/contact/contact_solution.hpp"
 #include "palpate/runtime/contact/deformed_surface.hpp"
@@ -56,7 +57,7 @@ struct ToolContactEngine::Impl {
     bool answered = true;  // answer() since the last solve()
     bool has_output = false;
     double last_output_s = 0;
-    ToolState shown_state = ToolState::kFree;
+    detail::ContactEpisodes episodes;  // its touch and leave events
   };
   std::vector<Tool> tools;
 
@@ -303,7 +304,9 @@ struct ToolContactEngine::Impl {
   /// The feedback of tool @p t at @p now_s: its contact wrench and @p added
   /// (a wrench from beside its contacts: ToolContactEngine::answer) through
   /// the device's limits together (FeedbackLimits); state events.
-  void make_output(int t, double now_s, ToolOutput& out, const ToolWrench& added = {}) {
+  /// @p ending: its session ends (a pending leave is sent now).
+  void make_output(int t, double now_s, ToolOutput& out, const ToolWrench& added = {},
+                   bool ending = false) {
     Tool& tool = tools[static_cast<std::size_t>(t)];
     // The local model of this tick's solve; the last one's when it failed
     // (its pose is its own, so it stays right about where it was made).
@@ -338,14 +341,8 @@ struct ToolContactEngine::Impl {
     const ToolState state = grasps.holding(t) && tool.alive ? ToolState::kGrasping
                             : out.contacts > 0              ? ToolState::kTouching
                                                             : ToolState::kFree;
-    if (state != tool.shown_state) {
-      if (state == ToolState::kTouching && tool.shown_state == ToolState::kFree)
-        push_event(out, ToolEventKind::kTouch);
-      if (state == ToolState::kFree && tool.shown_state == ToolState::kTouching)
-        push_event(out, ToolEventKind::kLeave);
-    }
+    if (const auto event = tool.episodes.step(state, now_s, ending)) push_event(out, *event);
     out.state = state;
-    tool.shown_state = state;
     tool.out = out;
     tool.has_output = true;
     tool.last_output_s = now_s;
@@ -506,7 +503,7 @@ bool ToolContactEngine::end(int t, double now_s) {
   // The others feel the tissue it let go of.
   if (had_contacts) s.find_contacts_and_solve();
   ToolOutput out;
-  s.make_output(t, now_s, out);                       // a touching tool leaves first,
+  s.make_output(t, now_s, out, {}, /*ending=*/true);  // a touching tool leaves first,
   Impl::push_event(tool.out, ToolEventKind::kEnded);  // then its session ends
   return true;
 }
