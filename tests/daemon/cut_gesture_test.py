@@ -12,6 +12,8 @@ config/gestures/cut.toml over real Cyclone DDS. Then:
 - the left pliers grasped before the first cut and let go after the last,
   once, and every answer the left tool got while the hook's edge was live
   says it was grasping.
+- the hook's touch and leave events are contact episodes: at most two of
+  each, though its contact comes and goes every other tick while it cuts.
 
 No timing is asserted: a loaded machine may answer late; only what was
 answered is checked. This script runs in a private network namespace whose
@@ -165,6 +167,19 @@ class CutGesture(unittest.TestCase):
         self.assertGreater(len(answered), 0)
         not_grasping = [(r["tick"], r["state"]) for r in answered if r["state"] != "grasping"]
         self.assertEqual(not_grasping, [], f"{len(not_grasping)} of {len(answered)} answers")
+
+    def test_the_hooks_contact_is_one_episode_per_stroke(self):
+        # While its edge is live the hook's contact is there every other
+        # tick (it cuts through what it touches); its touch and leave events
+        # tell contact episodes (docs/tools.md, "One tick"): one stroke, at
+        # most a touch and a leave each for the press and the draw, not one
+        # pair per millisecond (131 pairs before 2026-12-02).
+        with open(self.json_path) as f:
+            summary = json.load(f)
+        hook = next(t for t in summary["tools"] if t["id"] == "hook")
+        self.assertLessEqual(hook["events"].get("touch", 0), 2, hook["events"])
+        self.assertLessEqual(hook["events"].get("leave", 0), 2, hook["events"])
+        self.assertEqual(len(self.lines("tool_touch", "hook")), hook["events"].get("touch", 0))
 
 
 if __name__ == "__main__":
